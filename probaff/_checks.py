@@ -1,0 +1,85 @@
+"""Input validation shared by every module: one place for shape, finiteness and range checks."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import torch
+
+from probaff.errors import InputError
+
+__all__ = ["check_finite", "check_positive", "check_probability", "check_shape"]
+
+
+def _as_array(x: Any) -> np.ndarray:
+    if isinstance(x, torch.Tensor):
+        return x.detach().cpu().numpy()
+    return np.asarray(x)
+
+
+def check_finite(name: str, x: Any) -> None:
+    """Raise `InputError` if `x` holds NaN or infinite values.
+
+    Args:
+        name: What `x` is, as the user knows it (e.g. ``"features"``).
+        x: Array-like or tensor of any shape.
+    """
+    arr = _as_array(x)
+    if arr.size and not np.all(np.isfinite(arr)):
+        bad = int(np.size(arr) - np.count_nonzero(np.isfinite(arr)))
+        raise InputError(
+            f"{name} contains {bad} NaN or infinite value(s); clean or impute them before "
+            "passing them to probaff."
+        )
+
+
+def check_shape(name: str, x: Any, shape: Sequence[int | None]) -> None:
+    """Raise `InputError` unless `x` has `shape` (``None`` matches any size).
+
+    Args:
+        name: What `x` is.
+        x: Array-like or tensor.
+        shape: Expected shape; ``None`` entries are wildcards.
+    """
+    actual = tuple(x.shape) if isinstance(x, torch.Tensor) else tuple(_as_array(x).shape)
+    ok = len(actual) == len(shape) and all(
+        e is None or e == a for e, a in zip(shape, actual, strict=True)
+    )
+    if not ok:
+        want = "(" + ", ".join("*" if e is None else str(e) for e in shape) + ")"
+        raise InputError(f"{name} has shape {actual}, expected {want}.")
+
+
+def check_positive(name: str, value: float, *, allow_zero: bool = False) -> None:
+    """Raise `InputError` unless `value` is a finite number > 0 (or >= 0 if `allow_zero`).
+
+    Args:
+        name: What `value` is.
+        value: The scalar to check.
+        allow_zero: Accept exactly zero.
+    """
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a number, got {value!r}.") from None
+    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise InputError(f"{name} must be a finite number {bound}, got {value!r}.")
+
+
+def check_probability(name: str, x: Any) -> None:
+    """Raise `InputError` unless every entry of `x` is a finite probability in [0, 1].
+
+    Args:
+        name: What `x` is.
+        x: Array-like or tensor of any shape.
+    """
+    check_finite(name, x)
+    arr = _as_array(x)
+    if arr.size and (arr.min() < 0 or arr.max() > 1):
+        raise InputError(
+            f"{name} must lie in [0, 1]; got values in [{arr.min():.4g}, {arr.max():.4g}]."
+        )

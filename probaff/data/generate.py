@@ -1,0 +1,297 @@
+"""Deterministic, sharded, resumable push-dataset generation, serial or on Dask.
+
+Shard ``i`` of a dataset with seed ``s`` is simulated from ``SeedSequence(s, spawn_key=(i,))``
+alone, so a serial run, a local Dask cluster and a remote scheduler all produce the same bytes.
+Workers return arrays; only the calling process writes files, so a remote cluster needs no
+shared file system.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from tqdm.auto import tqdm
+
+from probaff._checks import check_positive
+from probaff.data.schema import SCHEMA_VERSION, PushDataset
+from probaff.data.store import (
+    FORMAT_NAME,
+    load_dataset,
+    read_manifest,
+    read_shard,
+    shard_path,
+    write_manifest,
+    write_shard,
+)
+from probaff.errors import DatasetError, InputError
+from probaff.sim.config import load_catalogue
+from probaff.sim.runner import PushSample, PushSimulator
+from probaff.sim.sensing import object_cloud
+
+__all__ = ["GenerateConfig", "generate", "make_shard", "samples_to_arrays"]
+
+
+@dataclass(frozen=True)
+class GenerateConfig:
+    """What to generate.
+
+    Attributes:
+        scene: Scene template name.
+        n: Number of pushes.
+        seed: Dataset seed.
+        shard_size: Pushes per shard (the unit of work, of resumption and of Dask tasks).
+        trajectories: Store gripper and object trajectories.
+        cloud_points: Points per object cloud.
+        cloud_noise: Standard deviation of the cloud noise (m).
+    """
+
+    scene: str
+    n: int
+    seed: int = 0
+    shard_size: int = 64
+    trajectories: bool = True
+    cloud_points: int = 256
+    cloud_noise: float = 0.002
+
+    def validate(self) -> None:
+        """Raise `InputError` for a non-positive count or size, or a negative noise or seed."""
+        for name in ("n", "shard_size", "cloud_points"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
+                raise InputError(f"{name} must be a positive integer, got {v!r}.")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise InputError(f"seed must be a non-negative integer, got {self.seed!r}.")
+        check_positive("cloud_noise", self.cloud_noise, allow_zero=True)
+
+    @property
+    def n_shards(self) -> int:
+        """Number of shards."""
+        return -(-self.n // self.shard_size)
+
+    def shard_rows(self, index: int) -> int:
+        """Pushes in shard `index`."""
+        return min(self.shard_size, self.n - index * self.shard_size)
+
+
+def samples_to_arrays(samples: list[PushSample], object_names: list[str], rng: np.random.Generator,
+                      cloud_points: int, cloud_noise: float, trajectories: bool
+                      ) -> dict[str, np.ndarray]:
+    """Stack simulated pushes into schema arrays, sensing each scene's clouds.
+
+    Args:
+        samples: Pushes of one scene template.
+        object_names: Catalogue vocabulary for ``object_ids``.
+        rng: Randomness for the clouds.
+        cloud_points: Points per object cloud.
+        cloud_noise: Cloud noise standard deviation (m).
+        trajectories: Include the optional trajectories.
+
+    Returns:
+        Arrays named and typed as `probaff.data.schema` documents.
+    """
+    index = {n: i for i, n in enumerate(object_names)}
+    clouds = [[object_cloud(o, p, cloud_points, cloud_noise, rng)
+               for o, p in zip(s.scene.objects, s.scene.poses, strict=True)] for s in samples]
+    out = {
+        "object_ids": np.array([[index[o.name] for o in s.scene.objects] for s in samples],
+                               dtype=np.int16),
+        "state_before": np.array([s.outcome.state_before for s in samples]),
+        "state_after": np.array([s.outcome.state_after for s in samples]),
+        "effect": np.array([s.outcome.effect for s in samples]),
+        "push_origin": np.array([s.scene.push_origin for s in samples]),
+        "push_yaw": np.array([s.scene.push_yaw for s in samples]),
+        "push_distance": np.array([s.scene.push_distance for s in samples]),
+        "q_waypoints": np.array([s.q_waypoints for s in samples]),
+        "mass": np.array([s.scene.mass for s in samples]),
+        "ground_friction": np.array([s.scene.ground_friction for s in samples]),
+        "contact_friction": np.array([s.scene.contact_friction for s in samples]),
+        "walls": np.array([s.scene.walls for s in samples]).reshape(len(samples), -1, 4),
+        "hand_contact": np.array([s.outcome.hand_contact for s in samples]),
+        "object_contact": np.array([s.outcome.object_contact for s in samples]),
+        "wall_contact": np.array([s.outcome.wall_contact for s in samples]),
+        "fell_off": np.array([s.outcome.fell_off for s in samples]),
+        "hand_lag": np.array([s.outcome.hand_lag for s in samples]),
+        "max_penetration": np.array([s.outcome.max_penetration for s in samples]),
+        "cloud_points": np.array([[c[0] for c in cs] for cs in clouds], dtype=np.float32),
+        "cloud_normals": np.array([[c[1] for c in cs] for cs in clouds], dtype=np.float32),
+    }
+    if trajectories:
+        out["traj_time"] = np.array([s.outcome.traj_time for s in samples])
+        out["traj_hand"] = np.array([s.outcome.traj_hand for s in samples], dtype=np.float32)
+        out["traj_objects"] = np.array([s.outcome.traj_objects for s in samples],
+                                       dtype=np.float32)
+    return {k: v.astype(v.dtype, copy=False) for k, v in out.items()}
+
+
+@contextlib.contextmanager
+def _single_thread() -> Iterator[None]:
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
+def make_shard(config: GenerateConfig, index: int) -> dict[str, np.ndarray]:
+    """Simulate shard `index` of a dataset; depends only on the config and `index`.
+
+    Args:
+        config: The dataset's generation config.
+        index: Shard number.
+
+    Returns:
+        The shard's arrays.
+    """
+    ss = np.random.SeedSequence(config.seed, spawn_key=(index,))
+    sim_rng, sense_rng = (np.random.default_rng(s) for s in ss.spawn(2))
+    with _single_thread():
+        sim = PushSimulator(config.scene)
+        samples = list(sim.run(config.shard_rows(index), sim_rng))
+    return samples_to_arrays(samples, sorted(load_catalogue()), sense_rng, config.cloud_points,
+                             config.cloud_noise, config.trajectories)
+
+
+def _plan(config: GenerateConfig) -> dict[str, Any]:
+    return asdict(config)
+
+
+def _prepare(out: Path, config: GenerateConfig, resume: bool) -> dict[str, Any]:
+    if out.exists() and not resume:
+        raise DatasetError(
+            f"{out} already exists; pass --resume (resume=True) to continue it, or choose a "
+            "new output path."
+        )
+    if out.exists() and (out / "manifest.json").is_file():
+        manifest = read_manifest(out)
+        if manifest["plan"] != _plan(config):
+            raise DatasetError(
+                f"{out} was started with {manifest['plan']}, not {_plan(config)}; resume it "
+                "with the same options or choose a new output path."
+            )
+        return manifest
+    if out.exists() and any(out.iterdir()):
+        raise DatasetError(f"{out} exists and is not a probaff dataset; choose a new path.")
+    sim = PushSimulator(config.scene)  # validates the scene before any work starts
+    manifest = {
+        "format": FORMAT_NAME,
+        "schema_version": SCHEMA_VERSION,
+        "plan": _plan(config),
+        "object_names": sorted(load_catalogue()),
+        "meta": {
+            "scene": config.scene,
+            "table_size": list(sim.world.table_size),
+            "push_height": sim.world.arm.push_height,
+            "control_rate": sim.world.physics.control_rate,
+            "record_rate": sim.world.record_rate,
+            "arm_base_xyz": list(sim.world.arm.base_xyz),
+            "arm_base_yaw": sim.world.arm.base_yaw,
+        },
+        "shards": {},
+    }
+    out.mkdir(parents=True, exist_ok=True)
+    write_manifest(out, manifest)
+    return manifest
+
+
+def _adopt_orphans(out: Path, config: GenerateConfig, manifest: dict[str, Any]) -> None:
+    """Register complete shard files written just before a crash, drop temporaries."""
+    shards_dir = out / "shards"
+    if not shards_dir.is_dir():
+        return
+    for tmp in shards_dir.glob(".*.tmp-*"):
+        tmp.unlink()
+    for i in range(config.n_shards):
+        key = f"{i:05d}"
+        if key in manifest["shards"] or not shard_path(out, i).is_file():
+            continue
+        try:
+            arrays = read_shard(out, i)
+        except DatasetError:
+            shard_path(out, i).unlink()
+            continue
+        if len(arrays.get("effect", ())) == config.shard_rows(i):
+            digest = hashlib.sha256(shard_path(out, i).read_bytes()).hexdigest()
+            manifest["shards"][key] = {"rows": config.shard_rows(i), "sha256": digest}
+        else:
+            shard_path(out, i).unlink()
+    write_manifest(out, manifest)
+
+
+@contextlib.contextmanager
+def _dask_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
+    from dask.distributed import Client, LocalCluster
+
+    if scheduler:
+        client = Client(scheduler)
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    n = workers or os.cpu_count() or 1
+    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        yield client
+
+
+def generate(config: GenerateConfig, out: str | os.PathLike[str], *, workers: int | None = 0,
+             scheduler: str | None = None, resume: bool = False, progress: bool = True
+             ) -> PushDataset:
+    """Generate (or finish) a push dataset on disk and return it.
+
+    Args:
+        config: What to generate.
+        out: Dataset folder to create.
+        workers: 0 runs serially in this process; ``None`` or K > 0 starts a local Dask
+            cluster of K single-threaded worker processes (``None``: one per core).
+        scheduler: Address of an existing Dask scheduler; overrides `workers`.
+        resume: Continue an existing folder made with the same config.
+        progress: Show a tqdm progress bar.
+
+    Returns:
+        The complete dataset, loaded from disk.
+
+    Raises:
+        DatasetError: If `out` exists without `resume`, or belongs to another config.
+        ConfigError: For an unknown scene or object.
+    """
+    config.validate()
+    if workers is not None and (isinstance(workers, bool) or workers < 0):
+        raise InputError(f"workers must be >= 0, got {workers!r}.")
+    out = Path(out)
+    manifest = _prepare(out, config, resume)
+    _adopt_orphans(out, config, manifest)
+    todo = [i for i in range(config.n_shards) if f"{i:05d}" not in manifest["shards"]]
+    bar = tqdm(total=config.n, initial=config.n - sum(config.shard_rows(i) for i in todo),
+               unit="push", desc=f"generate {config.scene}", disable=not progress)
+
+    def store(i: int, arrays: dict[str, np.ndarray]) -> None:
+        digest = write_shard(out, i, arrays)
+        manifest["shards"][f"{i:05d}"] = {"rows": config.shard_rows(i), "sha256": digest}
+        write_manifest(out, manifest)
+        bar.update(config.shard_rows(i))
+
+    try:
+        if todo and (workers == 0 and not scheduler):
+            for i in todo:
+                store(i, make_shard(config, i))
+        elif todo:
+            from dask.distributed import as_completed
+
+            with _dask_client(workers, scheduler) as client:
+                futures = client.map(make_shard, [config] * len(todo), todo, pure=False)
+                index = {f.key: i for f, i in zip(futures, todo, strict=True)}
+                for fut in as_completed(futures):
+                    store(index[fut.key], fut.result())
+    finally:
+        bar.close()
+    return load_dataset(out)

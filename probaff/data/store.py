@@ -1,0 +1,191 @@
+"""The on-disk dataset format: a folder of a JSON manifest and checksummed shards.
+
+Layout (schema version 1)::
+
+    PATH/
+      manifest.json        {"format": "probaff-push-dataset", "schema_version": 1,
+                            "plan": {scene, n, seed, shard_size, ...},
+                            "object_names": [...], "meta": {...},
+                            "shards": {"00000": {"rows": R, "sha256": HEX}, ...}}
+      shards/00000.npz     rows [0, shard_size) as a NumPy .npz archive, one .npy per array
+      shards/00001.npz     ...
+
+Shard ``i`` holds pushes ``i * shard_size`` to ``(i + 1) * shard_size - 1`` and is produced from
+the dataset seed and ``i`` alone, so it is identical however and wherever it is computed. Every
+file is written to a temporary name, flushed and renamed into place, so a run killed at any
+moment leaves only complete files; the manifest is rewritten (atomically) after each shard. The
+archives carry fixed timestamps, so the same seed gives byte-identical files.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from probaff.data.schema import SCHEMA_VERSION, PushDataset
+from probaff.errors import DatasetError
+
+__all__ = [
+    "FORMAT_NAME",
+    "atomic_write_bytes",
+    "load_dataset",
+    "read_manifest",
+    "read_shard",
+    "shard_path",
+    "write_manifest",
+    "write_shard",
+]
+
+FORMAT_NAME = "probaff-push-dataset"
+_EPOCH = (1980, 1, 1, 0, 0, 0)
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write `data` to `path` so that readers see either the old file or the whole new one."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    with open(tmp, "wb") as fh:
+        fh.write(data)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+
+
+def shard_path(root: Path, index: int) -> Path:
+    """Path of shard `index` under dataset folder `root`."""
+    return root / "shards" / f"{index:05d}.npz"
+
+
+def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        for name in sorted(arrays):
+            arr = np.ascontiguousarray(arrays[name])
+            member = io.BytesIO()
+            np.lib.format.write_array(member, arr, allow_pickle=False)
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=_EPOCH)
+            info.compress_type = zipfile.ZIP_DEFLATED
+            info.external_attr = 0o644 << 16
+            zf.writestr(info, member.getvalue())
+    return buf.getvalue()
+
+
+def write_shard(root: Path, index: int, arrays: dict[str, np.ndarray]) -> str:
+    """Write one shard atomically.
+
+    Args:
+        root: Dataset folder.
+        index: Shard number.
+        arrays: Named arrays with equal row counts.
+
+    Returns:
+        The SHA-256 hex digest of the written file.
+    """
+    data = _npz_bytes(arrays)
+    atomic_write_bytes(shard_path(root, index), data)
+    return hashlib.sha256(data).hexdigest()
+
+
+def read_shard(root: Path, index: int, sha256: str | None = None) -> dict[str, np.ndarray]:
+    """Read one shard, checking its checksum when given.
+
+    Raises:
+        DatasetError: If the file is missing, truncated, corrupt or fails its checksum.
+    """
+    path = shard_path(root, index)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise DatasetError(
+            f"shard {path} is missing ({exc}); rerun `probaff generate ... --resume` to "
+            "recreate it."
+        ) from exc
+    if sha256 is not None and hashlib.sha256(data).hexdigest() != sha256:
+        raise DatasetError(
+            f"shard {path} does not match its checksum in manifest.json (truncated or "
+            "modified); delete it and rerun `probaff generate ... --resume`."
+        )
+    try:
+        with np.load(io.BytesIO(data), allow_pickle=False) as npz:
+            return {k: npz[k] for k in npz.files}
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+        raise DatasetError(
+            f"shard {path} is corrupt ({exc}); delete it and rerun `probaff generate ... "
+            "--resume`."
+        ) from exc
+
+
+def write_manifest(root: Path, manifest: dict[str, Any]) -> None:
+    """Write ``manifest.json`` atomically (sorted keys, so equal content gives equal bytes)."""
+    text = json.dumps(manifest, indent=1, sort_keys=True) + "\n"
+    atomic_write_bytes(root / "manifest.json", text.encode())
+
+
+def read_manifest(root: Path) -> dict[str, Any]:
+    """Read and check a dataset's manifest.
+
+    Raises:
+        DatasetError: If it is missing, not JSON, not a probaff dataset, or of another schema
+            version.
+    """
+    path = Path(root) / "manifest.json"
+    if not path.is_file():
+        raise DatasetError(
+            f"{root} is not a probaff dataset (no manifest.json); create one with "
+            "`probaff generate`."
+        )
+    try:
+        manifest = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise DatasetError(f"{path} is truncated or not JSON ({exc}).") from exc
+    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
+        raise DatasetError(f"{path} does not describe a {FORMAT_NAME}.")
+    version = manifest.get("schema_version")
+    if version != SCHEMA_VERSION:
+        raise DatasetError(
+            f"{root} has schema version {version}, but this probaff reads version "
+            f"{SCHEMA_VERSION}; regenerate it with `probaff generate`."
+        )
+    return manifest
+
+
+def load_dataset(root: str | os.PathLike[str]) -> PushDataset:
+    """Load a complete dataset folder into memory, verifying every shard.
+
+    Args:
+        root: Dataset folder written by `probaff generate`.
+
+    Raises:
+        DatasetError: If the dataset is incomplete, corrupt or of another version.
+    """
+    root = Path(root)
+    manifest = read_manifest(root)
+    plan = manifest["plan"]
+    n, size = int(plan["n"]), int(plan["shard_size"])
+    n_shards = -(-n // size)
+    shards = manifest.get("shards", {})
+    missing = [i for i in range(n_shards) if f"{i:05d}" not in shards]
+    if missing:
+        raise DatasetError(
+            f"{root} is incomplete: {len(missing)} of {n_shards} shards are missing (first: "
+            f"{missing[0]}); finish it with `probaff generate ... --resume`."
+        )
+    parts = []
+    for i in range(n_shards):
+        entry = shards[f"{i:05d}"]
+        arrays = read_shard(root, i, entry["sha256"])
+        rows = len(arrays.get("effect", ()))
+        if rows != entry["rows"]:
+            raise DatasetError(f"shard {i} of {root} has {rows} rows, manifest says "
+                               f"{entry['rows']}.")
+        parts.append(PushDataset(arrays, list(manifest["object_names"]), manifest["meta"]))
+    ds = PushDataset.concatenate(parts)
+    ds.meta = {**manifest["meta"], **plan}
+    return ds

@@ -1,0 +1,338 @@
+"""The robot arm: a URDF chain in pytorch-kinematics with batched inverse kinematics.
+
+Every gripper pose the simulator commands is reached through IK on this chain; the physics then
+tracks the forward kinematics of the resulting joint trajectory. Poses outside the reachable
+workspace are refused with `UnreachablePoseError`.
+
+Frames: ``world`` (table centre on its surface, z up), ``base`` (the arm's base link) and ``tcp``
+(tool centre point between the fingertips; z out of the gripper, y joining the fingers). For a
+push, the tcp points straight down and its x axis is the push direction z_p.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+import pytorch_kinematics as pk
+import torch
+
+from probaff._checks import check_finite, check_shape
+from probaff.errors import ConfigError, UnreachablePoseError
+from probaff.sim.config import ArmSpec
+
+__all__ = ["Arm", "IKResult", "PushPathIK", "load_arm", "topdown_pose"]
+
+_DTYPE = torch.float64
+# Elbow/wrist postures that hold the tool vertical over the table; the pan joint of each seed is
+# aimed at the target, so three seeds per pose suffice.
+_POSTURES = ((-1.5, 1.8, -1.9), (-1.0, 1.5, -2.1), (-2.0, 2.0, -1.6))
+_MAX_JOINT_STEP = 0.6  # rad between consecutive waypoints; more means an IK branch flip
+
+
+def topdown_pose(xy: torch.Tensor, yaw: torch.Tensor, height: float) -> torch.Tensor:
+    """Tool poses pointing straight down with the tool x axis at `yaw`.
+
+    Args:
+        xy: (B, 2) tcp positions in the world frame (m).
+        yaw: (B,) world yaw of the tool x axis (the push direction z_p), rad.
+        height: tcp height above the table (m).
+
+    Returns:
+        T_world_tcp: (B, 4, 4).
+    """
+    c, s = torch.cos(yaw), torch.sin(yaw)
+    T = torch.zeros(xy.shape[0], 4, 4, dtype=_DTYPE)
+    T[:, 0, 0], T[:, 1, 0] = c, s
+    T[:, 0, 1], T[:, 1, 1] = s, -c
+    T[:, 2, 2] = -1.0
+    T[:, 0, 3], T[:, 1, 3], T[:, 2, 3] = xy[:, 0], xy[:, 1], height
+    T[:, 3, 3] = 1.0
+    return T
+
+
+@dataclass(frozen=True)
+class IKResult:
+    """Batched IK solutions.
+
+    Attributes:
+        q: (B, dof) joint angles (rad); meaningful only where `converged`.
+        converged: (B,) whether position and orientation met the tolerances.
+        pos_error: (B,) position error of `q` (m).
+        rot_error: (B,) orientation error of `q` (rad).
+    """
+
+    q: torch.Tensor
+    converged: torch.Tensor
+    pos_error: torch.Tensor
+    rot_error: torch.Tensor
+
+
+@dataclass(frozen=True)
+class PushPathIK:
+    """Joint waypoints of straight top-down pushes.
+
+    Attributes:
+        q: (B, K, dof) joint angles at K waypoints evenly spaced along each push.
+        ok: (B,) every waypoint converged and the joint path is continuous.
+    """
+
+    q: torch.Tensor
+    ok: torch.Tensor
+
+
+class Arm:
+    """A serial arm from a URDF, mounted in the world at T_world_base.
+
+    Args:
+        spec: URDF path, tcp link, mounting and IK tolerances (from ``worlds/tabletop.yaml``).
+    """
+
+    def __init__(self, spec: ArmSpec) -> None:
+        self.spec = spec
+        try:
+            data = spec.urdf.read_bytes()
+        except OSError as exc:
+            raise ConfigError(f"cannot read the arm URDF {spec.urdf}: {exc}.") from exc
+        try:
+            chain = pk.build_serial_chain_from_urdf(data, spec.tcp_link)
+        except Exception as exc:  # the URDF parser raises many unrelated types
+            raise ConfigError(
+                f"{spec.urdf.name} is not a valid URDF with a link {spec.tcp_link!r}: {exc}"
+            ) from exc
+        self.chain = chain.to(dtype=_DTYPE)
+        self.dof = len(self.chain.get_joint_parameter_names())
+        if self.dof < 6:
+            raise ConfigError(f"{spec.urdf.name}: the arm needs >= 6 joints, found {self.dof}.")
+        c, s = math.cos(spec.base_yaw), math.sin(spec.base_yaw)
+        T = torch.eye(4, dtype=_DTYPE)
+        T[:2, :2] = torch.tensor([[c, -s], [s, c]], dtype=_DTYPE)
+        T[:3, 3] = torch.tensor(spec.base_xyz, dtype=_DTYPE)
+        self.T_world_base = T
+        self.T_base_world = torch.linalg.inv(T)
+
+    # -- kinematics -------------------------------------------------------------------------
+    def fk(self, q: torch.Tensor) -> torch.Tensor:
+        """Forward kinematics.
+
+        Args:
+            q: (B, dof) joint angles.
+
+        Returns:
+            T_world_tcp: (B, 4, 4).
+        """
+        T_base_tcp = self.chain.forward_kinematics(q.to(_DTYPE)).get_matrix()
+        return self.T_world_base @ T_base_tcp
+
+    def planar_fk(self, q: torch.Tensor) -> torch.Tensor:
+        """Top-down pose of the tcp, as the planar physics uses it.
+
+        Args:
+            q: (B, dof) joint angles.
+
+        Returns:
+            (B, 3) world ``(x, y, yaw)`` of the tcp, yaw being that of the tool x axis.
+        """
+        T = self.fk(q)
+        return torch.stack([T[:, 0, 3], T[:, 1, 3], torch.atan2(T[:, 1, 0], T[:, 0, 0])], dim=-1)
+
+    def _seeds(self, T_world_tcp: torch.Tensor) -> torch.Tensor:
+        p = (self.T_base_world @ T_world_tcp)[:, :3, 3]
+        pan = torch.atan2(p[:, 1], p[:, 0])
+        seeds = torch.zeros(p.shape[0], len(_POSTURES), self.dof, dtype=_DTYPE)
+        for r, (a, b, c) in enumerate(_POSTURES):
+            seeds[:, r, 0] = pan
+            seeds[:, r, 1:4] = torch.tensor([a, b, c], dtype=_DTYPE)
+            seeds[:, r, 4] = -math.pi / 2
+        return seeds
+
+    def ik(self, T_world_tcp: torch.Tensor, seeds: torch.Tensor | None = None) -> IKResult:
+        """Batched inverse kinematics (damped least squares, pytorch-kinematics).
+
+        Args:
+            T_world_tcp: (B, 4, 4) target tool poses.
+            seeds: (B, R, dof) initial joint configurations to try per target; by default three
+                tool-down postures aimed at each target.
+
+        Returns:
+            The best converged solution per target (the first converged retry).
+        """
+        check_shape("T_world_tcp", T_world_tcp, (None, 4, 4))
+        check_finite("T_world_tcp", T_world_tcp)
+        B = T_world_tcp.shape[0]
+        if seeds is None:
+            seeds = self._seeds(T_world_tcp)
+        R = seeds.shape[1]
+        solver = pk.PseudoInverseIK(
+            self.chain,
+            retry_configs=seeds[0],
+            max_iterations=self.spec.max_iterations,
+            pos_tolerance=self.spec.pos_tolerance,
+            rot_tolerance=self.spec.rot_tolerance,
+            early_stopping_any_converged=True,
+            early_stopping_no_improvement="all",
+            enforce_joint_limits=False,
+        )
+        solver.initial_config = seeds.reshape(B * R, self.dof)
+        target = pk.Transform3d(matrix=self.T_base_world @ T_world_tcp, dtype=_DTYPE)
+        sol = solver.solve(target)
+        q_all = self._wrap_to_limits(sol.solutions)  # (B, R, dof)
+        in_limits = ((q_all >= self.chain.low) & (q_all <= self.chain.high)).all(-1)
+        conv = sol.converged & in_limits  # (B, R)
+        first = torch.where(conv.any(1), conv.to(torch.int8).argmax(1), sol.err_pos.argmin(1))
+        idx = torch.arange(B)
+        return IKResult(
+            q=q_all[idx, first],
+            converged=conv.any(1),
+            pos_error=sol.err_pos[idx, first],
+            rot_error=sol.err_rot[idx, first],
+        )
+
+    def _wrap_to_limits(self, q: torch.Tensor) -> torch.Tensor:
+        """Shift each joint by a multiple of 2 pi towards the middle of its limits."""
+        mid = 0.5 * (self.chain.low + self.chain.high)
+        return q - 2 * math.pi * torch.round((q - mid) / (2 * math.pi))
+
+    # -- pushes -----------------------------------------------------------------------------
+    def waypoint_count(self, distance: float) -> int:
+        """Number of IK waypoints (ends included) along a push of `distance` metres."""
+        return max(2, math.ceil(distance / self.spec.waypoint_spacing) + 1)
+
+    def solve_pushes(self, start_xy: torch.Tensor, yaw: torch.Tensor, distance: float
+                     ) -> PushPathIK:
+        """IK for straight top-down pushes, batched over pushes.
+
+        The start poses are solved from the default seeds; each later waypoint is solved for all
+        pushes at once, seeded with the previous waypoint's solution, which keeps a push on one
+        IK branch and converges in a few iterations.
+
+        Args:
+            start_xy: (B, 2) world tcp positions where the pushes start (m).
+            yaw: (B,) world yaw of each push direction z_p (rad).
+            distance: Push length d_p along z_p (m).
+
+        Returns:
+            Joint waypoints (B, K, dof) and a per-push success flag.
+        """
+        check_shape("start_xy", start_xy, (None, 2))
+        check_shape("yaw", yaw, (start_xy.shape[0],))
+        start_xy, yaw = start_xy.to(_DTYPE), yaw.to(_DTYPE)
+        B, K, h = start_xy.shape[0], self.waypoint_count(distance), self.spec.push_height
+        if B == 0:
+            return PushPathIK(torch.zeros(0, K, self.dof, dtype=_DTYPE),
+                              torch.zeros(0, dtype=torch.bool))
+        start = self.ik(topdown_pose(start_xy, yaw, h))
+        s = torch.linspace(0.0, distance, K, dtype=_DTYPE)
+        d = torch.stack([torch.cos(yaw), torch.sin(yaw)], dim=-1)  # (B, 2)
+        q = start.q[:, None, :].repeat(1, K, 1)
+        ok = start.converged.clone()
+        for k in range(1, K):
+            rows = ok.nonzero()[:, 0]
+            if rows.numel() == 0:
+                break
+            nxt = self.ik(topdown_pose(start_xy[rows] + s[k] * d[rows], yaw[rows], h),
+                          q[rows, k - 1][:, None, :])
+            q[rows, k] = nxt.q
+            ok[rows] = nxt.converged
+        jump = (q[:, 1:] - q[:, :-1]).abs().amax(dim=(1, 2))
+        return PushPathIK(q=q, ok=ok & (jump < _MAX_JOINT_STEP))
+
+    def trace(self, q_waypoints: torch.Tensor, n_ticks: int) -> torch.Tensor:
+        """Sample a joint-space linear interpolation of waypoints and map it through FK.
+
+        Args:
+            q_waypoints: (B, K, dof) waypoints, reached at evenly spaced times.
+            n_ticks: Number of control ticks T (>= 2) from the first to the last waypoint.
+
+        Returns:
+            (B, T, 3) world ``(x, y, yaw)`` of the tcp at each control tick.
+        """
+        B, K, dof = q_waypoints.shape
+        u = torch.linspace(0.0, K - 1, n_ticks, dtype=_DTYPE)
+        i0 = u.floor().clamp(max=K - 2).long()
+        frac = (u - i0)[None, :, None]
+        q = q_waypoints[:, i0] * (1 - frac) + q_waypoints[:, i0 + 1] * frac  # (B, T, dof)
+        return self.planar_fk(q.reshape(-1, dof)).reshape(B, n_ticks, 3)
+
+    # -- workspace --------------------------------------------------------------------------
+    def reachable(self, xy: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
+        """Whether the tcp can point down at each table point with each yaw, at push height.
+
+        Args:
+            xy: (N, 2) world positions (m).
+            yaw: (N,) tool yaws (rad).
+
+        Returns:
+            (N,) bool.
+        """
+        check_shape("xy", xy, (None, 2))
+        check_shape("yaw", yaw, (xy.shape[0],))
+        if xy.shape[0] == 0:
+            return torch.zeros(0, dtype=torch.bool)
+        return self.ik(topdown_pose(xy.to(_DTYPE), yaw.to(_DTYPE), self.spec.push_height)
+                       ).converged
+
+    def reachable_mask(self, x_range: tuple[float, float], y_range: tuple[float, float],
+                       resolution: float = 0.02, n_yaws: int = 4, require: str = "any"
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Reachable region of a rectangle of the table at push height, from the chain.
+
+        A grid point counts as reachable when the tool can point down there with ``any`` (or
+        ``all``) of `n_yaws` evenly spaced yaws.
+
+        Args:
+            x_range: World x extent (m).
+            y_range: World y extent (m).
+            resolution: Grid spacing (m).
+            n_yaws: Tool yaws tried per point.
+            require: ``"any"`` or ``"all"``.
+
+        Returns:
+            ``(mask, xs, ys)``: mask (H, W) bool indexed ``[iy, ix]``, xs (W,), ys (H,).
+        """
+        if require not in ("any", "all"):
+            raise ValueError(f"require must be 'any' or 'all', got {require!r}.")
+        return _reachable_mask_cached(self, tuple(x_range), tuple(y_range), float(resolution),
+                                      int(n_yaws), require)
+
+    def require_reachable(self, xy: torch.Tensor, yaw: torch.Tensor) -> None:
+        """Raise `UnreachablePoseError` if any of the poses cannot be reached.
+
+        Args:
+            xy: (N, 2) world positions (m).
+            yaw: (N,) tool yaws (rad).
+        """
+        ok = self.reachable(xy, yaw)
+        if not bool(ok.all()):
+            i = int((~ok).nonzero()[0, 0])
+            x, y = (float(v) for v in xy[i])
+            base = self.spec.base_xyz
+            raise UnreachablePoseError(
+                f"the gripper pose at world (x={x:.3f}, y={y:.3f}, yaw={float(yaw[i]):.3f}) is "
+                f"outside the arm's reachable workspace (base at x={base[0]:.2f}, "
+                f"y={base[1]:.2f}); move the target closer to the arm or check "
+                "Arm.reachable_mask()."
+            )
+
+
+@lru_cache(maxsize=16)
+def _reachable_mask_cached(arm: Arm, x_range: tuple[float, float], y_range: tuple[float, float],
+                           resolution: float, n_yaws: int, require: str
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    xs = np.arange(x_range[0], x_range[1] + 1e-9, resolution)
+    ys = np.arange(y_range[0], y_range[1] + 1e-9, resolution)
+    gx, gy = np.meshgrid(xs, ys)
+    pts = torch.as_tensor(np.stack([gx.ravel(), gy.ravel()], -1), dtype=_DTYPE)
+    yaws = torch.linspace(-math.pi, math.pi, n_yaws + 1, dtype=_DTYPE)[:-1]
+    ok = torch.stack([arm.reachable(pts, torch.full((len(pts),), float(a), dtype=_DTYPE))
+                      for a in yaws], dim=-1)
+    reach = ok.any(-1) if require == "any" else ok.all(-1)
+    return reach.numpy().reshape(gy.shape), xs, ys
+
+
+@lru_cache(maxsize=4)
+def load_arm(spec: ArmSpec) -> Arm:
+    """Build (once per process) the arm for a world spec."""
+    return Arm(spec)

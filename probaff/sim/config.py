@@ -1,0 +1,482 @@
+"""Declarative world descriptions: locating and validating `worlds/` (URDF and YAML).
+
+The world files live in the repository's top-level ``worlds/`` folder (or the folder named by the
+``PROBAFF_WORLDS`` environment variable). This module turns them into frozen dataclasses and
+rejects malformed or unknown entries with an error that names the file and the field.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from probaff.errors import ConfigError
+
+__all__ = [
+    "ArmSpec",
+    "GripperSpec",
+    "ObjectSpec",
+    "PhysicsSpec",
+    "PlacementSpec",
+    "PushSpec",
+    "SceneSpec",
+    "TabletopSpec",
+    "WallSpec",
+    "list_scenes",
+    "load_catalogue",
+    "load_scene",
+    "load_tabletop",
+    "worlds_dir",
+]
+
+Range = tuple[float, float]
+
+
+def worlds_dir() -> Path:
+    """Return the folder that holds the world descriptions.
+
+    ``$PROBAFF_WORLDS`` wins; otherwise the ``worlds/`` folder beside the ``probaff`` package
+    (the repository checkout, for an editable install).
+
+    Raises:
+        ConfigError: If no such folder exists.
+    """
+    env = os.environ.get("PROBAFF_WORLDS")
+    path = Path(env) if env else Path(__file__).resolve().parents[2] / "worlds"
+    if not (path / "tabletop.yaml").is_file():
+        raise ConfigError(
+            f"no world descriptions found in {path}; install probaff from its repository with "
+            "`pip install -e .` or set PROBAFF_WORLDS to the folder holding tabletop.yaml."
+        )
+    return path
+
+
+def _read_yaml(path: Path) -> Any:
+    if not path.is_file():
+        raise ConfigError(f"world file {path} does not exist.")
+    try:
+        return yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path} is not valid YAML: {exc}; fix the file's syntax.") from exc
+
+
+def _mapping(where: str, value: Any) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise ConfigError(f"{where} must be a mapping, got {type(value).__name__}.")
+    return value
+
+
+def _number(where: str, value: Any, *, positive: bool = False, nonneg: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(f"{where} must be a number, got {value!r}.")
+    v = float(value)
+    if not math.isfinite(v):
+        raise ConfigError(f"{where} must be finite, got {value!r}.")
+    if positive and v <= 0:
+        raise ConfigError(f"{where} must be > 0, got {value!r}.")
+    if nonneg and v < 0:
+        raise ConfigError(f"{where} must be >= 0, got {value!r}.")
+    return v
+
+
+def _range(where: str, value: Any, *, nonneg: bool = False, positive: bool = False) -> Range:
+    if not isinstance(value, (list, tuple)) or len(value) != 2:
+        raise ConfigError(f"{where} must be a [low, high] pair, got {value!r}.")
+    lo = _number(f"{where}[0]", value[0], nonneg=nonneg, positive=positive)
+    hi = _number(f"{where}[1]", value[1], nonneg=nonneg, positive=positive)
+    if lo > hi:
+        raise ConfigError(f"{where} has low {lo} > high {hi}; swap them.")
+    return (lo, hi)
+
+
+def _pair(where: str, value: Any) -> tuple[float, float]:
+    if not isinstance(value, (list, tuple)) or len(value) != 2:
+        raise ConfigError(f"{where} must be a pair of positive numbers, got {value!r}.")
+    return (_number(f"{where}[0]", value[0], positive=True),
+            _number(f"{where}[1]", value[1], positive=True))
+
+
+def _take(where: str, raw: dict[str, Any], key: str) -> Any:
+    if key not in raw:
+        raise ConfigError(f"{where} is missing the field '{key}'.")
+    return raw[key]
+
+
+def _no_extra(where: str, raw: dict[str, Any], allowed: set[str]) -> None:
+    extra = set(raw) - allowed
+    if extra:
+        raise ConfigError(
+            f"{where} has unknown field(s) {sorted(extra)}; allowed: {sorted(allowed)}."
+        )
+
+
+@dataclass(frozen=True)
+class ObjectSpec:
+    """One catalogue object.
+
+    Attributes:
+        name: Catalogue key.
+        shape: ``"box"`` or ``"circle"``.
+        size: ``(length, width)`` of a box footprint along its object x and y axes (m); for a
+            circle ``(2 r, 2 r)``.
+        radius: Circle radius (m); 0 for boxes.
+        height: Height above the table (m).
+        mass: Mass (kg).
+        ground_friction: Coulomb coefficient against the table.
+        contact_friction: Surface coefficient; a contact pair uses the geometric mean.
+    """
+
+    name: str
+    shape: str
+    size: tuple[float, float]
+    radius: float
+    height: float
+    mass: float
+    ground_friction: float
+    contact_friction: float
+
+    @property
+    def bounding_radius(self) -> float:
+        """Radius (m) of the smallest origin-centred circle that holds the footprint."""
+        return self.radius if self.shape == "circle" else 0.5 * math.hypot(*self.size)
+
+
+@dataclass(frozen=True)
+class ArmSpec:
+    """The arm's URDF and mounting. ``base_xyz``/``base_yaw`` give T_world_base."""
+
+    urdf: Path
+    tcp_link: str
+    base_xyz: tuple[float, float, float]
+    base_yaw: float
+    push_height: float
+    pos_tolerance: float
+    rot_tolerance: float
+    max_iterations: int
+    waypoint_spacing: float
+
+
+@dataclass(frozen=True)
+class GripperSpec:
+    """The two-finger hand as the physics sees it (a force-limited, tracked rigid body)."""
+
+    finger_size: tuple[float, float]
+    push_opening: float
+    mass: float
+    max_force: float
+    max_torque: float
+    max_speed: float
+    contact_friction: float
+
+
+@dataclass(frozen=True)
+class PhysicsSpec:
+    """Fixed-step integration settings of the pymunk space."""
+
+    gravity: float
+    control_rate: float
+    substeps: int
+    iterations: int
+    collision_slop: float
+    friction_grid: int
+
+
+@dataclass(frozen=True)
+class TabletopSpec:
+    """The whole top-down tabletop world (``worlds/tabletop.yaml``)."""
+
+    table_size: tuple[float, float]
+    arm: ArmSpec
+    gripper: GripperSpec
+    physics: PhysicsSpec
+    push_speed: float
+    settle_time: float
+    record_rate: float
+
+
+@dataclass(frozen=True)
+class PlacementSpec:
+    """Randomisation ranges for one object of a scene.
+
+    The first object is placed in the world frame (``x``, ``y``, ``yaw``); later ones in the
+    pushing frame of the pushed object (``along`` z_p and ``lateral`` along y_p from its centre,
+    ``yaw`` relative to the push direction).
+    """
+
+    choices: tuple[str, ...]
+    x: Range | None = None
+    y: Range | None = None
+    along: Range | None = None
+    lateral: Range | None = None
+    yaw: Range = (-math.pi, math.pi)
+
+    @property
+    def in_push_frame(self) -> bool:
+        """Whether the object is placed relative to the push."""
+        return self.along is not None
+
+
+@dataclass(frozen=True)
+class WallSpec:
+    """A fixed wall segment placed in the pushing frame of the pushed object."""
+
+    along: Range
+    lateral: Range
+    length: float
+    angle: Range
+
+
+@dataclass(frozen=True)
+class PushSpec:
+    """Randomisation ranges of the push skill's start pose."""
+
+    target: int
+    distance: float
+    direction: Range
+    lateral_offset: Range
+    start_gap: Range
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """A scene template (``worlds/scenes/NAME.yaml``)."""
+
+    name: str
+    description: str
+    objects: tuple[PlacementSpec, ...]
+    walls: tuple[WallSpec, ...]
+    push: PushSpec
+    ground_friction_scale: Range
+    contact_friction_scale: Range
+    mass_scale: Range = field(default=(1.0, 1.0))
+
+
+@cache
+def _catalogue_cached(path: str) -> dict[str, ObjectSpec]:
+    p = Path(path)
+    raw = _mapping(str(p), _read_yaml(p))
+    out: dict[str, ObjectSpec] = {}
+    for name, entry in raw.items():
+        where = f"{p.name}:{name}"
+        e = _mapping(where, entry)
+        shape = _take(where, e, "shape")
+        if shape == "box":
+            _no_extra(where, e, {"shape", "size", "height", "mass", "ground_friction",
+                                 "contact_friction"})
+            size_raw = _take(where, e, "size")
+            if not isinstance(size_raw, list) or len(size_raw) != 2:
+                raise ConfigError(f"{where}.size must be [length, width], got {size_raw!r}.")
+            size = (_number(f"{where}.size[0]", size_raw[0], positive=True),
+                    _number(f"{where}.size[1]", size_raw[1], positive=True))
+            radius = 0.0
+        elif shape == "circle":
+            _no_extra(where, e, {"shape", "radius", "height", "mass", "ground_friction",
+                                 "contact_friction"})
+            radius = _number(f"{where}.radius", _take(where, e, "radius"), positive=True)
+            size = (2 * radius, 2 * radius)
+        else:
+            raise ConfigError(f"{where}.shape must be 'box' or 'circle', got {shape!r}.")
+        out[str(name)] = ObjectSpec(
+            name=str(name),
+            shape=shape,
+            size=size,
+            radius=radius,
+            height=_number(f"{where}.height", _take(where, e, "height"), positive=True),
+            mass=_number(f"{where}.mass", _take(where, e, "mass"), positive=True),
+            ground_friction=_number(f"{where}.ground_friction", _take(where, e, "ground_friction"),
+                                    nonneg=True),
+            contact_friction=_number(f"{where}.contact_friction",
+                                     _take(where, e, "contact_friction"), nonneg=True),
+        )
+    if not out:
+        raise ConfigError(f"{p} defines no objects.")
+    return out
+
+
+def load_catalogue(path: Path | None = None) -> dict[str, ObjectSpec]:
+    """Load the object catalogue (``worlds/objects.yaml``).
+
+    Args:
+        path: Another catalogue file; defaults to the one in `worlds_dir()`.
+
+    Returns:
+        Mapping from object name to its spec.
+    """
+    return _catalogue_cached(str(path or worlds_dir() / "objects.yaml"))
+
+
+def load_tabletop(path: Path | None = None) -> TabletopSpec:
+    """Load and validate the tabletop world (``worlds/tabletop.yaml``).
+
+    Args:
+        path: Another world file; defaults to the one in `worlds_dir()`.
+    """
+    p = path or worlds_dir() / "tabletop.yaml"
+    raw = _mapping(str(p), _read_yaml(p))
+    w = p.name
+    table = _mapping(f"{w}:table", _take(w, raw, "table"))
+    arm = _mapping(f"{w}:arm", _take(w, raw, "arm"))
+    ik = _mapping(f"{w}:arm.ik", _take(f"{w}:arm", arm, "ik"))
+    grip = _mapping(f"{w}:gripper", _take(w, raw, "gripper"))
+    phys = _mapping(f"{w}:physics", _take(w, raw, "physics"))
+    push = _mapping(f"{w}:push", _take(w, raw, "push"))
+    base = _take(f"{w}:arm", arm, "base_xyz")
+    if not isinstance(base, list) or len(base) != 3:
+        raise ConfigError(f"{w}:arm.base_xyz must be [x, y, z], got {base!r}.")
+    fsize = _take(f"{w}:gripper", grip, "finger_size")
+    opening = _number(f"{w}:gripper.push_opening", _take(f"{w}:gripper", grip, "push_opening"),
+                      positive=True)
+    if opening > 0.15 + 1e-9:
+        raise ConfigError(f"{w}:gripper.push_opening {opening} exceeds the 0.15 m finger span.")
+    urdf = p.parent / str(_take(f"{w}:arm", arm, "urdf"))
+    return TabletopSpec(
+        table_size=_pair(f"{w}:table.size", _take(f"{w}:table", table, "size")),
+        arm=ArmSpec(
+            urdf=urdf,
+            tcp_link=str(_take(f"{w}:arm", arm, "tcp_link")),
+            base_xyz=tuple(_number(f"{w}:arm.base_xyz", b) for b in base),  # type: ignore[arg-type]
+            base_yaw=_number(f"{w}:arm.base_yaw", _take(f"{w}:arm", arm, "base_yaw")),
+            push_height=_number(f"{w}:arm.push_height", _take(f"{w}:arm", arm, "push_height"),
+                                nonneg=True),
+            pos_tolerance=_number(f"{w}:arm.ik.pos_tolerance", _take(w, ik, "pos_tolerance"),
+                                  positive=True),
+            rot_tolerance=_number(f"{w}:arm.ik.rot_tolerance", _take(w, ik, "rot_tolerance"),
+                                  positive=True),
+            max_iterations=int(_number(f"{w}:arm.ik.max_iterations",
+                                       _take(w, ik, "max_iterations"), positive=True)),
+            waypoint_spacing=_number(f"{w}:arm.ik.waypoint_spacing",
+                                     _take(w, ik, "waypoint_spacing"), positive=True),
+        ),
+        gripper=GripperSpec(
+            finger_size=_pair(f"{w}:gripper.finger_size", fsize),
+            push_opening=opening,
+            mass=_number(f"{w}:gripper.mass", _take(w, grip, "mass"), positive=True),
+            max_force=_number(f"{w}:gripper.max_force", _take(w, grip, "max_force"),
+                              positive=True),
+            max_torque=_number(f"{w}:gripper.max_torque", _take(w, grip, "max_torque"),
+                               positive=True),
+            max_speed=_number(f"{w}:gripper.max_speed", _take(w, grip, "max_speed"),
+                              positive=True),
+            contact_friction=_number(f"{w}:gripper.contact_friction",
+                                     _take(w, grip, "contact_friction"), nonneg=True),
+        ),
+        physics=PhysicsSpec(
+            gravity=_number(f"{w}:physics.gravity", _take(w, phys, "gravity"), positive=True),
+            control_rate=_number(f"{w}:physics.control_rate", _take(w, phys, "control_rate"),
+                                 positive=True),
+            substeps=int(_number(f"{w}:physics.substeps", _take(w, phys, "substeps"),
+                                 positive=True)),
+            iterations=int(_number(f"{w}:physics.iterations", _take(w, phys, "iterations"),
+                                   positive=True)),
+            collision_slop=_number(f"{w}:physics.collision_slop",
+                                   _take(w, phys, "collision_slop"), nonneg=True),
+            friction_grid=int(_number(f"{w}:physics.friction_grid",
+                                      _take(w, phys, "friction_grid"), positive=True)),
+        ),
+        push_speed=_number(f"{w}:push.speed", _take(w, push, "speed"), positive=True),
+        settle_time=_number(f"{w}:push.settle_time", _take(w, push, "settle_time"),
+                            nonneg=True),
+        record_rate=_number(f"{w}:push.record_rate", _take(w, push, "record_rate"),
+                            positive=True),
+    )
+
+
+def list_scenes() -> list[str]:
+    """Names of the scene templates in ``worlds/scenes/``."""
+    return sorted(p.stem for p in (worlds_dir() / "scenes").glob("*.yaml"))
+
+
+def _placement(where: str, raw: Any, catalogue: dict[str, ObjectSpec], first: bool
+               ) -> PlacementSpec:
+    e = _mapping(where, raw)
+    _no_extra(where, e, {"choices", "x", "y", "along", "lateral", "yaw"})
+    choices = _take(where, e, "choices")
+    if not isinstance(choices, list) or not choices:
+        raise ConfigError(f"{where}.choices must be a non-empty list of catalogue names.")
+    for c in choices:
+        if c not in catalogue:
+            raise ConfigError(
+                f"{where}: unknown object {c!r}; the catalogue has {sorted(catalogue)}."
+            )
+    yaw = _range(f"{where}.yaw", e.get("yaw", [-math.pi, math.pi]))
+    if first:
+        if "along" in e or "lateral" in e:
+            raise ConfigError(
+                f"{where}: the first object is placed by world x/y, not along/lateral."
+            )
+        return PlacementSpec(tuple(choices), x=_range(f"{where}.x", _take(where, e, "x")),
+                             y=_range(f"{where}.y", _take(where, e, "y")), yaw=yaw)
+    if "x" in e or "y" in e:
+        raise ConfigError(f"{where}: later objects are placed by along/lateral in the push frame.")
+    return PlacementSpec(tuple(choices), along=_range(f"{where}.along", _take(where, e, "along")),
+                         lateral=_range(f"{where}.lateral", _take(where, e, "lateral")), yaw=yaw)
+
+
+def load_scene(name: str) -> SceneSpec:
+    """Load a scene template by name.
+
+    Args:
+        name: A name from `list_scenes()`.
+
+    Raises:
+        ConfigError: For an unknown scene, an unknown object, or a malformed field.
+    """
+    path = worlds_dir() / "scenes" / f"{name}.yaml"
+    if not path.is_file():
+        raise ConfigError(f"unknown scene {name!r}; available scenes: {list_scenes()}.")
+    catalogue = load_catalogue()
+    raw = _mapping(path.name, _read_yaml(path))
+    w = path.name
+    _no_extra(w, raw, {"name", "description", "objects", "walls", "push", "randomise"})
+    objs = _take(w, raw, "objects")
+    if not isinstance(objs, list) or not objs:
+        raise ConfigError(f"{w}: objects must be a non-empty list.")
+    placements = tuple(_placement(f"{w}:objects[{i}]", o, catalogue, i == 0)
+                       for i, o in enumerate(objs))
+    walls = []
+    for i, wr in enumerate(raw.get("walls") or []):
+        ww = f"{w}:walls[{i}]"
+        we = _mapping(ww, wr)
+        _no_extra(ww, we, {"along", "lateral", "length", "angle"})
+        walls.append(WallSpec(
+            along=_range(f"{ww}.along", _take(ww, we, "along")),
+            lateral=_range(f"{ww}.lateral", _take(ww, we, "lateral")),
+            length=_number(f"{ww}.length", _take(ww, we, "length"), positive=True),
+            angle=_range(f"{ww}.angle", we.get("angle", [0.0, 0.0])),
+        ))
+    pr = _mapping(f"{w}:push", _take(w, raw, "push"))
+    _no_extra(f"{w}:push", pr, {"target", "distance", "direction", "lateral_offset", "start_gap"})
+    target = int(_number(f"{w}:push.target", pr.get("target", 0), nonneg=True))
+    if target != 0:
+        raise ConfigError(f"{w}:push.target must be 0 (the first object is the pushed one).")
+    push = PushSpec(
+        target=target,
+        distance=_number(f"{w}:push.distance", _take(f"{w}:push", pr, "distance"), positive=True),
+        direction=_range(f"{w}:push.direction", _take(f"{w}:push", pr, "direction")),
+        lateral_offset=_range(f"{w}:push.lateral_offset", pr.get("lateral_offset", [0.0, 0.0])),
+        start_gap=_range(f"{w}:push.start_gap", _take(f"{w}:push", pr, "start_gap"),
+                         nonneg=True),
+    )
+    rnd = _mapping(f"{w}:randomise", raw.get("randomise") or {})
+    _no_extra(f"{w}:randomise", rnd, {"ground_friction_scale", "contact_friction_scale",
+                                      "mass_scale"})
+    return SceneSpec(
+        name=str(raw.get("name", name)),
+        description=str(raw.get("description", "")),
+        objects=placements,
+        walls=tuple(walls),
+        push=push,
+        ground_friction_scale=_range(f"{w}:randomise.ground_friction_scale",
+                                     rnd.get("ground_friction_scale", [1.0, 1.0]), positive=True),
+        contact_friction_scale=_range(f"{w}:randomise.contact_friction_scale",
+                                      rnd.get("contact_friction_scale", [1.0, 1.0]),
+                                      positive=True),
+        mass_scale=_range(f"{w}:randomise.mass_scale", rnd.get("mass_scale", [1.0, 1.0]),
+                          positive=True),
+    )

@@ -1,0 +1,114 @@
+"""Planar geometry of footprints and of the pushing frame.
+
+Pushing frame (chapters 4 and 5): origin at the hand's start pose, z_p along the push, y_p to
+the left of it (z_p rotated +90 degrees about the world's up axis), x_p pointing down into the
+table so the frame is right-handed. Angles (theta, Delta theta_p) are counter-clockwise about the
+world's up axis, in radians.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from probaff.sim.config import ObjectSpec
+
+__all__ = [
+    "footprint_polygon",
+    "footprint_support",
+    "friction_points",
+    "push_frame_effect",
+    "to_push_frame",
+]
+
+
+def footprint_polygon(obj: ObjectSpec) -> np.ndarray | None:
+    """Corners of a box footprint in the object frame, counter-clockwise.
+
+    Returns:
+        (4, 2) vertices (m), or ``None`` for a circle.
+    """
+    if obj.shape == "circle":
+        return None
+    hx, hy = 0.5 * obj.size[0], 0.5 * obj.size[1]
+    return np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+
+
+def footprint_support(obj: ObjectSpec, theta: float, direction: np.ndarray) -> float:
+    """Extent of a footprint from its centre along a world direction (its support function).
+
+    Args:
+        obj: Catalogue object.
+        theta: Object yaw in the world (rad).
+        direction: (2,) unit vector in the world frame.
+
+    Returns:
+        max over footprint points p of ``direction . (p - centre)`` (m).
+    """
+    if obj.shape == "circle":
+        return obj.radius
+    c, s = math.cos(theta), math.sin(theta)
+    ax = np.array([c, s])
+    ay = np.array([-s, c])
+    return 0.5 * (abs(direction @ ax) * obj.size[0] + abs(direction @ ay) * obj.size[1])
+
+
+def friction_points(obj: ObjectSpec, n: int) -> np.ndarray:
+    """Support points of a uniform-pressure footprint, in the object frame.
+
+    The footprint is cut into an n x n grid of equal cells over its bounding box; each cell
+    whose centre lies inside the footprint contributes its centre. Each point carries an equal
+    share of the normal load, which discretises a uniform pressure distribution (the limit
+    surface of Goyal et al.).
+
+    Args:
+        obj: Catalogue object.
+        n: Grid cells per axis (>= 1).
+
+    Returns:
+        (P, 2) points (m), P <= n * n.
+    """
+    hx, hy = 0.5 * obj.size[0], 0.5 * obj.size[1]
+    u = (np.arange(n) + 0.5) / n * 2.0 - 1.0
+    gx, gy = np.meshgrid(u * hx, u * hy)
+    pts = np.stack([gx.ravel(), gy.ravel()], axis=-1)
+    if obj.shape == "circle":
+        pts = pts[np.hypot(pts[:, 0], pts[:, 1]) <= obj.radius]
+        if len(pts) == 0:
+            pts = np.zeros((1, 2))
+    return pts
+
+
+def to_push_frame(xy: np.ndarray, origin: np.ndarray, push_yaw: float) -> np.ndarray:
+    """Express world points in the pushing frame.
+
+    Args:
+        xy: (..., 2) world positions (m).
+        origin: (2,) world position of the pushing-frame origin (the hand's start).
+        push_yaw: World yaw of z_p (rad).
+
+    Returns:
+        (..., 2) coordinates ``(y_p, z_p)`` (m).
+    """
+    c, s = math.cos(push_yaw), math.sin(push_yaw)
+    rel = np.asarray(xy) - origin
+    z = rel[..., 0] * c + rel[..., 1] * s
+    y = -rel[..., 0] * s + rel[..., 1] * c
+    return np.stack([y, z], axis=-1)
+
+
+def push_frame_effect(before: np.ndarray, after: np.ndarray, push_yaw: float) -> np.ndarray:
+    """The effect of a push on objects, in the pushing frame.
+
+    Args:
+        before: (K, 3) world ``(x, y, theta)`` before the push (theta unwrapped).
+        after: (K, 3) world ``(x, y, theta)`` after the push (theta unwrapped, so turns of more
+            than pi are kept).
+        push_yaw: World yaw of z_p (rad).
+
+    Returns:
+        (K, 3) ``(Delta y_p, Delta z_p, Delta theta_p)`` in metres and radians.
+    """
+    d = to_push_frame(after[:, :2], before[:, :2], push_yaw)
+    return np.concatenate([d, (after[:, 2] - before[:, 2])[:, None]], axis=-1)

@@ -1,0 +1,101 @@
+"""Run batches of pushes: draw scenes, solve the arm's IK for all of them at once, simulate."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from probaff.errors import ConfigError
+from probaff.sim.arm import Arm, load_arm
+from probaff.sim.config import SceneSpec, TabletopSpec, load_catalogue, load_scene, load_tabletop
+from probaff.sim.sampling import sample_scene
+from probaff.sim.tabletop import PushOutcome, SceneInstance, simulate_push
+
+__all__ = ["PushSample", "PushSimulator"]
+
+_MAX_DRAWS_PER_SAMPLE = 200
+
+
+@dataclass(frozen=True)
+class PushSample:
+    """One simulated push.
+
+    Attributes:
+        scene: The drawn scene and push.
+        outcome: What happened.
+        q_waypoints: (K, dof) the arm's joint waypoints along the push (rad).
+    """
+
+    scene: SceneInstance
+    outcome: PushOutcome
+    q_waypoints: np.ndarray
+
+
+class PushSimulator:
+    """Draws and simulates pushes of one scene template.
+
+    Args:
+        scene: A scene name (``worlds/scenes/NAME.yaml``) or a loaded template.
+        world: The tabletop world; defaults to ``worlds/tabletop.yaml``.
+    """
+
+    def __init__(self, scene: str | SceneSpec, world: TabletopSpec | None = None) -> None:
+        self.scene = load_scene(scene) if isinstance(scene, str) else scene
+        self.world = world or load_tabletop()
+        self.catalogue = load_catalogue()
+        self.arm: Arm = load_arm(self.world.arm)
+        rate = self.world.physics.control_rate
+        self.n_ticks = round(self.scene.push.distance / self.world.push_speed * rate) + 1
+
+    def hand_paths(self, scenes: list[SceneInstance]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Solve IK for a batch of pushes and trace the hand along each.
+
+        Args:
+            scenes: B drawn scenes.
+
+        Returns:
+            ``(ok, q, path)``: ok (B,) bool reachability; q (B, K, dof) joint waypoints;
+            path (B, T_c, 3) commanded world ``(x, y, yaw)`` of the hand per control tick.
+        """
+        xy = torch.tensor(np.array([s.push_origin for s in scenes]), dtype=torch.float64)
+        yaw = torch.tensor([s.push_yaw for s in scenes], dtype=torch.float64)
+        sol = self.arm.solve_pushes(xy, yaw, self.scene.push.distance)
+        path = self.arm.trace(sol.q, self.n_ticks)
+        return sol.ok.numpy(), sol.q.numpy(), path.numpy()
+
+    def run(self, n: int, rng: np.random.Generator) -> Iterator[PushSample]:
+        """Draw and simulate `n` valid, reachable pushes.
+
+        Candidates are drawn in batches; those that are physically invalid or unreachable by
+        the arm are discarded, so the result depends only on `rng`'s state.
+
+        Args:
+            n: Number of pushes.
+            rng: Source of randomness.
+
+        Yields:
+            `n` samples, in order.
+        """
+        done, draws = 0, 0
+        while done < n:
+            want = n - done
+            batch: list[SceneInstance] = []
+            while len(batch) < math.ceil(1.3 * want) + 2:
+                draws += 1
+                if draws > _MAX_DRAWS_PER_SAMPLE * (n + 1):
+                    raise ConfigError(
+                        f"scene {self.scene.name!r}: fewer than 1 in {_MAX_DRAWS_PER_SAMPLE} draws "
+                        "gives a valid, reachable push; widen its ranges or move its objects "
+                        "towards the arm."
+                    )
+                s = sample_scene(self.scene, self.catalogue, self.world, rng)
+                if s is not None:
+                    batch.append(s)
+            ok, q, path = self.hand_paths(batch)
+            for i in np.flatnonzero(ok)[:want]:
+                yield PushSample(batch[i], simulate_push(self.world, batch[i], path[i]), q[i])
+                done += 1

@@ -1,0 +1,112 @@
+"""Draw concrete scenes and pushes from a scene template's randomisation ranges."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pymunk
+
+from probaff.sim.config import ObjectSpec, SceneSpec, TabletopSpec
+from probaff.sim.geometry import footprint_support
+from probaff.sim.tabletop import SceneInstance
+
+__all__ = ["sample_scene"]
+
+_CLEARANCE = 0.003  # minimum gap (m) between bodies in a sampled start configuration
+
+
+def _uniform(rng: np.random.Generator, r: tuple[float, float]) -> float:
+    return float(r[0]) if r[0] == r[1] else float(rng.uniform(r[0], r[1]))
+
+
+def _shape_at(space: pymunk.Space, obj: ObjectSpec, x: float, y: float, theta: float
+              ) -> pymunk.Shape:
+    body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+    body.position, body.angle = (x, y), theta
+    if obj.shape == "circle":
+        shape: pymunk.Shape = pymunk.Circle(body, obj.radius + _CLEARANCE)
+    else:
+        shape = pymunk.Poly.create_box(body, obj.size, radius=_CLEARANCE)
+    space.add(body, shape)
+    return shape
+
+
+def sample_scene(scene: SceneSpec, catalogue: dict[str, ObjectSpec], world: TabletopSpec,
+                 rng: np.random.Generator) -> SceneInstance | None:
+    """Draw one scene and push, or ``None`` if the draw is physically invalid.
+
+    A draw is invalid when an object's centre is off the table or two bodies (objects, walls,
+    or the hand at its start pose) overlap. Callers draw again; the arm's reachability is
+    checked separately, in one batch, by IK.
+
+    Args:
+        scene: The template.
+        catalogue: Object catalogue.
+        world: The tabletop world (table size, gripper geometry).
+        rng: Source of randomness; the draw consumes a fixed pattern of it for a given template.
+
+    Returns:
+        A `SceneInstance`, or ``None``.
+    """
+    first = scene.objects[0]
+    objs = [catalogue[first.choices[int(rng.integers(len(first.choices)))]]]
+    assert first.x is not None and first.y is not None
+    c1 = np.array([_uniform(rng, first.x), _uniform(rng, first.y)])
+    poses = [(c1[0], c1[1], _uniform(rng, first.yaw))]
+    phi = _uniform(rng, scene.push.direction)
+    d = np.array([math.cos(phi), math.sin(phi)])
+    yp = np.array([-d[1], d[0]])
+    offset = _uniform(rng, scene.push.lateral_offset)
+    gap = _uniform(rng, scene.push.start_gap)
+    back = footprint_support(objs[0], poses[0][2], -d) + 0.5 * world.gripper.finger_size[0] + gap
+    start = c1 + offset * yp - back * d
+
+    for spec in scene.objects[1:]:
+        obj = catalogue[spec.choices[int(rng.integers(len(spec.choices)))]]
+        assert spec.along is not None and spec.lateral is not None
+        c = c1 + _uniform(rng, spec.along) * d + _uniform(rng, spec.lateral) * yp
+        objs.append(obj)
+        poses.append((c[0], c[1], phi + _uniform(rng, spec.yaw)))
+
+    walls = []
+    for w in scene.walls:
+        c = c1 + _uniform(rng, w.along) * d + _uniform(rng, w.lateral) * yp
+        a = phi + math.pi / 2 + _uniform(rng, w.angle)
+        u = 0.5 * w.length * np.array([math.cos(a), math.sin(a)])
+        walls.append([*(c - u), *(c + u)])
+
+    K = len(objs)
+    mass = np.array([o.mass for o in objs]) * rng.uniform(*scene.mass_scale, size=K)
+    mu_g = np.array([o.ground_friction for o in objs]) * rng.uniform(
+        *scene.ground_friction_scale, size=K)
+    mu_c = np.array([o.contact_friction for o in objs]) * rng.uniform(
+        *scene.contact_friction_scale, size=K)
+
+    hx, hy = 0.5 * world.table_size[0], 0.5 * world.table_size[1]
+    if any(abs(p[0]) > hx or abs(p[1]) > hy for p in poses):
+        return None
+    space = pymunk.Space()
+    shapes = [_shape_at(space, o, *p) for o, p in zip(objs, poses, strict=True)]
+    g = world.gripper
+    hand_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+    hand_body.position, hand_body.angle = (float(start[0]), float(start[1])), phi
+    hand = pymunk.Poly.create_box(hand_body, (g.finger_size[0], g.push_opening + g.finger_size[1]),
+                                  radius=_CLEARANCE)
+    space.add(hand_body, hand)
+    for x0, y0, x1, y1 in walls:
+        space.add(pymunk.Segment(space.static_body, (x0, y0), (x1, y1), 0.01 + _CLEARANCE))
+    if any(space.shape_query(s) for s in [*shapes, hand]):
+        return None
+
+    return SceneInstance(
+        objects=tuple(objs),
+        poses=np.array(poses, dtype=float),
+        mass=mass,
+        ground_friction=mu_g,
+        contact_friction=mu_c,
+        walls=np.array(walls, dtype=float).reshape(-1, 4),
+        push_origin=start,
+        push_yaw=phi,
+        push_distance=scene.push.distance,
+    )

@@ -1,0 +1,270 @@
+"""The top-down tabletop in pymunk 7.
+
+Objects carry distributed Coulomb friction; a force-limited hand tracks the arm's trajectory.
+Units are SI. The table is centred at the world origin; its surface is the plane of the
+simulation. Ground friction is modelled per object by several force-limited pivot joints to the
+static body at footprint points, each limited to mu m g / P: a discretised uniform-pressure
+limit surface, so objects stop as soon as the pusher stops, as on a real table. pymunk multiplies
+the two shapes' friction coefficients at a contact, so each shape is given the square root of its
+catalogue coefficient and a contact pair sees the geometric mean.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pymunk
+
+from probaff.sim.config import ObjectSpec, TabletopSpec
+from probaff.sim.geometry import friction_points, push_frame_effect
+
+__all__ = ["PushOutcome", "SceneInstance", "simulate_push"]
+
+_HAND, _WALL, _OBJECT0 = 1, 2, 10
+_WALL_RADIUS = 0.01
+_WALL_FRICTION = 0.5
+
+
+@dataclass(frozen=True)
+class SceneInstance:
+    """One fully specified scene and push, ready to simulate.
+
+    Attributes:
+        objects: Catalogue specs of the K objects; object 0 is the pushed one (o1).
+        poses: (K, 3) world ``(x, y, theta)`` at the start.
+        mass: (K,) masses (kg).
+        ground_friction: (K,) Coulomb coefficients against the table.
+        contact_friction: (K,) surface coefficients.
+        walls: (W, 4) fixed wall segments ``(x0, y0, x1, y1)`` in the world.
+        push_origin: (2,) world position of the hand at the start (the pushing-frame origin).
+        push_yaw: World yaw of z_p (rad).
+        push_distance: d_p (m).
+    """
+
+    objects: tuple[ObjectSpec, ...]
+    poses: np.ndarray
+    mass: np.ndarray
+    ground_friction: np.ndarray
+    contact_friction: np.ndarray
+    walls: np.ndarray
+    push_origin: np.ndarray
+    push_yaw: float
+    push_distance: float
+
+
+@dataclass(frozen=True)
+class PushOutcome:
+    """What one push did.
+
+    Attributes:
+        state_before: (K, 3) world ``(x, y, theta)`` before.
+        state_after: (K, 3) world ``(x, y, theta)`` after (theta unwrapped).
+        effect: (K, 3) ``(Delta y_p, Delta z_p, Delta theta_p)`` in the pushing frame.
+        hand_contact: (K,) the hand touched the object.
+        object_contact: (K, K) symmetric; objects i and j touched each other.
+        wall_contact: (K,) the object touched a wall.
+        fell_off: (K,) the object's centre left the table.
+        traj_time: (T,) sample times (s) of the trajectories.
+        traj_hand: (T, 3) world ``(x, y, yaw)`` of the hand.
+        traj_objects: (T, K, 3) world ``(x, y, theta)`` of the objects.
+        hand_lag: Largest distance (m) between the commanded and the actual hand position,
+            large when the hand stalls against something it cannot move.
+        max_penetration: Deepest overlap (m) between any two bodies at the end.
+    """
+
+    state_before: np.ndarray
+    state_after: np.ndarray
+    effect: np.ndarray
+    hand_contact: np.ndarray
+    object_contact: np.ndarray
+    wall_contact: np.ndarray
+    fell_off: np.ndarray
+    traj_time: np.ndarray
+    traj_hand: np.ndarray
+    traj_objects: np.ndarray
+    hand_lag: float
+    max_penetration: float
+
+
+def _object_shape(body: pymunk.Body, obj: ObjectSpec) -> pymunk.Shape:
+    if obj.shape == "circle":
+        return pymunk.Circle(body, obj.radius)
+    return pymunk.Poly.create_box(body, obj.size)
+
+
+def _moment(obj: ObjectSpec, mass: float) -> float:
+    if obj.shape == "circle":
+        return pymunk.moment_for_circle(mass, 0.0, obj.radius)
+    return pymunk.moment_for_box(mass, obj.size)
+
+
+class _Contacts:
+    """Collects which collision-type pairs have touched."""
+
+    def __init__(self, n_objects: int) -> None:
+        self.hand = np.zeros(n_objects, dtype=bool)
+        self.wall = np.zeros(n_objects, dtype=bool)
+        self.objects = np.zeros((n_objects, n_objects), dtype=bool)
+
+    def begin(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
+        a, b = (s.collision_type for s in arbiter.shapes)
+        a, b = min(a, b), max(a, b)
+        if b < _OBJECT0:
+            return
+        j = b - _OBJECT0
+        if a == _HAND:
+            self.hand[j] = True
+        elif a == _WALL:
+            self.wall[j] = True
+        elif a >= _OBJECT0:
+            i = a - _OBJECT0
+            self.objects[i, j] = self.objects[j, i] = True
+
+
+def _pose(body: pymunk.Body) -> tuple[float, float, float]:
+    return (body.position.x, body.position.y, body.angle)
+
+
+def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarray
+                  ) -> PushOutcome:
+    """Run one push in a fresh pymunk space.
+
+    Args:
+        world: The tabletop world.
+        scene: Objects, walls and the push.
+        hand_path: (T_c, 3) commanded world ``(x, y, yaw)`` of the hand at each control tick,
+            from the arm's joint trajectory (`Arm.trace`). After the last tick the hand holds
+            its pose for ``world.settle_time``.
+
+    Returns:
+        The push's outcome.
+    """
+    phys, grip = world.physics, world.gripper
+    space = pymunk.Space()
+    space.gravity = (0.0, 0.0)
+    space.iterations = phys.iterations
+    space.collision_slop = phys.collision_slop
+    contacts = _Contacts(len(scene.objects))
+    space.on_collision(None, None, begin=contacts.begin)
+
+    bodies: list[pymunk.Body] = []
+    joints: list[list[pymunk.Constraint]] = []
+    for k, obj in enumerate(scene.objects):
+        m = float(scene.mass[k])
+        body = pymunk.Body(m, _moment(obj, m))
+        body.position = (float(scene.poses[k, 0]), float(scene.poses[k, 1]))
+        body.angle = float(scene.poses[k, 2])
+        shape = _object_shape(body, obj)
+        shape.friction = math.sqrt(float(scene.contact_friction[k]))
+        shape.elasticity = 0.0
+        shape.collision_type = _OBJECT0 + k
+        space.add(body, shape)
+        pts = friction_points(obj, phys.friction_grid)
+        limit = float(scene.ground_friction[k]) * m * phys.gravity / len(pts)
+        js = []
+        for p in pts:
+            world_pt = body.local_to_world((float(p[0]), float(p[1])))
+            j = pymunk.PivotJoint(space.static_body, body, world_pt, (float(p[0]), float(p[1])))
+            j.max_bias = 0.0
+            j.max_force = limit
+            js.append(j)
+        space.add(*js)
+        bodies.append(body)
+        joints.append(js)
+
+    for x0, y0, x1, y1 in scene.walls:
+        seg = pymunk.Segment(space.static_body, (float(x0), float(y0)), (float(x1), float(y1)),
+                             _WALL_RADIUS)
+        seg.friction = math.sqrt(_WALL_FRICTION)
+        seg.collision_type = _WALL
+        space.add(seg)
+
+    control = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+    control.position = (float(hand_path[0, 0]), float(hand_path[0, 1]))
+    control.angle = float(hand_path[0, 2])
+    hand = pymunk.Body(grip.mass, pymunk.moment_for_box(grip.mass, (grip.finger_size[0],
+                                                                     grip.push_opening)))
+    hand.position, hand.angle = control.position, control.angle
+    half = 0.5 * grip.push_opening
+    fx, fy = 0.5 * grip.finger_size[0], 0.5 * grip.finger_size[1]
+    fingers = []
+    for side in (-1.0, 1.0):
+        verts = [(-fx, side * half - fy), (fx, side * half - fy),
+                 (fx, side * half + fy), (-fx, side * half + fy)]
+        f = pymunk.Poly(hand, verts)
+        f.friction = math.sqrt(grip.contact_friction)
+        f.collision_type = _HAND
+        fingers.append(f)
+    pivot = pymunk.PivotJoint(control, hand, (0.0, 0.0), (0.0, 0.0))
+    pivot.max_force, pivot.max_bias = grip.max_force, grip.max_speed
+    gear = pymunk.GearJoint(control, hand, 0.0, 1.0)
+    gear.max_force, gear.max_bias = grip.max_torque, 4.0
+    space.add(control, hand, *fingers, pivot, gear)
+
+    rate = phys.control_rate
+    dt = 1.0 / rate / phys.substeps
+    n_settle = round(world.settle_time * rate)
+    path = np.concatenate([hand_path, np.repeat(hand_path[-1:], n_settle + 1, axis=0)])
+    every = max(1, round(rate / world.record_rate))
+    hx, hy = 0.5 * world.table_size[0], 0.5 * world.table_size[1]
+
+    K = len(bodies)
+    before = np.array([_pose(b) for b in bodies])
+    frozen: list[tuple[float, float, float] | None] = [None] * K
+    t_rec, hand_rec, obj_rec = [], [], []
+    lag = 0.0
+
+    def record(t: float) -> None:
+        t_rec.append(t)
+        hand_rec.append(_pose(hand))
+        obj_rec.append([frozen[k] or _pose(b) for k, b in enumerate(bodies)])
+
+    record(0.0)
+    for i in range(len(path) - 1):
+        control.position = (float(path[i, 0]), float(path[i, 1]))
+        control.angle = float(path[i, 2])
+        control.velocity = ((path[i + 1, 0] - path[i, 0]) * rate,
+                            (path[i + 1, 1] - path[i, 1]) * rate)
+        control.angular_velocity = float(path[i + 1, 2] - path[i, 2]) * rate
+        for _ in range(phys.substeps):
+            space.step(dt)
+        lag = max(lag, math.hypot(hand.position.x - path[i + 1, 0],
+                                  hand.position.y - path[i + 1, 1]))
+        for k, b in enumerate(bodies):
+            if frozen[k] is None and (abs(b.position.x) > hx or abs(b.position.y) > hy):
+                frozen[k] = _pose(b)  # its centre passed the edge: it tips over and falls
+                space.remove(b, *b.shapes, *joints[k])
+        if (i + 1) % every == 0:
+            record((i + 1) / rate)
+    if (len(path) - 1) % every:
+        record((len(path) - 1) / rate)
+
+    after = np.array([frozen[k] or _pose(b) for k, b in enumerate(bodies)])
+    fell = np.array([f is not None for f in frozen])
+    return PushOutcome(
+        state_before=before,
+        state_after=after,
+        effect=push_frame_effect(before, after, scene.push_yaw),
+        hand_contact=contacts.hand,
+        object_contact=contacts.objects,
+        wall_contact=contacts.wall,
+        fell_off=fell,
+        traj_time=np.array(t_rec),
+        traj_hand=np.array(hand_rec),
+        traj_objects=np.array(obj_rec),
+        hand_lag=lag,
+        max_penetration=_max_penetration(space),
+    )
+
+
+def _max_penetration(space: pymunk.Space) -> float:
+    deepest = 0.0
+    for shape in space.shapes:
+        if shape.collision_type < _OBJECT0:
+            continue
+        for hit in space.shape_query(shape):
+            for p in hit.contact_point_set.points:
+                deepest = max(deepest, -p.distance)
+    return deepest
