@@ -29,12 +29,12 @@ from typing import Any
 
 import numpy as np
 
+from probaff._io import atomic_write_bytes
 from probaff.data.schema import SCHEMA_VERSION, PushDataset
 from probaff.errors import DatasetError
 
 __all__ = [
     "FORMAT_NAME",
-    "atomic_write_bytes",
     "load_dataset",
     "read_manifest",
     "read_shard",
@@ -45,17 +45,6 @@ __all__ = [
 
 FORMAT_NAME = "probaff-push-dataset"
 _EPOCH = (1980, 1, 1, 0, 0, 0)
-
-
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write `data` to `path` so that readers see either the old file or the whole new one."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    with open(tmp, "wb") as fh:
-        fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
 
 
 def shard_path(root: Path, index: int) -> Path:

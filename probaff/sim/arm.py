@@ -239,22 +239,22 @@ class Arm:
         jump = (q[:, 1:] - q[:, :-1]).abs().amax(dim=(1, 2))
         return PushPathIK(q=q, ok=ok & (jump < _MAX_JOINT_STEP))
 
-    def trace(self, q_waypoints: torch.Tensor, n_ticks: int) -> torch.Tensor:
-        """Sample a joint-space linear interpolation of waypoints and map it through FK.
+    def trace(self, q_waypoints: torch.Tensor, progress: torch.Tensor) -> torch.Tensor:
+        """Map a joint-space linear interpolation of waypoints through FK.
 
         Args:
-            q_waypoints: (B, K, dof) waypoints, reached at evenly spaced times.
-            n_ticks: Number of control ticks T (>= 2) from the first to the last waypoint.
+            q_waypoints: (B, K, dof) waypoints, evenly spaced along each push.
+            progress: (T,) fraction of the path covered at each control tick, from 0 to 1.
 
         Returns:
             (B, T, 3) world ``(x, y, yaw)`` of the tcp at each control tick.
         """
         B, K, dof = q_waypoints.shape
-        u = torch.linspace(0.0, K - 1, n_ticks, dtype=_DTYPE)
+        u = progress.to(_DTYPE).clamp(0.0, 1.0) * (K - 1)
         i0 = u.floor().clamp(max=K - 2).long()
         frac = (u - i0)[None, :, None]
         q = q_waypoints[:, i0] * (1 - frac) + q_waypoints[:, i0 + 1] * frac  # (B, T, dof)
-        return self.planar_fk(q.reshape(-1, dof)).reshape(B, n_ticks, 3)
+        return self.planar_fk(q.reshape(-1, dof)).reshape(B, len(progress), 3)
 
     # -- workspace --------------------------------------------------------------------------
     def reachable(self, xy: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:

@@ -166,7 +166,7 @@ class ArmSpec:
 class GripperSpec:
     """The two-finger hand as the physics sees it (a force-limited, tracked rigid body)."""
 
-    finger_size: tuple[float, float]
+    finger_radius: float
     push_opening: float
     mass: float
     max_force: float
@@ -196,6 +196,7 @@ class TabletopSpec:
     gripper: GripperSpec
     physics: PhysicsSpec
     push_speed: float
+    push_acceleration: float
     settle_time: float
     record_rate: float
 
@@ -329,7 +330,6 @@ def load_tabletop(path: Path | None = None) -> TabletopSpec:
     base = _take(f"{w}:arm", arm, "base_xyz")
     if not isinstance(base, list) or len(base) != 3:
         raise ConfigError(f"{w}:arm.base_xyz must be [x, y, z], got {base!r}.")
-    fsize = _take(f"{w}:gripper", grip, "finger_size")
     opening = _number(f"{w}:gripper.push_opening", _take(f"{w}:gripper", grip, "push_opening"),
                       positive=True)
     if opening > 0.15 + 1e-9:
@@ -354,7 +354,8 @@ def load_tabletop(path: Path | None = None) -> TabletopSpec:
                                      _take(w, ik, "waypoint_spacing"), positive=True),
         ),
         gripper=GripperSpec(
-            finger_size=_pair(f"{w}:gripper.finger_size", fsize),
+            finger_radius=_number(f"{w}:gripper.finger_radius",
+                                  _take(f"{w}:gripper", grip, "finger_radius"), positive=True),
             push_opening=opening,
             mass=_number(f"{w}:gripper.mass", _take(w, grip, "mass"), positive=True),
             max_force=_number(f"{w}:gripper.max_force", _take(w, grip, "max_force"),
@@ -380,6 +381,8 @@ def load_tabletop(path: Path | None = None) -> TabletopSpec:
                                       _take(w, phys, "friction_grid"), positive=True)),
         ),
         push_speed=_number(f"{w}:push.speed", _take(w, push, "speed"), positive=True),
+        push_acceleration=_number(f"{w}:push.acceleration", _take(w, push, "acceleration"),
+                                  positive=True),
         settle_time=_number(f"{w}:push.settle_time", _take(w, push, "settle_time"),
                             nonneg=True),
         record_rate=_number(f"{w}:push.record_rate", _take(w, push, "record_rate"),

@@ -15,9 +15,41 @@ from probaff.sim.config import SceneSpec, TabletopSpec, load_catalogue, load_sce
 from probaff.sim.sampling import sample_scene
 from probaff.sim.tabletop import PushOutcome, SceneInstance, simulate_push
 
-__all__ = ["PushSample", "PushSimulator"]
+__all__ = ["PushSample", "PushSimulator", "trapezoid_progress"]
 
 _MAX_DRAWS_PER_SAMPLE = 200
+
+
+def trapezoid_progress(distance: float, speed: float, acceleration: float, rate: float
+                       ) -> np.ndarray:
+    """Fraction of a straight move covered at each control tick, with a trapezoidal speed.
+
+    The speed ramps up at constant acceleration, cruises and ramps down, as an arm's
+    controller moves; a push thus ends smoothly.
+
+    Args:
+        distance: Path length (m).
+        speed: Cruising speed (m/s).
+        acceleration: Acceleration and deceleration (m/s^2).
+        rate: Control rate (Hz).
+
+    Returns:
+        (T,) progress in [0, 1], 0 at the first tick and 1 at the last.
+    """
+    t_ramp = speed / acceleration
+    if acceleration * t_ramp**2 > distance:  # too short to reach cruising speed
+        t_ramp = math.sqrt(distance / acceleration)
+        speed = acceleration * t_ramp
+    d_ramp = 0.5 * acceleration * t_ramp**2
+    total = 2 * t_ramp + (distance - 2 * d_ramp) / speed
+    t = np.linspace(0.0, total, max(2, math.ceil(total * rate) + 1))
+    s = np.where(
+        t < t_ramp,
+        0.5 * acceleration * t**2,
+        np.where(t < total - t_ramp, d_ramp + speed * (t - t_ramp),
+                 distance - 0.5 * acceleration * (total - t) ** 2),
+    )
+    return s / distance
 
 
 @dataclass(frozen=True)
@@ -48,8 +80,9 @@ class PushSimulator:
         self.world = world or load_tabletop()
         self.catalogue = load_catalogue()
         self.arm: Arm = load_arm(self.world.arm)
-        rate = self.world.physics.control_rate
-        self.n_ticks = round(self.scene.push.distance / self.world.push_speed * rate) + 1
+        self.progress = torch.as_tensor(
+            trapezoid_progress(self.scene.push.distance, self.world.push_speed,
+                               self.world.push_acceleration, self.world.physics.control_rate))
 
     def hand_paths(self, scenes: list[SceneInstance]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Solve IK for a batch of pushes and trace the hand along each.
@@ -64,7 +97,7 @@ class PushSimulator:
         xy = torch.tensor(np.array([s.push_origin for s in scenes]), dtype=torch.float64)
         yaw = torch.tensor([s.push_yaw for s in scenes], dtype=torch.float64)
         sol = self.arm.solve_pushes(xy, yaw, self.scene.push.distance)
-        path = self.arm.trace(sol.q, self.n_ticks)
+        path = self.arm.trace(sol.q, self.progress)
         return sol.ok.numpy(), sol.q.numpy(), path.numpy()
 
     def run(self, n: int, rng: np.random.Generator) -> Iterator[PushSample]:

@@ -59,7 +59,7 @@ def sample_scene(scene: SceneSpec, catalogue: dict[str, ObjectSpec], world: Tabl
     yp = np.array([-d[1], d[0]])
     offset = _uniform(rng, scene.push.lateral_offset)
     gap = _uniform(rng, scene.push.start_gap)
-    back = footprint_support(objs[0], poses[0][2], -d) + 0.5 * world.gripper.finger_size[0] + gap
+    back = footprint_support(objs[0], poses[0][2], -d) + world.gripper.finger_radius + gap
     start = c1 + offset * yp - back * d
 
     for spec in scene.objects[1:]:
@@ -91,8 +91,8 @@ def sample_scene(scene: SceneSpec, catalogue: dict[str, ObjectSpec], world: Tabl
     g = world.gripper
     hand_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
     hand_body.position, hand_body.angle = (float(start[0]), float(start[1])), phi
-    hand = pymunk.Poly.create_box(hand_body, (g.finger_size[0], g.push_opening + g.finger_size[1]),
-                                  radius=_CLEARANCE)
+    hand = pymunk.Poly.create_box(
+        hand_body, (2 * g.finger_radius, g.push_opening + 2 * g.finger_radius), radius=_CLEARANCE)
     space.add(hand_body, hand)
     for x0, y0, x1, y1 in walls:
         space.add(pymunk.Segment(space.static_body, (x0, y0), (x1, y1), 0.01 + _CLEARANCE))

@@ -2,11 +2,12 @@
 
 Objects carry distributed Coulomb friction; a force-limited hand tracks the arm's trajectory.
 Units are SI. The table is centred at the world origin; its surface is the plane of the
-simulation. Ground friction is modelled per object by several force-limited pivot joints to the
-static body at footprint points, each limited to mu m g / P: a discretised uniform-pressure
-limit surface, so objects stop as soon as the pusher stops, as on a real table. pymunk multiplies
-the two shapes' friction coefficients at a contact, so each shape is given the square root of its
-catalogue coefficient and a contact pair sees the geometric mean.
+simulation. Ground friction is Coulomb friction spread over the footprint: each object is a core
+body pinned to P point-mass "feet" at footprint points, and each foot is held to the table by a
+pivot joint whose force is limited to mu m g / P. This discretises a uniform-pressure limit
+surface (Goyal et al.), and objects stop as soon as the pusher stops, as on a real table. pymunk
+multiplies the two shapes' friction coefficients at a contact, so each shape is given the square
+root of its catalogue coefficient and a contact pair sees the geometric mean.
 """
 
 from __future__ import annotations
@@ -100,6 +101,46 @@ def _moment(obj: ObjectSpec, mass: float) -> float:
     return pymunk.moment_for_box(mass, obj.size)
 
 
+_CORE_MASS_FRACTION = 0.2
+
+
+def _add_object(space: pymunk.Space, obj: ObjectSpec, scene: SceneInstance, k: int, grid: int,
+                gravity: float) -> tuple[pymunk.Body, list[object]]:
+    """Add object `k`: a rigid core with the footprint shape and one "foot" per support point.
+
+    Each foot is a point mass pinned rigidly to the core and held to the table by a pivot joint
+    whose force is limited to mu m g / P. Because the foot's own effective mass is isotropic,
+    the friction impulse at each support point opposes that point's sliding velocity, which is
+    Coulomb's law; a force-limited joint on the core itself would couple translation and
+    rotation through the core's inertia and misdirect the friction. The core holds 20 % of the
+    mass and the feet the rest, so the assembly's inertia approximates a uniform slab.
+    """
+    m = float(scene.mass[k])
+    pts = friction_points(obj, grid)
+    m_core = _CORE_MASS_FRACTION * m
+    m_foot = (m - m_core) / len(pts)
+    core = pymunk.Body(m_core, _moment(obj, m_core))
+    core.position = (float(scene.poses[k, 0]), float(scene.poses[k, 1]))
+    core.angle = float(scene.poses[k, 2])
+    shape = _object_shape(core, obj)
+    shape.friction = math.sqrt(float(scene.contact_friction[k]))
+    shape.elasticity = 0.0
+    shape.collision_type = _OBJECT0 + k
+    added: list[object] = [core, shape]
+    limit = float(scene.ground_friction[k]) * m * gravity / len(pts)
+    for p in pts:
+        local = (float(p[0]), float(p[1]))
+        foot = pymunk.Body(m_foot, 1e-9)
+        foot.position = core.local_to_world(local)
+        pin = pymunk.PivotJoint(core, foot, local, (0.0, 0.0))
+        grip = pymunk.PivotJoint(space.static_body, foot, foot.position, (0.0, 0.0))
+        grip.max_bias = 0.0
+        grip.max_force = limit
+        added += [foot, pin, grip]
+    space.add(*added)
+    return core, added
+
+
 class _Contacts:
     """Collects which collision-type pairs have touched."""
 
@@ -150,29 +191,11 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
     space.on_collision(None, None, begin=contacts.begin)
 
     bodies: list[pymunk.Body] = []
-    joints: list[list[pymunk.Constraint]] = []
+    parts: list[list[object]] = []  # everything to remove when an object falls off the table
     for k, obj in enumerate(scene.objects):
-        m = float(scene.mass[k])
-        body = pymunk.Body(m, _moment(obj, m))
-        body.position = (float(scene.poses[k, 0]), float(scene.poses[k, 1]))
-        body.angle = float(scene.poses[k, 2])
-        shape = _object_shape(body, obj)
-        shape.friction = math.sqrt(float(scene.contact_friction[k]))
-        shape.elasticity = 0.0
-        shape.collision_type = _OBJECT0 + k
-        space.add(body, shape)
-        pts = friction_points(obj, phys.friction_grid)
-        limit = float(scene.ground_friction[k]) * m * phys.gravity / len(pts)
-        js = []
-        for p in pts:
-            world_pt = body.local_to_world((float(p[0]), float(p[1])))
-            j = pymunk.PivotJoint(space.static_body, body, world_pt, (float(p[0]), float(p[1])))
-            j.max_bias = 0.0
-            j.max_force = limit
-            js.append(j)
-        space.add(*js)
+        body, extra = _add_object(space, obj, scene, k, phys.friction_grid, phys.gravity)
         bodies.append(body)
-        joints.append(js)
+        parts.append(extra)
 
     for x0, y0, x1, y1 in scene.walls:
         seg = pymunk.Segment(space.static_body, (float(x0), float(y0)), (float(x1), float(y1)),
@@ -184,16 +207,13 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
     control = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
     control.position = (float(hand_path[0, 0]), float(hand_path[0, 1]))
     control.angle = float(hand_path[0, 2])
-    hand = pymunk.Body(grip.mass, pymunk.moment_for_box(grip.mass, (grip.finger_size[0],
+    half = 0.5 * grip.push_opening
+    hand = pymunk.Body(grip.mass, pymunk.moment_for_box(grip.mass, (2 * grip.finger_radius,
                                                                      grip.push_opening)))
     hand.position, hand.angle = control.position, control.angle
-    half = 0.5 * grip.push_opening
-    fx, fy = 0.5 * grip.finger_size[0], 0.5 * grip.finger_size[1]
     fingers = []
     for side in (-1.0, 1.0):
-        verts = [(-fx, side * half - fy), (fx, side * half - fy),
-                 (fx, side * half + fy), (-fx, side * half + fy)]
-        f = pymunk.Poly(hand, verts)
+        f = pymunk.Circle(hand, grip.finger_radius, (0.0, side * half))
         f.friction = math.sqrt(grip.contact_friction)
         f.collision_type = _HAND
         fingers.append(f)
@@ -235,7 +255,7 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
         for k, b in enumerate(bodies):
             if frozen[k] is None and (abs(b.position.x) > hx or abs(b.position.y) > hy):
                 frozen[k] = _pose(b)  # its centre passed the edge: it tips over and falls
-                space.remove(b, *b.shapes, *joints[k])
+                space.remove(*parts[k])
         if (i + 1) % every == 0:
             record((i + 1) / rate)
     if (len(path) - 1) % every:
