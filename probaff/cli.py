@@ -45,7 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _dispatch(args: argparse.Namespace) -> None:
     if args.command == "generate":
-        from probaff.data.generate import GenerateConfig, generate
+        from probaff.data.generation import GenerateConfig, generate
 
         cfg = GenerateConfig(scene=args.scene, n=args.n, seed=args.seed,
                              shard_size=args.shard_size, trajectories=not args.no_trajectories)

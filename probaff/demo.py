@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from probaff.data.generate import GenerateConfig, generate
+from probaff.data.generation import GenerateConfig, generate
 from probaff.data.summary import summarize
 from probaff.eval.push_figures import plot_pushes
 from probaff.sim.arm import load_arm

@@ -1,6 +1,6 @@
 """Push datasets: a versioned schema, a sharded on-disk format, and generation on Dask."""
 
-from probaff.data.generate import GenerateConfig, generate, make_shard, samples_to_arrays
+from probaff.data.generation import GenerateConfig, generate, make_shard, samples_to_arrays
 from probaff.data.schema import OPTIONAL_ARRAYS, REQUIRED_ARRAYS, SCHEMA_VERSION, PushDataset
 from probaff.data.store import load_dataset, read_manifest
 from probaff.data.summary import summarize

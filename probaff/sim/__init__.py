@@ -12,7 +12,7 @@ from probaff.sim.config import (
     worlds_dir,
 )
 from probaff.sim.geometry import push_frame_effect, to_push_frame
-from probaff.sim.runner import PushSample, PushSimulator
+from probaff.sim.runner import PushSample, PushSimulator, straight_path, trapezoid_progress
 from probaff.sim.sampling import sample_scene
 from probaff.sim.sensing import Scan, object_cloud, scan_scene, table_cloud
 from probaff.sim.tabletop import PushOutcome, SceneInstance, simulate_push
@@ -39,8 +39,10 @@ __all__ = [
     "sample_scene",
     "scan_scene",
     "simulate_push",
+    "straight_path",
     "table_cloud",
     "to_push_frame",
     "topdown_pose",
+    "trapezoid_progress",
     "worlds_dir",
 ]

@@ -15,7 +15,7 @@ from probaff.sim.config import SceneSpec, TabletopSpec, load_catalogue, load_sce
 from probaff.sim.sampling import sample_scene
 from probaff.sim.tabletop import PushOutcome, SceneInstance, simulate_push
 
-__all__ = ["PushSample", "PushSimulator", "trapezoid_progress"]
+__all__ = ["PushSample", "PushSimulator", "straight_path", "trapezoid_progress"]
 
 _MAX_DRAWS_PER_SAMPLE = 200
 
@@ -50,6 +50,28 @@ def trapezoid_progress(distance: float, speed: float, acceleration: float, rate:
                  distance - 0.5 * acceleration * (total - t) ** 2),
     )
     return s / distance
+
+
+def straight_path(world: TabletopSpec, start_xy: np.ndarray, yaw: float, distance: float
+                  ) -> np.ndarray:
+    """An ideal straight hand path with the world's speed profile, without the arm.
+
+    `PushSimulator` commands the FK of the arm's joint trajectory instead; this ideal path
+    isolates the physics (for analytic checks) and serves hands not mounted on this arm.
+
+    Args:
+        world: The tabletop world (speed, acceleration, control rate).
+        start_xy: (2,) world start of the hand (m).
+        yaw: World yaw of the push direction z_p (rad).
+        distance: Push length d_p (m).
+
+    Returns:
+        (T_c, 3) world ``(x, y, yaw)`` of the hand per control tick.
+    """
+    s = distance * trapezoid_progress(distance, world.push_speed, world.push_acceleration,
+                                      world.physics.control_rate)
+    return np.stack([start_xy[0] + s * math.cos(yaw), start_xy[1] + s * math.sin(yaw),
+                     np.full_like(s, yaw)], axis=-1)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,27 @@
+"""The README's library example runs as written."""
+
+import re
+from pathlib import Path
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def _block(heading: str) -> str:
+    text = README.read_text()
+    section = text.split(f"## {heading}", 1)[1]
+    return re.search(r"```python\n(.*?)```", section, re.S).group(1)
+
+
+def test_library_example(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    exec(compile(_block("Library example"), "README.md", "exec"), {})
+    out = capsys.readouterr().out
+    assert out.count("dy_p=") == 3
+    assert (tmp_path / "results" / "example" / "manifest.json").is_file()
+
+
+def test_ci_runs_the_readme_test_command():
+    text = README.read_text()
+    cmd = re.findall(r"```bash\n(.*?)\n```", text, re.S)[1].strip()
+    ci = (README.parent / ".ci" / "run").read_text()
+    assert cmd in ci.splitlines()
