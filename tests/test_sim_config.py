@@ -35,7 +35,7 @@ def test_tabletop_gripper_opens_to_15cm():
 
 
 def test_unknown_scene():
-    with pytest.raises(ConfigError, match="unknown scene 'nope'.*two_objects"):
+    with pytest.raises(ConfigError, match=r"unknown scene 'nope'.*two_objects"):
         load_scene("nope")
 
 
@@ -64,21 +64,21 @@ def test_malformed_yaml(worlds_copy):
 def test_bad_parameter_values(worlds_copy, bad):
     p = worlds_copy / "objects.yaml"
     p.write_text(p.read_text().replace("mass: 0.600", f"mass: {bad}"))
-    with pytest.raises(ConfigError, match="book.mass"):
+    with pytest.raises(ConfigError, match=r"book\.mass"):
         load_catalogue(p)
 
 
 def test_negative_range_in_scene(worlds_copy):
     p = worlds_copy / "scenes" / "single_free.yaml"
     p.write_text(p.read_text().replace("distance: 0.15", "distance: -0.15"))
-    with pytest.raises(ConfigError, match="push.distance must be > 0"):
+    with pytest.raises(ConfigError, match=r"push\.distance must be > 0"):
         load_scene("single_free")
 
 
 def test_unknown_field(worlds_copy):
     p = worlds_copy / "tabletop.yaml"
     p.write_text(p.read_text().replace("push_opening: 0.06", "push_opening: 0.2"))
-    with pytest.raises(ConfigError, match="exceeds the 0.15 m"):
+    with pytest.raises(ConfigError, match=r"exceeds the 0\.15 m"):
         load_tabletop(p)
 
 

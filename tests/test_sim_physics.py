@@ -16,6 +16,7 @@ from probaff.sim import (
     simulate_push,
     straight_path,
 )
+from probaff.sim.geometry import friction_points
 
 BOX = ObjectSpec("test_box", "box", (0.20, 0.12), 0.0, 0.05, 0.5, 0.4, 1.0)
 
@@ -28,12 +29,14 @@ def _world(speed=0.2, **grip):
 
 
 def _scene(objects, poses, start, yaw, distance, walls=None):
+    grid = load_tabletop().physics.friction_grid
     return SceneInstance(
         objects=tuple(objects),
         poses=np.asarray(poses, dtype=float),
         mass=np.array([o.mass for o in objects]),
         ground_friction=np.array([o.ground_friction for o in objects]),
         contact_friction=np.array([o.contact_friction for o in objects]),
+        support_weights=tuple(np.ones(len(friction_points(o, grid))) for o in objects),
         walls=np.asarray(walls if walls is not None else [], dtype=float).reshape(-1, 4),
         push_origin=np.asarray(start, dtype=float),
         push_yaw=yaw,

@@ -113,6 +113,7 @@ def samples_to_arrays(samples: list[PushSample], object_names: list[str], rng: n
         "mass": np.array([s.scene.mass for s in samples]),
         "ground_friction": np.array([s.scene.ground_friction for s in samples]),
         "contact_friction": np.array([s.scene.contact_friction for s in samples]),
+        "support_weights": _pad([s.scene.support_weights for s in samples]),
         "walls": np.array([s.scene.walls for s in samples]).reshape(len(samples), -1, 4),
         "hand_contact": np.array([s.outcome.hand_contact for s in samples]),
         "object_contact": np.array([s.outcome.object_contact for s in samples]),
@@ -129,6 +130,16 @@ def samples_to_arrays(samples: list[PushSample], object_names: list[str], rng: n
         out["traj_objects"] = np.array([s.outcome.traj_objects for s in samples],
                                        dtype=np.float32)
     return {k: v.astype(v.dtype, copy=False) for k, v in out.items()}
+
+
+def _pad(rows: list[tuple[np.ndarray, ...]]) -> np.ndarray:
+    """Stack ragged per-object vectors into (N, K, G), zero-padded."""
+    g = max((len(w) for r in rows for w in r), default=0)
+    out = np.zeros((len(rows), len(rows[0]) if rows else 0, g))
+    for i, r in enumerate(rows):
+        for k, w in enumerate(r):
+            out[i, k, : len(w)] = w
+    return out
 
 
 @contextlib.contextmanager

@@ -18,6 +18,8 @@ array                         shape            dtype     meaning
 ``mass``                      (N, K)           float64   kg, after randomisation
 ``ground_friction``           (N, K)           float64   Coulomb coefficient to the table
 ``contact_friction``          (N, K)           float64   surface coefficient
+``support_weights``           (N, K, G)        float64   relative loads of the G friction
+                                                         support points (0 = no point)
 ``walls``                     (N, Wn, 4)       float64   wall segments (x0, y0, x1, y1)
 ``hand_contact``              (N, K)           bool      the hand touched the object
 ``object_contact``            (N, K, K)        bool      two objects touched
@@ -58,6 +60,7 @@ REQUIRED_ARRAYS: dict[str, str] = {
     "mass": "float64",
     "ground_friction": "float64",
     "contact_friction": "float64",
+    "support_weights": "float64",
     "walls": "float64",
     "hand_contact": "bool",
     "object_contact": "bool",

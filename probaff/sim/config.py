@@ -256,6 +256,7 @@ class SceneSpec:
     ground_friction_scale: Range
     contact_friction_scale: Range
     mass_scale: Range = field(default=(1.0, 1.0))
+    support_load_variation: float = 0.0
 
 
 @cache
@@ -468,7 +469,11 @@ def load_scene(name: str) -> SceneSpec:
     )
     rnd = _mapping(f"{w}:randomise", raw.get("randomise") or {})
     _no_extra(f"{w}:randomise", rnd, {"ground_friction_scale", "contact_friction_scale",
-                                      "mass_scale"})
+                                      "mass_scale", "support_load_variation"})
+    variation = _number(f"{w}:randomise.support_load_variation",
+                        rnd.get("support_load_variation", 0.0), nonneg=True)
+    if variation >= 1.0:
+        raise ConfigError(f"{w}:randomise.support_load_variation must be < 1, got {variation}.")
     return SceneSpec(
         name=str(raw.get("name", name)),
         description=str(raw.get("description", "")),
@@ -482,4 +487,5 @@ def load_scene(name: str) -> SceneSpec:
                                       positive=True),
         mass_scale=_range(f"{w}:randomise.mass_scale", rnd.get("mass_scale", [1.0, 1.0]),
                           positive=True),
+        support_load_variation=variation,
     )

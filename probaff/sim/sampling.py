@@ -8,7 +8,7 @@ import numpy as np
 import pymunk
 
 from probaff.sim.config import ObjectSpec, SceneSpec, TabletopSpec
-from probaff.sim.geometry import footprint_support
+from probaff.sim.geometry import footprint_support, friction_points
 from probaff.sim.tabletop import SceneInstance
 
 __all__ = ["sample_scene"]
@@ -82,6 +82,11 @@ def sample_scene(scene: SceneSpec, catalogue: dict[str, ObjectSpec], world: Tabl
         *scene.ground_friction_scale, size=K)
     mu_c = np.array([o.contact_friction for o in objs]) * rng.uniform(
         *scene.contact_friction_scale, size=K)
+    v = scene.support_load_variation
+    weights = []
+    for o in objs:
+        w = rng.uniform(1.0 - v, 1.0 + v, size=len(friction_points(o, world.physics.friction_grid)))
+        weights.append(w / w.mean())
 
     hx, hy = 0.5 * world.table_size[0], 0.5 * world.table_size[1]
     if any(abs(p[0]) > hx or abs(p[1]) > hy for p in poses):
@@ -105,6 +110,7 @@ def sample_scene(scene: SceneSpec, catalogue: dict[str, ObjectSpec], world: Tabl
         mass=mass,
         ground_friction=mu_g,
         contact_friction=mu_c,
+        support_weights=tuple(weights),
         walls=np.array(walls, dtype=float).reshape(-1, 4),
         push_origin=start,
         push_yaw=phi,

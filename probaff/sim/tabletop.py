@@ -4,8 +4,9 @@ Objects carry distributed Coulomb friction; a force-limited hand tracks the arm'
 Units are SI. The table is centred at the world origin; its surface is the plane of the
 simulation. Ground friction is Coulomb friction spread over the footprint: each object is a core
 body pinned to P point-mass "feet" at footprint points, and each foot is held to the table by a
-pivot joint whose force is limited to mu m g / P. This discretises a uniform-pressure limit
-surface (Goyal et al.), and objects stop as soon as the pusher stops, as on a real table. pymunk
+pivot joint whose force is limited to w_i mu m g / P, where w_i is the relative normal load of
+support point i (all 1 for a uniform pressure). This discretises the limit surface (Goyal et
+al.), and objects stop as soon as the pusher stops, as on a real table. pymunk
 multiplies the two shapes' friction coefficients at a contact, so each shape is given the square
 root of its catalogue coefficient and a contact pair sees the geometric mean.
 """
@@ -38,6 +39,9 @@ class SceneInstance:
         mass: (K,) masses (kg).
         ground_friction: (K,) Coulomb coefficients against the table.
         contact_friction: (K,) surface coefficients.
+        support_weights: Per object, (P_k,) relative normal loads of its friction support
+            points (mean 1; see `probaff.sim.geometry.friction_points`): the unknown, uneven
+            pressure distribution under a real object.
         walls: (W, 4) fixed wall segments ``(x0, y0, x1, y1)`` in the world.
         push_origin: (2,) world position of the hand at the start (the pushing-frame origin).
         push_yaw: World yaw of z_p (rad).
@@ -49,6 +53,7 @@ class SceneInstance:
     mass: np.ndarray
     ground_friction: np.ndarray
     contact_friction: np.ndarray
+    support_weights: tuple[np.ndarray, ...]
     walls: np.ndarray
     push_origin: np.ndarray
     push_yaw: float
@@ -127,15 +132,18 @@ def _add_object(space: pymunk.Space, obj: ObjectSpec, scene: SceneInstance, k: i
     shape.elasticity = 0.0
     shape.collision_type = _OBJECT0 + k
     added: list[object] = [core, shape]
+    weights = scene.support_weights[k]
+    if len(weights) != len(pts):
+        raise ValueError(f"object {k} has {len(weights)} support weights for {len(pts)} points.")
     limit = float(scene.ground_friction[k]) * m * gravity / len(pts)
-    for p in pts:
+    for p, w in zip(pts, weights, strict=True):
         local = (float(p[0]), float(p[1]))
         foot = pymunk.Body(m_foot, 1e-9)
         foot.position = core.local_to_world(local)
         pin = pymunk.PivotJoint(core, foot, local, (0.0, 0.0))
         grip = pymunk.PivotJoint(space.static_body, foot, foot.position, (0.0, 0.0))
         grip.max_bias = 0.0
-        grip.max_force = limit
+        grip.max_force = limit * float(w)
         added += [foot, pin, grip]
     space.add(*added)
     return core, added
