@@ -164,3 +164,12 @@ def test_summary(reference):
 def test_dataset_validation():
     with pytest.raises(DatasetError, match="missing arrays"):
         PushDataset({"effect": np.zeros((2, 1, 3))}, ["a"])
+
+
+def test_existing_scheduler_gives_the_same_bytes(reference, tmp_path):
+    from dask.distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        generate(CFG, tmp_path / "sched", scheduler=cluster.scheduler_address, progress=False)
+    assert _files(tmp_path / "sched") == _files(reference)

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from probaff.errors import UnreachablePoseError
 from probaff.sim import (
     ObjectSpec,
     PushSimulator,
@@ -16,7 +17,6 @@ from probaff.sim import (
     simulate_push,
     straight_path,
 )
-from probaff.sim.geometry import friction_points
 
 BOX = ObjectSpec("test_box", "box", (0.20, 0.12), 0.0, 0.05, 0.5, 0.4, 1.0)
 
@@ -30,18 +30,7 @@ def _world(speed=0.2, **grip):
 
 def _scene(objects, poses, start, yaw, distance, walls=None):
     grid = load_tabletop().physics.friction_grid
-    return SceneInstance(
-        objects=tuple(objects),
-        poses=np.asarray(poses, dtype=float),
-        mass=np.array([o.mass for o in objects]),
-        ground_friction=np.array([o.ground_friction for o in objects]),
-        contact_friction=np.array([o.contact_friction for o in objects]),
-        support_weights=tuple(np.ones(len(friction_points(o, grid))) for o in objects),
-        walls=np.asarray(walls if walls is not None else [], dtype=float).reshape(-1, 4),
-        push_origin=np.asarray(start, dtype=float),
-        push_yaw=yaw,
-        push_distance=distance,
-    )
+    return SceneInstance.nominal(objects, poses, start, yaw, distance, grid, walls)
 
 
 def _push_box(world, lateral, distance=0.15, yaw=0.0):
@@ -196,3 +185,15 @@ def test_simulation_is_deterministic():
     for x, y in zip(a, b, strict=True):
         np.testing.assert_array_equal(x.outcome.traj_objects, y.outcome.traj_objects)
         np.testing.assert_array_equal(x.q_waypoints, y.q_waypoints)
+
+
+def test_execute_given_push_and_refuse_unreachable():
+    sim = PushSimulator("single_free")
+    book = load_catalogue()["book"]
+    grid = sim.world.physics.friction_grid
+    ok = SceneInstance.nominal([book], [[0.0, 0.0, 0.0]], [-0.13, 0.0], 0.0, 0.15, grid)
+    far = SceneInstance.nominal([book], [[0.45, 0.35, 0.0]], [0.32, 0.35], 0.0, 0.15, grid)
+    (sample,) = sim.execute([ok])
+    assert sample.outcome.effect[0, 1] > 0.1
+    with pytest.raises(UnreachablePoseError, match=r"push 1 .* reachable workspace"):
+        sim.execute([ok, far])

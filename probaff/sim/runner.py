@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from probaff.errors import ConfigError
+from probaff.errors import ConfigError, UnreachablePoseError
 from probaff.sim.arm import Arm, load_arm
 from probaff.sim.config import SceneSpec, TabletopSpec, load_catalogue, load_scene, load_tabletop
 from probaff.sim.sampling import sample_scene
@@ -121,6 +121,30 @@ class PushSimulator:
         sol = self.arm.solve_pushes(xy, yaw, self.scene.push.distance)
         path = self.arm.trace(sol.q, self.progress)
         return sol.ok.numpy(), sol.q.numpy(), path.numpy()
+
+    def execute(self, scenes: list[SceneInstance]) -> list[PushSample]:
+        """Simulate given pushes (e.g. chosen by a planner) with the arm.
+
+        Args:
+            scenes: Pushes to run; each push's start and path must be reachable.
+
+        Returns:
+            One sample per scene, in order.
+
+        Raises:
+            UnreachablePoseError: Naming the first push the arm cannot execute.
+        """
+        ok, q, path = self.hand_paths(scenes)
+        if not ok.all():
+            i = int(np.flatnonzero(~ok)[0])
+            x, y = scenes[i].push_origin
+            raise UnreachablePoseError(
+                f"push {i} (start x={x:.3f}, y={y:.3f}, yaw={scenes[i].push_yaw:.3f}, "
+                f"d_p={self.scene.push.distance} m) leaves the arm's reachable workspace; "
+                "start it closer to the arm or push towards it (see Arm.reachable_mask())."
+            )
+        return [PushSample(s, simulate_push(self.world, s, path[i]), q[i])
+                for i, s in enumerate(scenes)]
 
     def run(self, n: int, rng: np.random.Generator) -> Iterator[PushSample]:
         """Draw and simulate `n` valid, reachable pushes.

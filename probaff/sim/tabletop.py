@@ -59,6 +59,36 @@ class SceneInstance:
     push_yaw: float
     push_distance: float
 
+    @classmethod
+    def nominal(cls, objects: tuple[ObjectSpec, ...] | list[ObjectSpec], poses: np.ndarray,
+                push_origin: np.ndarray, push_yaw: float, push_distance: float,
+                friction_grid: int, walls: np.ndarray | None = None) -> SceneInstance:
+        """A scene with the catalogue's nominal masses and frictions and uniform pressure.
+
+        Args:
+            objects: K catalogue objects; the first is the pushed one.
+            poses: (K, 3) world ``(x, y, theta)``.
+            push_origin: (2,) world start of the hand.
+            push_yaw: World yaw of z_p (rad).
+            push_distance: d_p (m).
+            friction_grid: The world's ``physics.friction_grid``.
+            walls: (W, 4) wall segments, or ``None``.
+        """
+        objects = tuple(objects)
+        return cls(
+            objects=objects,
+            poses=np.asarray(poses, dtype=float).reshape(len(objects), 3),
+            mass=np.array([o.mass for o in objects]),
+            ground_friction=np.array([o.ground_friction for o in objects]),
+            contact_friction=np.array([o.contact_friction for o in objects]),
+            support_weights=tuple(np.ones(len(friction_points(o, friction_grid)))
+                                  for o in objects),
+            walls=np.zeros((0, 4)) if walls is None else np.asarray(walls, float).reshape(-1, 4),
+            push_origin=np.asarray(push_origin, dtype=float),
+            push_yaw=float(push_yaw),
+            push_distance=float(push_distance),
+        )
+
 
 @dataclass(frozen=True)
 class PushOutcome:
