@@ -201,6 +201,8 @@ def _prepare(out: Path, config: GenerateConfig, resume: bool) -> dict[str, Any]:
             "scene": config.scene,
             "table_size": list(sim.world.table_size),
             "push_height": sim.world.arm.push_height,
+            "gripper_opening": sim.world.gripper.push_opening,
+            "finger_radius": sim.world.gripper.finger_radius,
             "control_rate": sim.world.physics.control_rate,
             "record_rate": sim.world.record_rate,
             "arm_base_xyz": list(sim.world.arm.base_xyz),
