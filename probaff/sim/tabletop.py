@@ -2,13 +2,10 @@
 
 Objects carry distributed Coulomb friction; a force-limited hand tracks the arm's trajectory.
 Units are SI. The table is centred at the world origin; its surface is the plane of the
-simulation. Ground friction is Coulomb friction spread over the footprint: each object is a core
-body pinned to P point-mass "feet" at footprint points, and each foot is held to the table by a
-pivot joint whose force is limited to w_i mu m g / P, where w_i is the relative normal load of
-support point i (all 1 for a uniform pressure). This discretises the limit surface (Goyal et
-al.), and objects stop as soon as the pusher stops, as on a real table. pymunk
-multiplies the two shapes' friction coefficients at a contact, so each shape is given the square
-root of its catalogue coefficient and a contact pair sees the geometric mean.
+simulation. Objects slide with Coulomb friction spread over their footprints
+(`probaff.sim.friction`). pymunk multiplies the two shapes' friction coefficients at a contact,
+so each shape is given the square root of its catalogue coefficient and a contact pair sees the
+geometric mean.
 """
 
 from __future__ import annotations
@@ -20,6 +17,7 @@ import numpy as np
 import pymunk
 
 from probaff.sim.config import ObjectSpec, TabletopSpec
+from probaff.sim.friction import add_sliding_body
 from probaff.sim.geometry import friction_points, push_frame_effect
 
 __all__ = ["PushOutcome", "SceneInstance", "simulate_push"]
@@ -130,53 +128,20 @@ def _object_shape(body: pymunk.Body, obj: ObjectSpec) -> pymunk.Shape:
     return pymunk.Poly.create_box(body, obj.size)
 
 
-def _moment(obj: ObjectSpec, mass: float) -> float:
-    if obj.shape == "circle":
-        return pymunk.moment_for_circle(mass, 0.0, obj.radius)
-    return pymunk.moment_for_box(mass, obj.size)
-
-
-_CORE_MASS_FRACTION = 0.2
-
-
 def _add_object(space: pymunk.Space, obj: ObjectSpec, scene: SceneInstance, k: int, grid: int,
                 gravity: float) -> tuple[pymunk.Body, list[object]]:
-    """Add object `k`: a rigid core with the footprint shape and one "foot" per support point.
+    """Add object `k` as a sliding body with friction spread over its footprint."""
 
-    Each foot is a point mass pinned rigidly to the core and held to the table by a pivot joint
-    whose force is limited to mu m g / P. Because the foot's own effective mass is isotropic,
-    the friction impulse at each support point opposes that point's sliding velocity, which is
-    Coulomb's law; a force-limited joint on the core itself would couple translation and
-    rotation through the core's inertia and misdirect the friction. The core holds 20 % of the
-    mass and the feet the rest, so the assembly's inertia approximates a uniform slab.
-    """
-    m = float(scene.mass[k])
-    pts = friction_points(obj, grid)
-    m_core = _CORE_MASS_FRACTION * m
-    m_foot = (m - m_core) / len(pts)
-    core = pymunk.Body(m_core, _moment(obj, m_core))
-    core.position = (float(scene.poses[k, 0]), float(scene.poses[k, 1]))
-    core.angle = float(scene.poses[k, 2])
-    shape = _object_shape(core, obj)
-    shape.friction = math.sqrt(float(scene.contact_friction[k]))
-    shape.elasticity = 0.0
-    shape.collision_type = _OBJECT0 + k
-    added: list[object] = [core, shape]
-    weights = scene.support_weights[k]
-    if len(weights) != len(pts):
-        raise ValueError(f"object {k} has {len(weights)} support weights for {len(pts)} points.")
-    limit = float(scene.ground_friction[k]) * m * gravity / len(pts)
-    for p, w in zip(pts, weights, strict=True):
-        local = (float(p[0]), float(p[1]))
-        foot = pymunk.Body(m_foot, 1e-9)
-        foot.position = core.local_to_world(local)
-        pin = pymunk.PivotJoint(core, foot, local, (0.0, 0.0))
-        grip = pymunk.PivotJoint(space.static_body, foot, foot.position, (0.0, 0.0))
-        grip.max_bias = 0.0
-        grip.max_force = limit * float(w)
-        added += [foot, pin, grip]
-    space.add(*added)
-    return core, added
+    def make_shape(core: pymunk.Body) -> pymunk.Shape:
+        shape = _object_shape(core, obj)
+        shape.friction = math.sqrt(float(scene.contact_friction[k]))
+        shape.elasticity = 0.0
+        shape.collision_type = _OBJECT0 + k
+        return shape
+
+    return add_sliding_body(space, float(scene.mass[k]), make_shape, tuple(scene.poses[k]),
+                            friction_points(obj, grid), scene.support_weights[k],
+                            float(scene.ground_friction[k]), gravity)
 
 
 class _Contacts:
