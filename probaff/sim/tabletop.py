@@ -19,6 +19,7 @@ import pymunk
 from probaff.sim.config import ObjectSpec, TabletopSpec
 from probaff.sim.friction import add_sliding_body
 from probaff.sim.geometry import friction_points, push_frame_effect
+from probaff.sim.pusher import TrackedPusher
 
 __all__ = ["PushOutcome", "SceneInstance", "simulate_push"]
 
@@ -207,24 +208,22 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
         seg.collision_type = _WALL
         space.add(seg)
 
-    control = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
-    control.position = (float(hand_path[0, 0]), float(hand_path[0, 1]))
-    control.angle = float(hand_path[0, 2])
     half = 0.5 * grip.push_opening
-    hand = pymunk.Body(grip.mass, pymunk.moment_for_box(grip.mass, (2 * grip.finger_radius,
-                                                                     grip.push_opening)))
-    hand.position, hand.angle = control.position, control.angle
-    fingers = []
-    for side in (-1.0, 1.0):
-        f = pymunk.Circle(hand, grip.finger_radius, (0.0, side * half))
-        f.friction = math.sqrt(grip.contact_friction)
-        f.collision_type = _HAND
-        fingers.append(f)
-    pivot = pymunk.PivotJoint(control, hand, (0.0, 0.0), (0.0, 0.0))
-    pivot.max_force, pivot.max_bias = grip.max_force, grip.max_speed
-    gear = pymunk.GearJoint(control, hand, 0.0, 1.0)
-    gear.max_force, gear.max_bias = grip.max_torque, 4.0
-    space.add(control, hand, *fingers, pivot, gear)
+
+    def make_fingers(hand: pymunk.Body) -> list[pymunk.Shape]:
+        fingers = []
+        for side in (-1.0, 1.0):
+            f = pymunk.Circle(hand, grip.finger_radius, (0.0, side * half))
+            f.friction = math.sqrt(grip.contact_friction)
+            f.collision_type = _HAND
+            fingers.append(f)
+        return fingers
+
+    pusher = TrackedPusher(space, hand_path[0], grip.mass,
+                           pymunk.moment_for_box(grip.mass, (2 * grip.finger_radius,
+                                                             grip.push_opening)),
+                           make_fingers, grip.max_force, grip.max_torque, grip.max_speed)
+    hand = pusher.body
 
     rate = phys.control_rate
     dt = 1.0 / rate / phys.substeps
@@ -246,15 +245,10 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
 
     record(0.0)
     for i in range(len(path) - 1):
-        control.position = (float(path[i, 0]), float(path[i, 1]))
-        control.angle = float(path[i, 2])
-        control.velocity = ((path[i + 1, 0] - path[i, 0]) * rate,
-                            (path[i + 1, 1] - path[i, 1]) * rate)
-        control.angular_velocity = float(path[i + 1, 2] - path[i, 2]) * rate
+        pusher.command(path[i], path[i + 1], rate)
         for _ in range(phys.substeps):
             space.step(dt)
-        lag = max(lag, math.hypot(hand.position.x - path[i + 1, 0],
-                                  hand.position.y - path[i + 1, 1]))
+        lag = max(lag, pusher.lag(path[i + 1]))
         for k, b in enumerate(bodies):
             if frozen[k] is None and (abs(b.position.x) > hx or abs(b.position.y) > hy):
                 frozen[k] = _pose(b)  # its centre passed the edge: it tips over and falls
