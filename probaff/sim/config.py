@@ -28,10 +28,12 @@ __all__ = [
     "SceneSpec",
     "TabletopSpec",
     "WallSpec",
+    "WarehouseSpec",
     "list_scenes",
     "load_catalogue",
     "load_scene",
     "load_tabletop",
+    "load_warehouse",
     "worlds_dir",
 ]
 
@@ -257,6 +259,98 @@ class SceneSpec:
     contact_friction_scale: Range
     mass_scale: Range = field(default=(1.0, 1.0))
     support_load_variation: float = 0.0
+
+
+@dataclass(frozen=True)
+class WarehouseSpec:
+    """The grid warehouse (``worlds/warehouse.yaml``); see that file for the fields' meaning."""
+
+    rows: int
+    cols: int
+    cell_size: float
+    boxes: tuple[int, int]
+    box_size: float
+    box_height: float
+    box_mass: float
+    box_ground_friction: float
+    box_contact_friction: float
+    wall_height: float
+    wall_thickness: float
+    robot_radius: float
+    robot_max_force: float
+    robot_speed: float
+    robot_acceleration: float
+    sensor_height: float
+    sensor_range: float
+    sensor_azimuths: int
+    sensor_elevations: tuple[float, ...]
+    sensor_noise: float
+    control_rate: float
+    substeps: int
+    iterations: int
+    friction_grid: int
+    collision_slop: float
+
+
+def load_warehouse(path: Path | None = None) -> WarehouseSpec:
+    """Load and validate the warehouse world (``worlds/warehouse.yaml``).
+
+    Args:
+        path: Another warehouse file; defaults to the one in `worlds_dir()`.
+    """
+    p = path or worlds_dir() / "warehouse.yaml"
+    raw = _mapping(str(p), _read_yaml(p))
+    w = p.name
+    _no_extra(w, raw, {"grid", "cell_size", "boxes", "box", "wall", "robot", "sensor",
+                       "physics"})
+    grid = _take(w, raw, "grid")
+    if not isinstance(grid, list) or len(grid) != 2 or not all(
+            isinstance(g, int) and not isinstance(g, bool) and g >= 2 for g in grid):
+        raise ConfigError(f"{w}:grid must be [rows, cols], integers >= 2, got {grid!r}.")
+    nb = _range(f"{w}:boxes", _take(w, raw, "boxes"), nonneg=True)
+    box = _mapping(f"{w}:box", _take(w, raw, "box"))
+    wall = _mapping(f"{w}:wall", _take(w, raw, "wall"))
+    robot = _mapping(f"{w}:robot", _take(w, raw, "robot"))
+    sensor = _mapping(f"{w}:sensor", _take(w, raw, "sensor"))
+    phys = _mapping(f"{w}:physics", _take(w, raw, "physics"))
+    cell = _number(f"{w}:cell_size", _take(w, raw, "cell_size"), positive=True)
+    size = _number(f"{w}:box.size", _take(f"{w}:box", box, "size"), positive=True)
+    if size >= cell:
+        raise ConfigError(f"{w}:box.size {size} must be smaller than cell_size {cell}.")
+    elev = _take(f"{w}:sensor", sensor, "elevations")
+    if not isinstance(elev, list) or not elev:
+        raise ConfigError(f"{w}:sensor.elevations must be a non-empty list of degrees.")
+
+    def num(where: str, table: dict[str, Any], key: str, **kw: bool) -> float:
+        return _number(f"{w}:{where}.{key}", _take(f"{w}:{where}", table, key), **kw)
+
+    return WarehouseSpec(
+        rows=grid[0],
+        cols=grid[1],
+        cell_size=cell,
+        boxes=(int(nb[0]), int(nb[1])),
+        box_size=size,
+        box_height=num("box", box, "height", positive=True),
+        box_mass=num("box", box, "mass", positive=True),
+        box_ground_friction=num("box", box, "ground_friction", positive=True),
+        box_contact_friction=num("box", box, "contact_friction", nonneg=True),
+        wall_height=num("wall", wall, "height", positive=True),
+        wall_thickness=num("wall", wall, "thickness", positive=True),
+        robot_radius=num("robot", robot, "radius", positive=True),
+        robot_max_force=num("robot", robot, "max_force", positive=True),
+        robot_speed=num("robot", robot, "speed", positive=True),
+        robot_acceleration=num("robot", robot, "acceleration", positive=True),
+        sensor_height=num("sensor", sensor, "height", positive=True),
+        sensor_range=num("sensor", sensor, "max_range", positive=True),
+        sensor_azimuths=int(num("sensor", sensor, "azimuths", positive=True)),
+        sensor_elevations=tuple(_number(f"{w}:sensor.elevations", e) for e in elev),
+        sensor_noise=num("sensor", sensor, "noise", nonneg=True),
+        control_rate=num("physics", phys, "control_rate", positive=True),
+        substeps=int(num("physics", phys, "substeps", positive=True)),
+        iterations=int(num("physics", phys, "iterations", positive=True)),
+        friction_grid=int(num("physics", phys, "friction_grid", positive=True)),
+        collision_slop=num("physics", phys, "collision_slop", nonneg=True),
+    )
 
 
 @cache

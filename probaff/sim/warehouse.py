@@ -1,0 +1,309 @@
+"""The grid warehouse of chapter 3: maps, their generator, and one-cell box pushes in pymunk.
+
+Grid convention: a map is indexed ``[row, col]``; row 0 is the top row. Cell ``(r, c)`` has its
+centre at world ``x = (c + 0.5) s``, ``y = (rows - r - 0.5) s`` for cell size ``s``. Directions
+are ordered (up, down, left, right): up is +y (row - 1), left is -x (col - 1). The walls run
+along the outer border of the grid.
+
+A box is pushable in a direction when the cell beyond it is inside the walls and free: walls do
+not move, and the robot cannot push two boxes in a row. `physics_affordances` measures this in
+the physics engine; `rule_affordances` states the rule.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pymunk
+
+from probaff.errors import ConfigError, InputError
+from probaff.sim.config import WarehouseSpec
+from probaff.sim.friction import add_sliding_body
+from probaff.sim.pusher import TrackedPusher
+from probaff.sim.runner import trapezoid_progress
+
+__all__ = [
+    "DIRECTIONS",
+    "DIRECTION_NAMES",
+    "BoxPush",
+    "WarehouseMap",
+    "generate_map",
+    "physics_affordances",
+    "push_box",
+    "rule_affordances",
+]
+
+DIRECTION_NAMES = ("up", "down", "left", "right")
+DIRECTIONS = np.array([[-1, 0], [1, 0], [0, -1], [0, 1]])  # (d_row, d_col)
+_PUSHED_FRACTION = 0.8  # a push succeeds when the box travels this fraction of a cell
+
+
+@dataclass(frozen=True)
+class WarehouseMap:
+    """Which cells hold a box.
+
+    Attributes:
+        occupancy: (rows, cols) bool, ``True`` where a box stands.
+        cell_size: Side of a cell (m).
+    """
+
+    occupancy: np.ndarray
+    cell_size: float = 1.0
+
+    def __post_init__(self) -> None:
+        occ = np.asarray(self.occupancy)
+        if occ.ndim != 2 or occ.dtype != bool:
+            raise InputError(f"occupancy must be a 2-D bool array, got {occ.dtype} {occ.shape}.")
+        if min(occ.shape) < 2:
+            raise InputError(f"a warehouse needs at least 2 x 2 cells, got {occ.shape}.")
+
+    @classmethod
+    def from_boxes(cls, shape: tuple[int, int], boxes: list[tuple[int, int]],
+                   cell_size: float = 1.0) -> WarehouseMap:
+        """A map from a list of box cells.
+
+        Args:
+            shape: ``(rows, cols)``.
+            boxes: ``(row, col)`` of each box.
+            cell_size: Side of a cell (m).
+
+        Raises:
+            InputError: For a box outside the walls or two boxes in one cell.
+        """
+        occ = np.zeros(shape, dtype=bool)
+        for r, c in boxes:
+            if not (0 <= r < shape[0] and 0 <= c < shape[1]):
+                raise InputError(
+                    f"box at cell ({r}, {c}) lies outside the walls of a {shape[0]} x "
+                    f"{shape[1]} warehouse; rows and columns start at 0."
+                )
+            if occ[r, c]:
+                raise InputError(f"two boxes in cell ({r}, {c}); a cell holds at most one box.")
+            occ[r, c] = True
+        return cls(occ, cell_size)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(rows, cols)``."""
+        return self.occupancy.shape  # type: ignore[return-value]
+
+    @property
+    def boxes(self) -> np.ndarray:
+        """(B, 2) ``(row, col)`` of every box, row-major."""
+        return np.argwhere(self.occupancy)
+
+    def cell_centre(self, cells: np.ndarray) -> np.ndarray:
+        """World xy (..., 2) of cell centres given (..., 2) ``(row, col)``."""
+        cells = np.asarray(cells, dtype=float)
+        x = (cells[..., 1] + 0.5) * self.cell_size
+        y = (self.shape[0] - cells[..., 0] - 0.5) * self.cell_size
+        return np.stack([x, y], -1)
+
+    def cell_of(self, xy: np.ndarray) -> np.ndarray:
+        """``(row, col)`` (..., 2) of the cells holding world points (..., 2)."""
+        xy = np.asarray(xy, dtype=float)
+        col = np.floor(xy[..., 0] / self.cell_size).astype(int)
+        row = self.shape[0] - 1 - np.floor(xy[..., 1] / self.cell_size).astype(int)
+        return np.stack([row, col], -1)
+
+    def inside(self, cells: np.ndarray) -> np.ndarray:
+        """(...,) whether ``(row, col)`` (..., 2) lie inside the walls."""
+        cells = np.asarray(cells)
+        return ((cells[..., 0] >= 0) & (cells[..., 0] < self.shape[0]) & (cells[..., 1] >= 0)
+                & (cells[..., 1] < self.shape[1]))
+
+    def moved(self, cell: tuple[int, int], direction: int) -> WarehouseMap:
+        """The map after the box at `cell` moved one cell in `direction`."""
+        r, c = cell
+        dr, dc = DIRECTIONS[direction]
+        occ = self.occupancy.copy()
+        if not occ[r, c]:
+            raise InputError(f"no box at cell ({r}, {c}) to move.")
+        if not self.inside(np.array([r + dr, c + dc])) or occ[r + dr, c + dc]:
+            raise InputError(f"cell ({r + dr}, {c + dc}) is not free; the box cannot move there.")
+        occ[r, c], occ[r + dr, c + dc] = False, True
+        return WarehouseMap(occ, self.cell_size)
+
+
+def generate_map(spec: WarehouseSpec, rng: np.random.Generator,
+                 shape: tuple[int, int] | None = None,
+                 n_boxes: tuple[int, int] | None = None) -> WarehouseMap:
+    """A random warehouse map.
+
+    Args:
+        spec: The warehouse world.
+        rng: Source of randomness.
+        shape: ``(rows, cols)``; default the spec's grid. Any size works (e.g. 100 x 100).
+        n_boxes: Inclusive range of the box count; default the spec's range, scaled by area
+            for another shape.
+
+    Returns:
+        A map with boxes on distinct cells chosen uniformly.
+    """
+    rows, cols = shape or (spec.rows, spec.cols)
+    if n_boxes is None:
+        scale = rows * cols / (spec.rows * spec.cols)
+        n_boxes = (round(spec.boxes[0] * scale), round(spec.boxes[1] * scale))
+    lo, hi = n_boxes
+    if lo < 0 or hi < lo or hi > rows * cols - 1:
+        raise ConfigError(
+            f"cannot place {n_boxes} boxes in a {rows} x {cols} warehouse; keep at least one "
+            "cell free for the robot."
+        )
+    n = int(rng.integers(lo, hi + 1))
+    cells = rng.choice(rows * cols, size=n, replace=False)
+    occ = np.zeros(rows * cols, dtype=bool)
+    occ[cells] = True
+    return WarehouseMap(occ.reshape(rows, cols), spec.cell_size)
+
+
+def rule_affordances(m: WarehouseMap) -> np.ndarray:
+    """The ground-truth rule: a box moves into a free cell inside the walls.
+
+    Returns:
+        (rows, cols, 4) bool, ``True`` where a box stands and can be pushed in that direction.
+    """
+    rows, cols = m.shape
+    padded = np.ones((rows + 2, cols + 2), dtype=bool)  # the walls count as occupied
+    padded[1:-1, 1:-1] = m.occupancy
+    out = np.zeros((rows, cols, 4), dtype=bool)
+    for k, (dr, dc) in enumerate(DIRECTIONS):
+        beyond = padded[1 + dr: 1 + dr + rows, 1 + dc: 1 + dc + cols]
+        out[..., k] = m.occupancy & ~beyond
+    return out
+
+
+@dataclass(frozen=True)
+class BoxPush:
+    """The outcome of pushing one box one cell.
+
+    Attributes:
+        displacement: (2,) world displacement of the pushed box (m).
+        moved: The box travelled most of a cell in the push direction.
+        robot_lag: Largest distance between the commanded and the actual robot (m).
+        others_moved: Largest displacement of any other box (m).
+    """
+
+    displacement: np.ndarray
+    moved: bool
+    robot_lag: float
+    others_moved: float
+
+
+def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    ab = b - a
+    u = float(np.clip((p - a) @ ab / (ab @ ab), 0.0, 1.0))
+    return float(np.hypot(*(a + u * ab - p)))
+
+
+def _box_support(spec: WarehouseSpec) -> np.ndarray:
+    n, half = spec.friction_grid, 0.5 * spec.box_size
+    u = ((np.arange(n) + 0.5) / n * 2 - 1) * half
+    gx, gy = np.meshgrid(u, u)
+    return np.stack([gx.ravel(), gy.ravel()], -1)
+
+
+def push_box(spec: WarehouseSpec, m: WarehouseMap, cell: tuple[int, int], direction: int,
+             neighbourhood: int = 2) -> BoxPush:
+    """Push the box at `cell` one cell in `direction` with the robot, in pymunk.
+
+    The robot starts on the far side of the box, touching it, and drives one cell length with
+    a force-limited controller. Only boxes within `neighbourhood` cells (Chebyshev) of the box
+    take part, except any in the cell the robot starts from; the walls are static segments,
+    except one the robot would stand in: this measures whether the box can move, not whether
+    the robot can get behind it (the planner checks that).
+
+    Args:
+        spec: The warehouse world.
+        m: The map.
+        cell: ``(row, col)`` of the box.
+        direction: Index into `DIRECTION_NAMES`.
+        neighbourhood: Radius of the simulated neighbourhood (cells).
+
+    Returns:
+        What the push did.
+    """
+    r, c = cell
+    if not m.inside(np.array(cell)) or not m.occupancy[r, c]:
+        raise InputError(f"there is no box at cell {cell} to push.")
+    if not 0 <= direction < 4:
+        raise InputError(f"direction must be 0..3 ({DIRECTION_NAMES}), got {direction}.")
+    dr, dc = DIRECTIONS[direction]
+    d = np.array([dc, -dr], dtype=float)  # world unit vector of the push
+    s = spec.cell_size
+    space = pymunk.Space()
+    space.iterations = spec.iterations
+    space.collision_slop = spec.collision_slop
+    support = _box_support(spec)
+    ones = np.ones(len(support))
+    access = (r - dr, c - dc)
+    pushed, others = None, []
+    for rr, cc in m.boxes:
+        if max(abs(rr - r), abs(cc - c)) > neighbourhood or (rr, cc) == access:
+            continue
+        centre = m.cell_centre(np.array([rr, cc]))
+
+        def make_shape(body: pymunk.Body) -> pymunk.Shape:
+            shape = pymunk.Poly.create_box(body, (spec.box_size, spec.box_size))
+            shape.friction = math.sqrt(spec.box_contact_friction)
+            return shape
+
+        body, _ = add_sliding_body(space, spec.box_mass, make_shape, (*centre, 0.0), support,
+                                   ones, spec.box_ground_friction, 9.81)
+        if (rr, cc) == (r, c):
+            pushed = body
+        else:
+            others.append((body, centre))
+    start = m.cell_centre(np.array(cell)) - d * (0.5 * spec.box_size + spec.robot_radius + 0.005)
+    rows, cols = m.shape
+    t = 0.5 * spec.wall_thickness
+    W, H = cols * s, rows * s
+    for a, b in (((-t, -t), (W + t, -t)), ((W + t, -t), (W + t, H + t)),
+                 ((W + t, H + t), (-t, H + t)), ((-t, H + t), (-t, -t))):
+        if _segment_distance(start, np.array(a), np.array(b)) < spec.robot_radius + t:
+            continue  # the robot stands where this wall is: it measures the box, not access
+        seg = pymunk.Segment(space.static_body, a, b, t)
+        seg.friction = 0.5
+        space.add(seg)
+    assert pushed is not None
+    yaw = math.atan2(d[1], d[0])
+
+    def make_robot(body: pymunk.Body) -> list[pymunk.Shape]:
+        disc = pymunk.Circle(body, spec.robot_radius)
+        disc.friction = 0.5
+        return [disc]
+
+    robot = TrackedPusher(space, np.array([*start, yaw]), 80.0,
+                          pymunk.moment_for_circle(80.0, 0, spec.robot_radius), make_robot,
+                          spec.robot_max_force, 200.0, spec.robot_speed)
+    prog = s * trapezoid_progress(s, spec.robot_speed, spec.robot_acceleration, spec.control_rate)
+    settle = int(0.3 * spec.control_rate)
+    prog = np.concatenate([prog, np.full(settle, prog[-1])])
+    path = np.stack([start[0] + prog * d[0], start[1] + prog * d[1], np.full_like(prog, yaw)], -1)
+    x0 = np.array(pushed.position)
+    dt = 1.0 / spec.control_rate / spec.substeps
+    lag = 0.0
+    for i in range(len(path) - 1):
+        robot.command(path[i], path[i + 1], spec.control_rate)
+        for _ in range(spec.substeps):
+            space.step(dt)
+        lag = max(lag, robot.lag(path[i + 1]))
+    disp = np.array(pushed.position) - x0
+    moved = float(disp @ d) > _PUSHED_FRACTION * s
+    other = max((float(np.hypot(*(np.array(b.position) - c0))) for b, c0 in others), default=0.0)
+    return BoxPush(displacement=disp, moved=moved, robot_lag=lag, others_moved=other)
+
+
+def physics_affordances(spec: WarehouseSpec, m: WarehouseMap) -> np.ndarray:
+    """Ground-truth affordances measured by pushing every box every way in the physics.
+
+    Returns:
+        (rows, cols, 4) bool, ``True`` where a box stands and moved a cell when pushed.
+    """
+    out = np.zeros((*m.shape, 4), dtype=bool)
+    for r, c in m.boxes:
+        for k in range(4):
+            out[r, c, k] = push_box(spec, m, (int(r), int(c)), k).moved
+    return out
