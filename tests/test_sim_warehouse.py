@@ -47,7 +47,7 @@ def test_two_boxes_in_a_row_and_walls_block(spec):
     assert not up.moved and np.hypot(*up.displacement) < 0.03  # closes its 2 cm gap, no more
     rule = rule_affordances(m)
     assert rule[1, 1].tolist() == [True, True, True, False]
-    assert rule[0, 3].tolist() == [False, True, False, False]
+    assert rule[0, 3].tolist() == [False, True, True, False]  # walls above and right
 
 
 def test_cell_geometry(spec):
