@@ -1,0 +1,74 @@
+"""Affordance maps: an MRF over the pushability of the boxes of a grid map, and its inference.
+
+Modules:
+    graph: the MRF of one map as a gtsam factor graph and as tensors.
+    evidence: batches of clamped-variable assignments.
+    bp: loopy belief propagation batched over evidence; grid_bp: its H x W grid fast path.
+    exact: exact marginals through gtsam per connected component.
+    inference: exact or BP per component, chosen by elimination width.
+    entropy: per-variable and whole-map entropies.
+"""
+
+from probaff.maps.bp import (
+    DEFAULT_DAMPING,
+    DEFAULT_MAX_ITERATIONS,
+    DEFAULT_TOL,
+    BeliefPropagationResult,
+    ising_form,
+    loopy_belief_propagation,
+)
+from probaff.maps.components import component_labels, group_components
+from probaff.maps.entropy import map_entropy, marginal_entropy
+from probaff.maps.evidence import FREE, as_evidence, make_evidence, single_variable_evidence
+from probaff.maps.exact import (
+    DEFAULT_MAX_EXACT_WIDTH,
+    MAX_WIDTH_SCAN_VARIABLES,
+    component_widths,
+    elimination_width,
+    exact_marginals,
+)
+from probaff.maps.graph import (
+    DEFAULT_COUPLING,
+    DIRECTIONS,
+    EDGE_ISING,
+    EDGE_SYMMETRY,
+    MAX_COUPLING,
+    AffordanceGraph,
+    check_coupling,
+)
+from probaff.maps.grid_bp import GRID_BYTES_PER_CELL, grid_belief_propagation
+from probaff.maps.inference import METHODS, MapMarginals, affordance_marginals
+
+__all__ = [
+    "DEFAULT_COUPLING",
+    "DEFAULT_DAMPING",
+    "DEFAULT_MAX_EXACT_WIDTH",
+    "DEFAULT_MAX_ITERATIONS",
+    "DEFAULT_TOL",
+    "DIRECTIONS",
+    "EDGE_ISING",
+    "EDGE_SYMMETRY",
+    "FREE",
+    "GRID_BYTES_PER_CELL",
+    "MAX_COUPLING",
+    "MAX_WIDTH_SCAN_VARIABLES",
+    "METHODS",
+    "AffordanceGraph",
+    "BeliefPropagationResult",
+    "MapMarginals",
+    "affordance_marginals",
+    "as_evidence",
+    "check_coupling",
+    "component_labels",
+    "component_widths",
+    "elimination_width",
+    "exact_marginals",
+    "grid_belief_propagation",
+    "group_components",
+    "ising_form",
+    "loopy_belief_propagation",
+    "make_evidence",
+    "map_entropy",
+    "marginal_entropy",
+    "single_variable_evidence",
+]
