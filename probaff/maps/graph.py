@@ -38,6 +38,7 @@ import torch
 
 from probaff._checks import check_finite, check_probability, check_shape
 from probaff.errors import InputError
+from probaff.grid import DIRECTION_NAMES
 from probaff.maps.components import component_labels, group_components
 
 __all__ = [
@@ -50,7 +51,7 @@ __all__ = [
     "check_coupling",
 ]
 
-DIRECTIONS: tuple[str, ...] = ("up", "down", "left", "right")
+DIRECTIONS: tuple[str, ...] = DIRECTION_NAMES
 """Direction order of the last axis of unary arrays; "up" decreases the row index."""
 
 DEFAULT_COUPLING = 0.4

@@ -19,6 +19,7 @@ import numpy as np
 import pymunk
 
 from probaff.errors import ConfigError, InputError
+from probaff.grid import DIRECTION_NAMES, DIRECTION_OFFSETS
 from probaff.sim.config import WarehouseSpec
 from probaff.sim.friction import add_sliding_body
 from probaff.sim.pusher import TrackedPusher
@@ -35,8 +36,7 @@ __all__ = [
     "rule_affordances",
 ]
 
-DIRECTION_NAMES = ("up", "down", "left", "right")
-DIRECTIONS = np.array([[-1, 0], [1, 0], [0, -1], [0, 1]])  # (d_row, d_col)
+DIRECTIONS = DIRECTION_OFFSETS  # (d_row, d_col) per direction, in DIRECTION_NAMES order
 _PUSHED_FRACTION = 0.8  # a push succeeds when the box travels this fraction of a cell
 
 
