@@ -5,7 +5,8 @@ Modules:
     evidence: batches of clamped-variable assignments.
     bp: loopy belief propagation batched over evidence; grid_bp: its H x W grid fast path.
     exact: exact marginals through gtsam per connected component.
-    inference: exact or BP per component, chosen by elimination width.
+    enumeration: exact marginals of small components, batched over evidence.
+    inference: enumeration, gtsam or BP per component.
     entropy: per-variable and whole-map entropies.
 """
 
@@ -19,6 +20,7 @@ from probaff.maps.bp import (
 )
 from probaff.maps.components import component_labels, group_components
 from probaff.maps.entropy import map_entropy, marginal_entropy
+from probaff.maps.enumeration import MAX_ENUMERATION_VARIABLES, enumerate_marginals
 from probaff.maps.evidence import FREE, as_evidence, make_evidence, single_variable_evidence
 from probaff.maps.exact import (
     DEFAULT_MAX_EXACT_WIDTH,
@@ -51,6 +53,7 @@ __all__ = [
     "FREE",
     "GRID_BYTES_PER_CELL",
     "MAX_COUPLING",
+    "MAX_ENUMERATION_VARIABLES",
     "MAX_WIDTH_SCAN_VARIABLES",
     "METHODS",
     "AffordanceGraph",
@@ -62,6 +65,7 @@ __all__ = [
     "component_labels",
     "component_widths",
     "elimination_width",
+    "enumerate_marginals",
     "exact_marginals",
     "grid_belief_propagation",
     "group_components",

@@ -1,4 +1,9 @@
-"""Marginals of an affordance map: exact (gtsam) where affordable, loopy BP elsewhere."""
+"""Marginals of an affordance map: exact where affordable, loopy BP elsewhere.
+
+``method="auto"`` solves components of at most `MAX_ENUMERATION_VARIABLES` variables exactly
+by batched enumeration in torch, other components whose elimination width allows it with gtsam
+when there is a single evidence row, and everything else with batched loopy BP.
+"""
 
 from __future__ import annotations
 
@@ -16,6 +21,7 @@ from probaff.maps.bp import (
     BeliefPropagationResult,
     loopy_belief_propagation,
 )
+from probaff.maps.enumeration import MAX_ENUMERATION_VARIABLES, enumerate_marginals
 from probaff.maps.evidence import as_evidence
 from probaff.maps.exact import DEFAULT_MAX_EXACT_WIDTH, component_widths, exact_marginals
 from probaff.maps.graph import AffordanceGraph
@@ -32,7 +38,8 @@ class MapMarginals:
 
     Attributes:
         marginals: ``(V, 2)`` or, for batched evidence, ``(B, V, 2)`` probabilities.
-        component_methods: ``"exact"`` or ``"bp"`` for each entry of ``graph.components``.
+        component_methods: ``"enumeration"``, ``"exact"`` (gtsam) or ``"bp"`` for each entry
+            of ``graph.components``.
         bp: Diagnostics of the belief propagation run over the "bp" components, if any.
     """
 
@@ -59,8 +66,9 @@ def affordance_marginals(
         evidence: None, ``(V,)`` or ``(B, V)`` values in {-1 (free), 0, 1}.
         method: ``"exact"`` (gtsam on every component; raises on a component whose
             min-degree elimination width exceeds `max_exact_width`), ``"bp"`` (loopy belief
-            propagation everywhere) or ``"auto"`` (exact where the width allows, BP on the
-            rest, all BP components in one batched run).
+            propagation everywhere) or ``"auto"`` (batched enumeration for small components;
+            for larger ones gtsam where the width allows and the evidence is a single row,
+            else BP; all BP components in one batched run).
         max_exact_width: Width limit of exact inference.
         damping: BP damping, see `loopy_belief_propagation`.
         tol: BP convergence tolerance.
@@ -81,15 +89,26 @@ def affordance_marginals(
     if method == "exact":
         exact = exact_marginals(graph, ev, max_width=max_exact_width).to(dtype)
         return MapMarginals(exact if batched else exact[0], ("exact",) * count, None)
+    use_enum: list[int] = []
     if method == "bp":
         use_bp = list(range(count))
     else:
-        widths = component_widths(graph, limit=max_exact_width)
-        use_bp = [k for k, w in enumerate(widths) if w > max_exact_width]
-    bp_set = set(use_bp)
-    use_exact = [k for k in range(count) if k not in bp_set]
+        sizes = [int(c.size) for c in graph.components]
+        use_enum = [k for k in range(count) if sizes[k] <= MAX_ENUMERATION_VARIABLES]
+        rest = [k for k in range(count) if sizes[k] > MAX_ENUMERATION_VARIABLES]
+        if ev.shape[0] == 1:
+            widths = component_widths(graph, rest, limit=max_exact_width)
+            use_bp = [k for k, w in zip(rest, widths, strict=True) if w > max_exact_width]
+        else:
+            use_bp = rest
+    bp_set, enum_set = set(use_bp), set(use_enum)
+    use_exact = [k for k in range(count) if k not in bp_set and k not in enum_set]
 
     out = torch.empty((ev.shape[0], graph.num_variables, 2), dtype=dtype)
+    if use_enum:
+        enum = enumerate_marginals(graph, ev, use_enum, torch.float64)
+        mask = torch.from_numpy(np.isin(graph.component_index, use_enum))
+        out[:, mask] = enum[:, mask].to(dtype)
     if use_exact:
         exact = exact_marginals(graph, ev, max_width=max_exact_width, components=use_exact)
         mask = torch.from_numpy(np.isin(graph.component_index, use_exact))
@@ -112,5 +131,6 @@ def affordance_marginals(
             dtype=dtype,
         )
         out[:, var_t] = bp_result.marginals
-    methods = tuple("bp" if k in bp_set else "exact" for k in range(count))
+    methods = tuple("bp" if k in bp_set else "enumeration" if k in enum_set else "exact"
+                    for k in range(count))
     return MapMarginals(out if batched else out[0], methods, bp_result)
