@@ -100,35 +100,31 @@ def samples_to_arrays(samples: list[PushSample], object_names: list[str], rng: n
     index = {n: i for i, n in enumerate(object_names)}
     clouds = [[object_cloud(o, p, cloud_points, cloud_noise, rng)
                for o, p in zip(s.scene.objects, s.scene.poses, strict=True)] for s in samples]
+    def scene(field: str) -> np.ndarray:
+        return np.array([getattr(s.scene, field) for s in samples])
+
+    def outcome(field: str) -> np.ndarray:
+        return np.array([getattr(s.outcome, field) for s in samples])
+
     out = {
         "object_ids": np.array([[index[o.name] for o in s.scene.objects] for s in samples],
                                dtype=np.int16),
-        "state_before": np.array([s.outcome.state_before for s in samples]),
-        "state_after": np.array([s.outcome.state_after for s in samples]),
-        "effect": np.array([s.outcome.effect for s in samples]),
-        "push_origin": np.array([s.scene.push_origin for s in samples]),
-        "push_yaw": np.array([s.scene.push_yaw for s in samples]),
-        "push_distance": np.array([s.scene.push_distance for s in samples]),
         "q_waypoints": np.array([s.q_waypoints for s in samples]),
-        "mass": np.array([s.scene.mass for s in samples]),
-        "ground_friction": np.array([s.scene.ground_friction for s in samples]),
-        "contact_friction": np.array([s.scene.contact_friction for s in samples]),
         "support_weights": _pad([s.scene.support_weights for s in samples]),
-        "walls": np.array([s.scene.walls for s in samples]).reshape(len(samples), -1, 4),
-        "hand_contact": np.array([s.outcome.hand_contact for s in samples]),
-        "object_contact": np.array([s.outcome.object_contact for s in samples]),
-        "wall_contact": np.array([s.outcome.wall_contact for s in samples]),
-        "fell_off": np.array([s.outcome.fell_off for s in samples]),
-        "hand_lag": np.array([s.outcome.hand_lag for s in samples]),
-        "max_penetration": np.array([s.outcome.max_penetration for s in samples]),
+        "walls": scene("walls").reshape(len(samples), -1, 4),
         "cloud_points": np.array([[c[0] for c in cs] for cs in clouds], dtype=np.float32),
         "cloud_normals": np.array([[c[1] for c in cs] for cs in clouds], dtype=np.float32),
     }
+    for field in ("push_origin", "push_yaw", "push_distance", "mass", "ground_friction",
+                  "contact_friction"):
+        out[field] = scene(field)
+    for field in ("state_before", "state_after", "effect", "hand_contact", "object_contact",
+                  "wall_contact", "fell_off", "hand_lag", "max_penetration"):
+        out[field] = outcome(field)
     if trajectories:
-        out["traj_time"] = np.array([s.outcome.traj_time for s in samples])
-        out["traj_hand"] = np.array([s.outcome.traj_hand for s in samples], dtype=np.float32)
-        out["traj_objects"] = np.array([s.outcome.traj_objects for s in samples],
-                                       dtype=np.float32)
+        out["traj_time"] = outcome("traj_time")
+        out["traj_hand"] = outcome("traj_hand").astype(np.float32)
+        out["traj_objects"] = outcome("traj_objects").astype(np.float32)
     return {k: v.astype(v.dtype, copy=False) for k, v in out.items()}
 
 

@@ -292,15 +292,19 @@ class WarehouseSpec:
     collision_slop: float
 
 
+def _load_root(path: Path | None, default: str) -> tuple[dict[str, Any], str, Path]:
+    """``(mapping, file name for messages, path)`` of a world file."""
+    p = path or worlds_dir() / default
+    return _mapping(str(p), _read_yaml(p)), p.name, p
+
+
 def load_warehouse(path: Path | None = None) -> WarehouseSpec:
     """Load and validate the warehouse world (``worlds/warehouse.yaml``).
 
     Args:
         path: Another warehouse file; defaults to the one in `worlds_dir()`.
     """
-    p = path or worlds_dir() / "warehouse.yaml"
-    raw = _mapping(str(p), _read_yaml(p))
-    w = p.name
+    raw, w, _ = _load_root(path, "warehouse.yaml")
     _no_extra(w, raw, {"grid", "cell_size", "boxes", "box", "wall", "robot", "sensor",
                        "physics"})
     grid = _take(w, raw, "grid")
@@ -413,9 +417,7 @@ def load_tabletop(path: Path | None = None) -> TabletopSpec:
     Args:
         path: Another world file; defaults to the one in `worlds_dir()`.
     """
-    p = path or worlds_dir() / "tabletop.yaml"
-    raw = _mapping(str(p), _read_yaml(p))
-    w = p.name
+    raw, w, p = _load_root(path, "tabletop.yaml")
     table = _mapping(f"{w}:table", _take(w, raw, "table"))
     arm = _mapping(f"{w}:arm", _take(w, raw, "arm"))
     ik = _mapping(f"{w}:arm.ik", _take(f"{w}:arm", arm, "ik"))
