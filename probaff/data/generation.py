@@ -21,6 +21,7 @@ import torch
 from tqdm.auto import tqdm
 
 from probaff._checks import check_positive
+from probaff._dask import check_workers, dask_client
 from probaff.data.schema import SCHEMA_VERSION, PushDataset
 from probaff.data.store import (
     FORMAT_NAME,
@@ -235,23 +236,6 @@ def _adopt_orphans(out: Path, config: GenerateConfig, manifest: dict[str, Any]) 
     write_manifest(out, manifest)
 
 
-@contextlib.contextmanager
-def _dask_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
-    from dask.distributed import Client, LocalCluster
-
-    if scheduler:
-        client = Client(scheduler)
-        try:
-            yield client
-        finally:
-            client.close()
-        return
-    n = workers or os.cpu_count() or 1
-    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster, Client(cluster) as client:
-        yield client
-
-
 def generate(config: GenerateConfig, out: str | os.PathLike[str], *, workers: int | None = 0,
              scheduler: str | None = None, resume: bool = False, progress: bool = True
              ) -> PushDataset:
@@ -274,8 +258,7 @@ def generate(config: GenerateConfig, out: str | os.PathLike[str], *, workers: in
         ConfigError: For an unknown scene or object.
     """
     config.validate()
-    if workers is not None and (isinstance(workers, bool) or workers < 0):
-        raise InputError(f"workers must be >= 0, got {workers!r}.")
+    check_workers(workers)
     out = Path(out)
     manifest = _prepare(out, config, resume)
     _adopt_orphans(out, config, manifest)
@@ -296,7 +279,7 @@ def generate(config: GenerateConfig, out: str | os.PathLike[str], *, workers: in
         elif todo:
             from dask.distributed import as_completed
 
-            with _dask_client(workers, scheduler) as client:
+            with dask_client(workers, scheduler) as client:
                 futures = client.map(make_shard, [config] * len(todo), todo, pure=False)
                 index = {f.key: i for f, i in zip(futures, todo, strict=True)}
                 for fut in as_completed(futures):

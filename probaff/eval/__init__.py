@@ -1,5 +1,15 @@
-"""Evaluation: metrics, tables and figures."""
+"""Evaluation: metrics, resumable batch tasks, tables and figures."""
 
+from probaff.eval.metrics import interval_coverage, marginal_components, nlpd, rmse
 from probaff.eval.push_figures import plot_pushes
+from probaff.eval.tasks import ResultStore, run_tasks
 
-__all__ = ["plot_pushes"]
+__all__ = [
+    "ResultStore",
+    "interval_coverage",
+    "marginal_components",
+    "nlpd",
+    "plot_pushes",
+    "rmse",
+    "run_tasks",
+]

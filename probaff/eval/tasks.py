@@ -1,0 +1,103 @@
+"""Resumable batch evaluation: independent tasks, each result saved atomically as it lands.
+
+A study is a list of tasks with unique keys (e.g. one cross-validation fold of one model). Each
+finished task's result is written to ``ROOT/KEY.json`` at once, so a crashed or interrupted run
+loses only the tasks in flight, and a rerun computes only the missing ones. Tasks run in this
+process, on a local Dask cluster, or on an existing Dask scheduler.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from tqdm.auto import tqdm
+
+from probaff._dask import check_workers, dask_client
+from probaff._io import atomic_write_text
+from probaff.errors import InputError
+
+__all__ = ["ResultStore", "run_tasks"]
+
+_KEY = re.compile(r"^[A-Za-z0-9_.=+-]+$")
+
+
+class ResultStore:
+    """A folder of JSON results, one file per task key.
+
+    Args:
+        root: The folder (created on first save).
+    """
+
+    def __init__(self, root: str | os.PathLike[str]) -> None:
+        self.root = Path(root)
+
+    def path(self, key: str) -> Path:
+        """File of task `key`."""
+        if not _KEY.match(key):
+            raise InputError(f"task key {key!r} may only hold letters, digits and _.=+-")
+        return self.root / f"{key}.json"
+
+    def done(self, key: str) -> bool:
+        """Whether task `key` has a saved result."""
+        return self.path(key).is_file()
+
+    def save(self, key: str, result: dict[str, Any]) -> None:
+        """Save one task's (JSON-serialisable) result atomically."""
+        atomic_write_text(self.path(key), json.dumps(result, sort_keys=True, indent=1))
+
+    def load(self, key: str) -> dict[str, Any]:
+        """The saved result of task `key`."""
+        return json.loads(self.path(key).read_text())
+
+    def results(self, keys: Sequence[str]) -> list[dict[str, Any]]:
+        """Saved results of `keys`, in order."""
+        return [self.load(k) for k in keys]
+
+
+def run_tasks(fn: Callable[..., dict[str, Any]], tasks: Sequence[tuple[str, tuple[Any, ...]]],
+              store: ResultStore, *, workers: int | None = 0, scheduler: str | None = None,
+              progress: bool = True, desc: str = "tasks") -> list[dict[str, Any]]:
+    """Run every task whose result is not saved yet, then return all results.
+
+    Args:
+        fn: ``fn(*args) -> dict``; must be importable by Dask workers (a module-level function).
+        tasks: ``(key, args)`` pairs with unique keys.
+        store: Where results live.
+        workers: 0 runs in this process; ``None`` or K > 0 uses a local Dask cluster.
+        scheduler: Address of an existing Dask scheduler; overrides `workers`.
+        progress: Show a tqdm bar.
+        desc: Label of the bar.
+
+    Returns:
+        The results of all tasks, in the order of `tasks`.
+    """
+    check_workers(workers)
+    keys = [k for k, _ in tasks]
+    if len(set(keys)) != len(keys):
+        raise InputError("task keys must be unique.")
+    todo = [(k, a) for k, a in tasks if not store.done(k)]
+    bar = tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc=desc, unit="task",
+               disable=not progress)
+    try:
+        if todo and workers == 0 and not scheduler:
+            for key, args in todo:
+                store.save(key, fn(*args))
+                bar.update()
+        elif todo:
+            from dask.distributed import as_completed
+
+            with dask_client(workers, scheduler) as client:
+                futures = [client.submit(fn, *args, key=f"{key}-{os.getpid()}", pure=False)
+                           for key, args in todo]
+                by_future = {f.key: key for f, (key, _) in zip(futures, todo, strict=True)}
+                for fut in as_completed(futures):
+                    store.save(by_future[fut.key], fut.result())
+                    bar.update()
+    finally:
+        bar.close()
+    return store.results(keys)

@@ -1,0 +1,41 @@
+import pytest
+
+from probaff.errors import InputError
+from probaff.eval.tasks import ResultStore, run_tasks
+
+
+def square(x):
+    return {"x": x, "y": x * x}
+
+
+def test_runs_missing_tasks_only(tmp_path):
+    store = ResultStore(tmp_path)
+    tasks = [(f"t{i}", (i,)) for i in range(5)]
+    calls = []
+
+    def counted(x):
+        calls.append(x)
+        if x == 3 and len(calls) == 4:
+            raise KeyboardInterrupt  # killed while computing the fourth task
+        return square(x)
+
+    with pytest.raises(KeyboardInterrupt):
+        run_tasks(counted, tasks, store, progress=False)
+    assert [store.done(f"t{i}") for i in range(5)] == [True, True, True, False, False]
+    calls.clear()
+    out = run_tasks(counted, tasks, store, progress=False)
+    assert calls == [3, 4]
+    assert [r["y"] for r in out] == [0, 1, 4, 9, 16]
+
+
+def test_dask_gives_the_same_results(tmp_path):
+    tasks = [(f"t{i}", (i,)) for i in range(4)]
+    out = run_tasks(square, tasks, ResultStore(tmp_path), workers=1, progress=False)
+    assert [r["y"] for r in out] == [0, 1, 4, 9]
+
+
+def test_bad_keys(tmp_path):
+    with pytest.raises(InputError, match="unique"):
+        run_tasks(square, [("a", (1,)), ("a", (2,))], ResultStore(tmp_path), progress=False)
+    with pytest.raises(InputError, match="may only hold"):
+        ResultStore(tmp_path).path("a/b")
