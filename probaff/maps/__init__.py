@@ -8,6 +8,7 @@ Modules:
     enumeration: exact marginals of small components, batched over evidence.
     inference: enumeration, gtsam or BP per component.
     entropy: per-variable and whole-map entropies.
+    classifier: per-cell affordance classifier from voxel features, and its evaluation.
 """
 
 from probaff.maps.bp import (
@@ -17,6 +18,12 @@ from probaff.maps.bp import (
     BeliefPropagationResult,
     ising_form,
     loopy_belief_propagation,
+)
+from probaff.maps.classifier import (
+    AffordanceClassifier,
+    AffordanceEvaluation,
+    collect_voxels,
+    evaluate,
 )
 from probaff.maps.components import component_labels, group_components
 from probaff.maps.entropy import map_entropy, marginal_entropy
@@ -56,16 +63,20 @@ __all__ = [
     "MAX_ENUMERATION_VARIABLES",
     "MAX_WIDTH_SCAN_VARIABLES",
     "METHODS",
+    "AffordanceClassifier",
+    "AffordanceEvaluation",
     "AffordanceGraph",
     "BeliefPropagationResult",
     "MapMarginals",
     "affordance_marginals",
     "as_evidence",
     "check_coupling",
+    "collect_voxels",
     "component_labels",
     "component_widths",
     "elimination_width",
     "enumerate_marginals",
+    "evaluate",
     "exact_marginals",
     "grid_belief_propagation",
     "group_components",
