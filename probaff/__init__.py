@@ -9,6 +9,7 @@ from probaff.errors import (
     ConfigError,
     DatasetError,
     InputError,
+    NotFittedError,
     ProbaffError,
     UnreachablePoseError,
 )
@@ -17,6 +18,7 @@ __all__ = [
     "ConfigError",
     "DatasetError",
     "InputError",
+    "NotFittedError",
     "ProbaffError",
     "UnreachablePoseError",
 ]

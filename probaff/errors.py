@@ -7,6 +7,7 @@ __all__ = [
     "ConfigError",
     "DatasetError",
     "InputError",
+    "NotFittedError",
     "ProbaffError",
     "UnreachablePoseError",
 ]
@@ -30,3 +31,7 @@ class UnreachablePoseError(ProbaffError, ValueError):
 
 class DatasetError(ProbaffError, OSError):
     """An on-disk dataset is missing, truncated, corrupt or of another schema version."""
+
+
+class NotFittedError(ProbaffError, RuntimeError):
+    """A model was asked to predict, save or explain itself before it was fitted."""

@@ -8,20 +8,18 @@ shared file system.
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import os
-from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 from tqdm.auto import tqdm
 
 from probaff._checks import check_positive
 from probaff._dask import check_workers, dask_client
+from probaff._threads import torch_threads
 from probaff.data.schema import SCHEMA_VERSION, PushDataset
 from probaff.data.store import (
     FORMAT_NAME,
@@ -139,16 +137,6 @@ def _pad(rows: list[tuple[np.ndarray, ...]]) -> np.ndarray:
     return out
 
 
-@contextlib.contextmanager
-def _single_thread() -> Iterator[None]:
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
-
-
 def make_shard(config: GenerateConfig, index: int) -> dict[str, np.ndarray]:
     """Simulate shard `index` of a dataset; depends only on the config and `index`.
 
@@ -161,7 +149,7 @@ def make_shard(config: GenerateConfig, index: int) -> dict[str, np.ndarray]:
     """
     ss = np.random.SeedSequence(config.seed, spawn_key=(index,))
     sim_rng, sense_rng = (np.random.default_rng(s) for s in ss.spawn(2))
-    with _single_thread():
+    with torch_threads(1):
         sim = PushSimulator(config.scene)
         samples = list(sim.run(config.shard_rows(index), sim_rng))
     return samples_to_arrays(samples, sorted(load_catalogue()), sense_rng, config.cloud_points,

@@ -1,0 +1,337 @@
+"""One GP expert: E independent SE-ARD Gaussian processes with per-sample noise weights."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import warnings
+from collections.abc import Iterator
+from typing import Any
+
+import gpytorch
+import torch
+from gpytorch.constraints import Interval
+from gpytorch.distributions import MultivariateNormal
+from gpytorch.kernels import RBFKernel, ScaleKernel
+from gpytorch.means import ConstantMean
+from gpytorch.mlls import ExactMarginalLogLikelihood
+from gpytorch.priors import LogNormalPrior, Prior
+from linear_operator.utils.errors import NanError, NotPSDError
+from torch import Tensor
+from torch.distributions import Normal
+
+from probaff._checks import check_positive
+from probaff.errors import InputError, NotFittedError
+from probaff.models._scaling import Standardizer
+from probaff.models._tensors import as_matrix, as_vector
+from probaff.models.likelihood import WeightedGaussianLikelihood
+
+__all__ = ["GPExpert", "exact_gp_settings"]
+
+# Diagonal jitter levels tried in turn when a kernel matrix is numerically singular.
+_JITTERS = (1e-8, 1e-6, 1e-4, 1e-2)
+# Box constraints (standardised units) that keep every hyperparameter finite and positive.
+_LENGTHSCALE_BOUNDS = (1e-3, 1e4)
+_OUTPUTSCALE_BOUNDS = (1e-4, 1e4)
+_NOISE_BOUNDS = (1e-6, 1e2)
+# Floor on predictive variances (in standardised output units).
+_MIN_VARIANCE = 1e-12
+
+
+@contextlib.contextmanager
+def exact_gp_settings(jitter: float = _JITTERS[0]) -> Iterator[None]:
+    """Force exact Cholesky-based GP algebra with `jitter` as the first fallback jitter.
+
+    Args:
+        jitter: Diagonal jitter added when a Cholesky factorisation fails.
+    """
+    with (
+        gpytorch.settings.max_cholesky_size(10**9),
+        gpytorch.settings.fast_computations(
+            covar_root_decomposition=False, log_prob=False, solves=False
+        ),
+        gpytorch.settings.cholesky_jitter(float_value=jitter, double_value=jitter),
+        gpytorch.settings.cholesky_max_tries(3),
+        gpytorch.settings.fast_pred_var(False),
+        gpytorch.settings.debug(False),
+    ):
+        yield
+
+
+class _BatchedExactGP(gpytorch.models.ExactGP):
+    """`E` independent exact GPs sharing their inputs (gpytorch batch shape `(E,)`)."""
+
+    def __init__(
+        self,
+        n_features: int,
+        n_outputs: int,
+        likelihood: WeightedGaussianLikelihood,
+        lengthscale_prior: Prior | None,
+    ) -> None:
+        super().__init__(None, None, likelihood)
+        batch = torch.Size([n_outputs])
+        self.n_outputs = n_outputs
+        self.mean_module = ConstantMean(batch_shape=batch)
+        self.covar_module = ScaleKernel(
+            RBFKernel(
+                ard_num_dims=n_features,
+                batch_shape=batch,
+                lengthscale_prior=lengthscale_prior,
+                lengthscale_constraint=Interval(*_LENGTHSCALE_BOUNDS),
+            ),
+            batch_shape=batch,
+            outputscale_constraint=Interval(*_OUTPUTSCALE_BOUNDS),
+        )
+
+    def forward(self, x: Tensor) -> MultivariateNormal:  # type: ignore[override]
+        """Prior over the `E` outputs at `x: (n, D)` (or `(E, n, D)`), batch `(E,)`."""
+        x = x.expand(self.n_outputs, *x.shape[-2:])
+        return MultivariateNormal(self.mean_module(x), self.covar_module(x))
+
+
+class GPExpert(torch.nn.Module):
+    r"""Multi-output GP regressor with SE-ARD kernels and per-sample noise weights.
+
+    Each of the `E` outputs is an independent exact GP (constant mean, amplitude times an
+    ARD squared-exponential kernel, Gaussian noise) with its own hyperparameters, batched
+    with gpytorch. Inputs and outputs are standardised with the weighted moments of the
+    training data. Sample `i` with weight :math:`w_i > 0` has noise variance
+    :math:`\sigma^2 / w_i`; samples with weight exactly 0 are removed before the GP is built,
+    so they have no effect at all. Hyperparameters maximise the weighted exact marginal
+    likelihood (see `WeightCorrection`) with L-BFGS, warm-started from their current values.
+
+    With `lengthscale_prior`, each length scale gets the log-normal prior
+    :math:`\log \ell_d \sim \mathcal N(\sqrt 2 + \tfrac12 \log D, 3)` whose median grows
+    as :math:`\sqrt D` (Hvarfner et al., 2024), and the fit maximises the weighted marginal
+    likelihood plus the log prior. This curbs the overfitting of ML-II when the number of
+    samples is not much larger than `D`.
+
+    Args:
+        n_features: Number of input features `D`.
+        n_outputs: Number of outputs `E`.
+        max_iter: L-BFGS iterations per call to `fit`.
+        lengthscale_prior: Put the dimension-scaled log-normal prior on the length scales.
+
+    Attributes:
+        gp: The batched gpytorch model.
+        likelihood: Its weighted Gaussian likelihood.
+    """
+
+    jitter: Tensor
+
+    def __init__(
+        self,
+        n_features: int,
+        n_outputs: int,
+        *,
+        max_iter: int = 50,
+        lengthscale_prior: bool = False,
+    ) -> None:
+        super().__init__()
+        check_positive("n_features", n_features)
+        check_positive("n_outputs", n_outputs)
+        check_positive("max_iter", max_iter)
+        self.n_features = int(n_features)
+        self.n_outputs = int(n_outputs)
+        self.max_iter = int(max_iter)
+        self.lengthscale_prior = bool(lengthscale_prior)
+        batch = torch.Size([self.n_outputs])
+        self.likelihood = WeightedGaussianLikelihood(
+            batch_shape=batch, noise_constraint=Interval(*_NOISE_BOUNDS)
+        )
+        prior = (
+            LogNormalPrior(
+                torch.tensor(math.sqrt(2.0) + 0.5 * math.log(self.n_features)),
+                torch.tensor(math.sqrt(3.0)),
+            )
+            if self.lengthscale_prior
+            else None
+        )
+        self.gp = _BatchedExactGP(self.n_features, self.n_outputs, self.likelihood, prior)
+        self.x_scaler = Standardizer(self.n_features)
+        self.y_scaler = Standardizer(self.n_outputs)
+        self.register_buffer("jitter", torch.tensor(_JITTERS[0], dtype=torch.float64))
+        self.to(torch.float64)
+        self.reset_hyperparameters()
+        self.eval()
+
+    # ------------------------------------------------------------------ setup
+    def reset_hyperparameters(self) -> None:
+        """Set length scales to sqrt(D), amplitudes to 1, noise to 0.1 and means to 0.
+
+        All in standardised units.
+        """
+        kernel = self.gp.covar_module
+        kernel.base_kernel.lengthscale = torch.full_like(
+            kernel.base_kernel.lengthscale, math.sqrt(self.n_features)
+        )
+        kernel.outputscale = torch.ones_like(kernel.outputscale)
+        self.likelihood.noise = 0.1
+        self.gp.mean_module.constant.data.zero_()
+
+    @property
+    def is_fitted(self) -> bool:
+        """Whether training data has been set with `fit` or `condition`."""
+        return self.gp.train_targets is not None
+
+    @property
+    def n_train(self) -> int:
+        """Number of training samples with non-zero weight held by the GP."""
+        return 0 if self.gp.train_targets is None else int(self.gp.train_targets.shape[-1])
+
+    def condition(self, X: Any, Y: Any, weights: Any | None = None) -> GPExpert:
+        """Set the training data without changing the hyperparameters.
+
+        Args:
+            X: Features, `(N, D)`.
+            Y: Targets, `(N, E)`.
+            weights: Non-negative sample weights, `(N,)`; all 1 if ``None``.
+
+        Returns:
+            This expert.
+
+        Raises:
+            InputError: On malformed inputs or if every weight is zero.
+        """
+        x = as_matrix("features X", X, n_cols=self.n_features)
+        y = as_matrix("targets Y", Y, n_rows=x.shape[0], n_cols=self.n_outputs)
+        if weights is None:
+            w = torch.ones(x.shape[0], dtype=torch.float64)
+        else:
+            w = as_vector("weights", weights, n=x.shape[0])
+            if bool((w < 0).any()):
+                raise InputError("weights must be >= 0.")
+        keep = w > 0
+        if not bool(keep.any()):
+            raise InputError("every weight is zero; at least one sample must have weight > 0.")
+        x, y, w = x[keep], y[keep], w[keep]
+        self.x_scaler.fit(x, w)
+        self.y_scaler.fit(y, w)
+        self.likelihood.weights = w
+        self.gp.set_train_data(self.x_scaler(x), self.y_scaler(y).T.contiguous(), strict=False)
+        return self
+
+    # ---------------------------------------------------------------- fitting
+    def fit(
+        self, X: Any, Y: Any, weights: Any | None = None, *, max_iter: int | None = None
+    ) -> GPExpert:
+        """Set the training data and maximise the weighted marginal likelihood.
+
+        Args:
+            X: Features, `(N, D)`.
+            Y: Targets, `(N, E)`.
+            weights: Non-negative sample weights, `(N,)`; all 1 if ``None``.
+            max_iter: L-BFGS iterations; defaults to the constructor's `max_iter`.
+
+        Returns:
+            This expert.
+        """
+        self.condition(X, Y, weights)
+        self._optimise(self.max_iter if max_iter is None else int(max_iter))
+        return self
+
+    def _optimise(self, max_iter: int) -> None:
+        params = [p for p in self.parameters() if p.requires_grad]
+        start = [p.detach().clone() for p in params]
+        for jitter in _JITTERS:
+            self.train()
+            try:
+                ok = self._lbfgs(params, max_iter, jitter)
+            except (NotPSDError, NanError):
+                ok = False
+            finally:
+                self.eval()
+            if ok:
+                self.jitter.fill_(jitter)
+                return
+            with torch.no_grad():
+                for p, p0 in zip(params, start, strict=True):
+                    p.copy_(p0)
+        self.jitter.fill_(_JITTERS[-1])
+        warnings.warn(
+            "GP hyperparameter optimisation failed at every jitter level; the previous "
+            "hyperparameters are kept.",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+
+    def _lbfgs(self, params: list[torch.nn.Parameter], max_iter: int, jitter: float) -> bool:
+        """Minimise the negative weighted marginal likelihood; return whether all stayed finite."""
+        mll = ExactMarginalLogLikelihood(self.likelihood, self.gp)
+        x, y = self.gp.train_inputs[0], self.gp.train_targets
+        optimiser = torch.optim.LBFGS(
+            params,
+            lr=1.0,
+            max_iter=max_iter,
+            line_search_fn="strong_wolfe",
+            tolerance_grad=1e-6,
+            tolerance_change=1e-9,
+        )
+
+        def closure() -> Tensor:
+            optimiser.zero_grad()
+            loss = -mll(self.gp(x), y).sum()
+            loss.backward()
+            return loss
+
+        with exact_gp_settings(jitter):
+            optimiser.step(closure)
+            with torch.no_grad():
+                final = -mll(self.gp(x), y).sum()
+        return bool(torch.isfinite(final)) and all(bool(torch.isfinite(p).all()) for p in params)
+
+    # ------------------------------------------------------------- prediction
+    def predict(self, X: Any, *, include_noise: bool = True) -> Normal:
+        """Predictive distribution of the outputs at `X`.
+
+        Args:
+            X: Features, `(N, D)`.
+            include_noise: Add the observation noise variance (weight 1) to the latent one.
+
+        Returns:
+            Independent normals with loc and scale `(N, E)`.
+
+        Raises:
+            NotFittedError: If the expert has no training data yet.
+        """
+        if not self.is_fitted:
+            raise NotFittedError("GPExpert has no training data; call fit first.")
+        x = as_matrix("features X", X, n_cols=self.n_features)
+        self.eval()
+        with torch.no_grad(), exact_gp_settings(float(self.jitter)):
+            post = self.gp(self.x_scaler(x))
+            mean = post.mean.T
+            var = post.variance.T
+            if include_noise:
+                var = var + self.likelihood.noise[..., 0]
+        var = var.clamp_min(_MIN_VARIANCE)
+        mean = mean * self.y_scaler.std + self.y_scaler.mean
+        std = var.sqrt() * self.y_scaler.std
+        return Normal(mean, std)
+
+    def log_prob(self, X: Any, Y: Any) -> Tensor:
+        """Predictive log density of each row of `Y` (noise included, summed over outputs).
+
+        Args:
+            X: Features, `(N, D)`.
+            Y: Targets, `(N, E)`.
+
+        Returns:
+            Log densities, `(N,)`.
+        """
+        pred = self.predict(X)
+        y = as_matrix("targets Y", Y, n_rows=pred.loc.shape[0], n_cols=self.n_outputs)
+        return pred.log_prob(y).sum(-1)
+
+    # ------------------------------------------------------------ relevances
+    @property
+    def lengthscales(self) -> Tensor:
+        """ARD length scales in standardised feature units, `(E, D)`; short means relevant."""
+        return self.gp.covar_module.base_kernel.lengthscale.detach().reshape(
+            self.n_outputs, self.n_features
+        )
+
+    @property
+    def noise(self) -> Tensor:
+        """Observation noise variances in output units, `(E,)`."""
+        return self.likelihood.noise.detach()[..., 0] * self.y_scaler.std.square()
