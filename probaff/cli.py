@@ -37,7 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     m = sub.add_parser("demo", help="generate a small two-object dataset and draw it")
     m.add_argument("--out", default="results/demo")
-    m.add_argument("--n", type=int, default=48)
+    m.add_argument("--n", type=int, default=96)
     m.add_argument("--seed", type=int, default=0)
     m.add_argument("--workers", type=int, default=0)
     return p
