@@ -2,9 +2,11 @@
 
 from probaff.eval.metrics import interval_coverage, marginal_components, nlpd, rmse
 from probaff.eval.push_figures import plot_pushes
+from probaff.eval.selection import ExpertSelection, select_n_experts
 from probaff.eval.tasks import ResultStore, run_tasks
 
 __all__ = [
+    "ExpertSelection",
     "ResultStore",
     "interval_coverage",
     "marginal_components",
@@ -12,4 +14,5 @@ __all__ = [
     "plot_pushes",
     "rmse",
     "run_tasks",
+    "select_n_experts",
 ]
