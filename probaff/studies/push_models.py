@@ -193,8 +193,8 @@ def _tasks(exp: str, X: np.ndarray, Y: np.ndarray, groups: dict[str, slice],
                 for f, (train, test) in enumerate(splits):
                     task = {
                         "experiment": exp, "features": name, "method": method, "M": m,
-                        "fold": f, "seed": config.seed, "X": X.tolist(), "Y": Y.tolist(),
-                        "train": train.tolist(), "test": test.tolist(),
+                        "fold": f, "seed": config.seed, "X": X, "Y": Y,
+                        "train": train, "test": test,
                         "groups": {k: (v.start, v.stop) for k, v in groups.items()},
                         "gate": list(gate), "experts": list(experts_groups),
                         "em_iterations": config.em_iterations, "vi_steps": config.vi_steps,
