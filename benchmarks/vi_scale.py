@@ -7,7 +7,7 @@ minibatch per step, so its cost barely grows with N; the initial GMM, the gate i
 and the held-out evaluation are included in the time. A 2,000-row EM fit of the same model is
 timed side by side as the exact-GP reference (exact GPs cannot take 100k rows).
 
-Usage: python benchmarks/vi_scale.py [--n 100000] [--steps 1500] [--threads 2]
+Usage: python benchmarks/vi_scale.py [--n 100000] [--steps 1500] [--threads 1]
 """
 
 import argparse
@@ -28,7 +28,7 @@ def main() -> None:
     ap.add_argument("--d", type=int, default=101)
     ap.add_argument("--e", type=int, default=6)
     ap.add_argument("--steps", type=int, default=1500)
-    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--em-n", type=int, default=2000)
     a = ap.parse_args()
     x, y, _ = regime_features(a.n + a.test, a.d, a.e, seed=0)
