@@ -1,8 +1,10 @@
 """`probaff demo`: the main job on a small embedded default.
 
 It generates a small two-object push dataset (chapter 5's scene), prints its summary, draws a
-few pushes with the arm's reachable region, and fits a mixture of GP experts by EM next to a
-single GP, printing their held-out RMSE and NLPD.
+few pushes with the arm's reachable region, fits a mixture of GP experts by EM next to a
+single GP, printing their held-out RMSE and NLPD, and finally explores a small warehouse map,
+pushes a few boxes chosen by information gain on the affordance MRF, and prints the map's
+entropy before and after.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from probaff.features import chapter5_features
 from probaff.models import MixtureOfGPExperts, fit_em
 from probaff.sim.arm import load_arm
 from probaff.sim.config import load_tabletop
+from probaff.studies.affordance_map import demo as affordance_demo
 
 __all__ = ["DemoConfig", "run"]
 
@@ -74,8 +77,10 @@ def run(config: DemoConfig) -> dict[str, Any]:
     models = _compare_models(ds, config.seed)
     print(f"dataset: {os.fspath(ds_path)}")
     print(f"figure:  {os.fspath(figure)}")
+    print("affordance map:")
+    affordance = affordance_demo(out / "affordance_map", seed=config.seed, steps=3)
     return {"summary": summary, "dataset": os.fspath(ds_path), "figure": os.fspath(figure),
-            "models": models}
+            "models": models, "affordance_map": affordance}
 
 
 def _compare_models(ds: PushDataset, seed: int) -> dict[str, dict[str, float]]:

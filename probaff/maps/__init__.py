@@ -9,6 +9,8 @@ Modules:
     inference: enumeration, gtsam or BP per component.
     entropy: per-variable and whole-map entropies.
     classifier: per-cell affordance classifier from voxel features, and its evaluation.
+    planner: candidate pushes scored by expected entropy reduction against travel.
+    loop: the manipulation loop (information gain or exhaustive) on one map.
 """
 
 from probaff.maps.bp import (
@@ -47,6 +49,8 @@ from probaff.maps.graph import (
 )
 from probaff.maps.grid_bp import GRID_BYTES_PER_CELL, grid_belief_propagation
 from probaff.maps.inference import METHODS, MapMarginals, affordance_marginals
+from probaff.maps.loop import POLICIES, LoopResult, ManipulationLoop, detect_push
+from probaff.maps.planner import PushPlan, check_alpha, plan_pushes
 
 __all__ = [
     "DEFAULT_COUPLING",
@@ -63,17 +67,23 @@ __all__ = [
     "MAX_ENUMERATION_VARIABLES",
     "MAX_WIDTH_SCAN_VARIABLES",
     "METHODS",
+    "POLICIES",
     "AffordanceClassifier",
     "AffordanceEvaluation",
     "AffordanceGraph",
     "BeliefPropagationResult",
+    "LoopResult",
+    "ManipulationLoop",
     "MapMarginals",
+    "PushPlan",
     "affordance_marginals",
     "as_evidence",
+    "check_alpha",
     "check_coupling",
     "collect_voxels",
     "component_labels",
     "component_widths",
+    "detect_push",
     "elimination_width",
     "enumerate_marginals",
     "evaluate",
@@ -85,5 +95,6 @@ __all__ = [
     "make_evidence",
     "map_entropy",
     "marginal_entropy",
+    "plan_pushes",
     "single_variable_evidence",
 ]

@@ -1,0 +1,143 @@
+"""The manipulation loop: change detection, belief and evidence updates, both policies."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+
+from probaff.errors import InputError
+from probaff.maps.classifier import AffordanceClassifier, collect_voxels
+from probaff.maps.entropy import map_entropy
+from probaff.maps.inference import affordance_marginals
+from probaff.maps.loop import ManipulationLoop, cloud_distance, detect_push
+from probaff.maps.planner import PushCandidate, plan_pushes
+from probaff.perception.exploration import explore
+from probaff.sim.config import load_warehouse
+from probaff.sim.depth import DepthSensor
+from probaff.sim.warehouse import WarehouseMap, push_box, rule_affordances
+
+SPEC = dataclasses.replace(load_warehouse(), rows=7, cols=7, boxes=(6, 11))
+# Row 3 holds a box against the left wall, two boxes in a row, and free boxes elsewhere.
+BOXES = [(1, 1), (1, 4), (3, 0), (3, 3), (3, 4), (5, 2), (5, 5)]
+
+
+@pytest.fixture(scope="module")
+def classifier():
+    data = collect_voxels(SPEC, 3, np.random.default_rng(0))
+    return AffordanceClassifier().fit(data.features, data.labels)
+
+
+@pytest.fixture(scope="module")
+def world():
+    m = WarehouseMap.from_boxes((7, 7), BOXES)
+    return m, explore(SPEC, m, (6, 0), np.random.default_rng(1))
+
+
+def test_cloud_distance():
+    a = np.zeros((1, 3))
+    b = np.array([[1.0, 0, 0], [3.0, 0, 0]])
+    assert cloud_distance(a, b) == pytest.approx((1 + 1 + 3) / 3)
+    assert cloud_distance(a, a) == 0.0
+    assert cloud_distance(a, np.empty((0, 3))) == np.inf
+
+
+@pytest.mark.parametrize("cell, direction", [((3, 0), 2), ((1, 1), 0), ((3, 3), 3),
+                                             ((3, 4), 2), ((5, 2), 0), ((1, 4), 1)])
+def test_change_detection_agrees_with_physics(world, cell, direction):
+    m, _ = world
+    truth = push_box(SPEC, m, cell, direction).moved
+    assert truth == rule_affordances(m)[cell][direction]
+    after = m.moved(cell, direction) if truth else m
+    access = np.asarray(cell) - np.array([[-1, 0], [1, 0], [0, -1], [0, 1]])[direction]
+    position = m.cell_centre(access)
+    observed = DepthSensor(SPEC, after).scan(position, np.random.default_rng(2)).points
+    moved, d_moved, d_still = detect_push(SPEC, m.occupancy, cell, direction, observed,
+                                          position)
+    assert moved == truth and min(d_moved, d_still) < 0.05 < max(d_moved, d_still)
+
+
+def test_loop_confirms_pushes_against_ground_truth(world, classifier):
+    m, ex = world
+    loop = ManipulationLoop(SPEC, m, ex, classifier, policy="exhaustive",
+                            rng=np.random.default_rng(3))
+    assert (loop.believed == m.occupancy).all()
+    result = loop.run(6)
+    assert result.policy == "exhaustive" and len(result.steps) == 7
+    assert [s.step for s in result.steps] == list(range(7))
+    assert result.steps[0].push is None and result.steps[0].distance == 0
+    assert any(s.moved for s in result.steps[1:]) and not all(s.moved for s in result.steps[1:])
+    for s in result.steps[1:]:
+        assert s.real_box and s.observed == s.moved
+        assert s.gain is None and s.cost is not None
+    dist = [s.distance for s in result.steps]
+    assert dist == sorted(dist)
+    assert loop.true_map.occupancy.sum() == m.occupancy.sum()  # boxes move, none vanish
+    assert (loop.believed == loop.true_map.occupancy).all()
+    truth = rule_affordances(loop.true_map)
+    for (r, c, d), value in loop.confirmed.items():  # every kept confirmation is still true
+        assert truth[r, c, d] == bool(value)
+    assert 0.0 <= result.steps[-1].accuracy <= 1.0
+    assert m.occupancy.sum() == len(BOXES)  # the caller's map is untouched
+
+
+def test_evidence_is_invalidated_around_a_move(world, classifier):
+    m, ex = world
+    loop = ManipulationLoop(SPEC, m, ex, classifier, rng=np.random.default_rng(4))
+    loop.confirmed = {(1, 4, 3): 1, (1, 1, 0): 1, (3, 3, 3): 0, (3, 4, 1): 1}
+    # Push (5, 2) up into (4, 2): a free cell. (3, 3) right stays valid; (3, 4) down points
+    # into (4, 4), unchanged, and stays; a neighbour pointing into (4, 2) would go.
+    loop.confirmed[(3, 2, 1)] = 1  # a (hypothetical) confirmation pointing into (4, 2)
+    push = PushCandidate(cell=(5, 2), direction=0, access=(6, 2), variable=-1, p=0.5,
+                         reward=0.0, cost=2, gain=0.0)
+    outcome = loop.execute(push)
+    assert outcome.moved and outcome.observed and loop.true_map.occupancy[4, 2]
+    assert loop.robot == (6, 2) and loop.distance == 2
+    assert (3, 2, 1) not in loop.confirmed
+    assert {(1, 4, 3), (1, 1, 0), (3, 3, 3), (3, 4, 1)} <= set(loop.confirmed)
+    assert loop.believed[4, 2] and not loop.believed[5, 2]
+    assert not np.isnan(loop.unary[4, 2]).any()
+    # A failed push is a lasting confirmation of "not pushable".
+    blocked = PushCandidate(cell=(3, 3), direction=3, access=(3, 2), variable=-1, p=0.5,
+                            reward=0.0, cost=3, gain=0.0)
+    out = loop.execute(blocked)
+    assert not out.moved and not out.observed and loop.confirmed[(3, 3, 3)] == 0
+
+
+def test_information_gain_loop_and_expected_entropy(world, classifier):
+    m, ex = world
+    loop = ManipulationLoop(SPEC, m, ex, classifier, rng=np.random.default_rng(5))
+    mrf = loop.graphs()[1]
+    plan = plan_pushes(mrf, loop.passable, loop.robot, loop.evidence(mrf))
+    assert plan.candidates and all(c.reward >= -1e-9 for c in plan.candidates)
+    # Confirming the best push lowers the map entropy in expectation over its outcome.
+    best = plan.best
+    ev = torch.full((2, mrf.num_variables), -1, dtype=torch.int8)
+    ev[0, best.variable], ev[1, best.variable] = 1, 0
+    h1, h0 = map_entropy(affordance_marginals(mrf, ev, dtype=torch.float64).marginals)
+    assert best.p * float(h1) + (1 - best.p) * float(h0) <= plan.entropy + 1e-9
+    result = loop.run(4, snapshots=2)
+    assert result.stop in ("no_gain", "max_steps", "no_candidate")
+    assert 1 <= len(result.snapshots) <= 2
+    for s in result.steps[1:]:
+        assert s.observed == s.moved and s.gain is not None and s.gain >= 0
+        assert s.reward is not None and s.cost is not None
+    assert result.steps[0].entropy == pytest.approx(result.steps[0].entropy_mrf)
+    keep_going = ManipulationLoop(SPEC, m, ex, classifier, rng=np.random.default_rng(5),
+                                  stop_at_no_gain=False).run(3)
+    assert len(keep_going.steps) == 4 and keep_going.stop == "max_steps"
+    shot = result.snapshots[0]
+    assert shot.pushability.shape == (7, 7, 4) and shot.push == result.steps[1].push[:3]
+    assert np.isnan(shot.pushability[~shot.occupancy]).all()
+
+
+def test_bad_arguments(world, classifier):
+    m, ex = world
+    with pytest.raises(InputError, match="policy"):
+        ManipulationLoop(SPEC, m, ex, classifier, policy="random")
+    with pytest.raises(InputError, match="alpha"):
+        ManipulationLoop(SPEC, m, ex, classifier, alpha=2.0)
+    with pytest.raises(InputError, match="not trained"):
+        ManipulationLoop(SPEC, m, ex, AffordanceClassifier())
+    with pytest.raises(InputError, match="max_steps"):
+        ManipulationLoop(SPEC, m, ex, classifier).run(-1)

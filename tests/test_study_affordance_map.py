@@ -1,0 +1,67 @@
+"""The affordance-map study runs end to end on a shrunken configuration and resumes."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from probaff.errors import InputError
+from probaff.studies.affordance_map import AffordanceMapConfig, demo, run
+
+ROOT = Path(__file__).resolve().parents[1]
+FILES = ("entropy.csv", "summary.md", "entropy_vs_step.png", "accuracy_vs_step.png",
+         "distance_vs_step.png", "mrf_smoothing.png", "loop_steps.png")
+
+
+def test_run_writes_everything_and_resumes(tmp_path):
+    cfg = AffordanceMapConfig(n_maps=2, train_maps=2, max_steps=3, workers=0,
+                              out=str(tmp_path / "am"), progress=False)
+    first = run(cfg)
+    assert first["computed"] == 2
+    for name in FILES:
+        assert (tmp_path / "am" / name).stat().st_size > 0
+    rows = (tmp_path / "am" / "entropy.csv").read_text().splitlines()
+    assert rows[0].startswith("policy,step,entropy_mean") and len(rows) == 1 + 2 * 4
+    text = (tmp_path / "am" / "summary.md").read_text()
+    assert "| information gain |" in text and "| exhaustive |" in text and "| up |" in text
+    tasks = sorted((tmp_path / "am" / "tasks").glob("map-*.json"))
+    assert len(tasks) == 2
+    saved = json.loads(tasks[0].read_text())
+    for policy in ("information_gain", "exhaustive"):
+        steps = saved["policies"][policy]["steps"]
+        assert 1 <= len(steps) <= 4 and steps[0]["step"] == 0
+    stamp = [p.stat().st_mtime_ns for p in tasks]
+    second = run(cfg)
+    assert second["computed"] == 0
+    assert [p.stat().st_mtime_ns for p in tasks] == stamp
+    assert second["summary"]["policies"] == first["summary"]["policies"]
+    # Other settings get their own tasks instead of reusing these.
+    assert AffordanceMapConfig(alpha=0.5).fingerprint() != cfg.fingerprint()
+
+
+def test_bad_config(tmp_path):
+    with pytest.raises(InputError, match="alpha"):
+        run(AffordanceMapConfig(alpha=1.5, out=str(tmp_path)))
+    with pytest.raises(InputError, match="n_maps"):
+        run(AffordanceMapConfig(n_maps=0, out=str(tmp_path)))
+    with pytest.raises(InputError, match="coupling"):
+        run(AffordanceMapConfig(coupling=50.0, out=str(tmp_path)))
+
+
+def test_demo(tmp_path, capsys):
+    out = demo(tmp_path, seed=0, steps=2)
+    assert out["entropy_before"] > 0 and out["entropy_after"] >= 0
+    assert len(out["pushes"]) <= 2 and Path(out["figure"]).stat().st_size > 0
+    assert "map entropy before" in capsys.readouterr().out
+
+
+def test_script_smoke(tmp_path):
+    out = tmp_path / "am"
+    cmd = [sys.executable, str(ROOT / "inference/affordance_map.py"), "--smoke", "--out",
+           str(out)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, check=True)
+    files = json.loads(proc.stdout)["files"]
+    for name in FILES:
+        assert str(out / name) in files.values() and (out / name).stat().st_size > 0
