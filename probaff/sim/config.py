@@ -110,6 +110,11 @@ def _take(where: str, raw: dict[str, Any], key: str) -> Any:
     return raw[key]
 
 
+def _field(w: str, where: str, table: dict[str, Any], key: str, **kw: bool) -> float:
+    """The number ``table[key]`` of section `where` of file `w`, validated by `_number`."""
+    return _number(f"{w}:{where}.{key}", _take(f"{w}:{where}", table, key), **kw)
+
+
 def _no_extra(where: str, raw: dict[str, Any], allowed: set[str]) -> None:
     extra = set(raw) - allowed
     if extra:
@@ -318,15 +323,12 @@ def load_warehouse(path: Path | None = None) -> WarehouseSpec:
     sensor = _mapping(f"{w}:sensor", _take(w, raw, "sensor"))
     phys = _mapping(f"{w}:physics", _take(w, raw, "physics"))
     cell = _number(f"{w}:cell_size", _take(w, raw, "cell_size"), positive=True)
-    size = _number(f"{w}:box.size", _take(f"{w}:box", box, "size"), positive=True)
+    size = _field(w, "box", box, "size", positive=True)
     if size >= cell:
         raise ConfigError(f"{w}:box.size {size} must be smaller than cell_size {cell}.")
     elev = _take(f"{w}:sensor", sensor, "elevations")
     if not isinstance(elev, list) or not elev:
         raise ConfigError(f"{w}:sensor.elevations must be a non-empty list of degrees.")
-
-    def num(where: str, table: dict[str, Any], key: str, **kw: bool) -> float:
-        return _number(f"{w}:{where}.{key}", _take(f"{w}:{where}", table, key), **kw)
 
     return WarehouseSpec(
         rows=grid[0],
@@ -334,26 +336,26 @@ def load_warehouse(path: Path | None = None) -> WarehouseSpec:
         cell_size=cell,
         boxes=(int(nb[0]), int(nb[1])),
         box_size=size,
-        box_height=num("box", box, "height", positive=True),
-        box_mass=num("box", box, "mass", positive=True),
-        box_ground_friction=num("box", box, "ground_friction", positive=True),
-        box_contact_friction=num("box", box, "contact_friction", nonneg=True),
-        wall_height=num("wall", wall, "height", positive=True),
-        wall_thickness=num("wall", wall, "thickness", positive=True),
-        robot_radius=num("robot", robot, "radius", positive=True),
-        robot_max_force=num("robot", robot, "max_force", positive=True),
-        robot_speed=num("robot", robot, "speed", positive=True),
-        robot_acceleration=num("robot", robot, "acceleration", positive=True),
-        sensor_height=num("sensor", sensor, "height", positive=True),
-        sensor_range=num("sensor", sensor, "max_range", positive=True),
-        sensor_azimuths=int(num("sensor", sensor, "azimuths", positive=True)),
+        box_height=_field(w, "box", box, "height", positive=True),
+        box_mass=_field(w, "box", box, "mass", positive=True),
+        box_ground_friction=_field(w, "box", box, "ground_friction", positive=True),
+        box_contact_friction=_field(w, "box", box, "contact_friction", nonneg=True),
+        wall_height=_field(w, "wall", wall, "height", positive=True),
+        wall_thickness=_field(w, "wall", wall, "thickness", positive=True),
+        robot_radius=_field(w, "robot", robot, "radius", positive=True),
+        robot_max_force=_field(w, "robot", robot, "max_force", positive=True),
+        robot_speed=_field(w, "robot", robot, "speed", positive=True),
+        robot_acceleration=_field(w, "robot", robot, "acceleration", positive=True),
+        sensor_height=_field(w, "sensor", sensor, "height", positive=True),
+        sensor_range=_field(w, "sensor", sensor, "max_range", positive=True),
+        sensor_azimuths=int(_field(w, "sensor", sensor, "azimuths", positive=True)),
         sensor_elevations=tuple(_number(f"{w}:sensor.elevations", e) for e in elev),
-        sensor_noise=num("sensor", sensor, "noise", nonneg=True),
-        control_rate=num("physics", phys, "control_rate", positive=True),
-        substeps=int(num("physics", phys, "substeps", positive=True)),
-        iterations=int(num("physics", phys, "iterations", positive=True)),
-        friction_grid=int(num("physics", phys, "friction_grid", positive=True)),
-        collision_slop=num("physics", phys, "collision_slop", nonneg=True),
+        sensor_noise=_field(w, "sensor", sensor, "noise", nonneg=True),
+        control_rate=_field(w, "physics", phys, "control_rate", positive=True),
+        substeps=int(_field(w, "physics", phys, "substeps", positive=True)),
+        iterations=int(_field(w, "physics", phys, "iterations", positive=True)),
+        friction_grid=int(_field(w, "physics", phys, "friction_grid", positive=True)),
+        collision_slop=_field(w, "physics", phys, "collision_slop", nonneg=True),
     )
 
 
@@ -427,8 +429,7 @@ def load_tabletop(path: Path | None = None) -> TabletopSpec:
     base = _take(f"{w}:arm", arm, "base_xyz")
     if not isinstance(base, list) or len(base) != 3:
         raise ConfigError(f"{w}:arm.base_xyz must be [x, y, z], got {base!r}.")
-    opening = _number(f"{w}:gripper.push_opening", _take(f"{w}:gripper", grip, "push_opening"),
-                      positive=True)
+    opening = _field(w, "gripper", grip, "push_opening", positive=True)
     if opening > 0.15 + 1e-9:
         raise ConfigError(f"{w}:gripper.push_opening {opening} exceeds the 0.15 m finger span.")
     urdf = p.parent / str(_take(f"{w}:arm", arm, "urdf"))
@@ -438,52 +439,34 @@ def load_tabletop(path: Path | None = None) -> TabletopSpec:
             urdf=urdf,
             tcp_link=str(_take(f"{w}:arm", arm, "tcp_link")),
             base_xyz=tuple(_number(f"{w}:arm.base_xyz", b) for b in base),  # type: ignore[arg-type]
-            base_yaw=_number(f"{w}:arm.base_yaw", _take(f"{w}:arm", arm, "base_yaw")),
-            push_height=_number(f"{w}:arm.push_height", _take(f"{w}:arm", arm, "push_height"),
-                                nonneg=True),
-            pos_tolerance=_number(f"{w}:arm.ik.pos_tolerance", _take(w, ik, "pos_tolerance"),
-                                  positive=True),
-            rot_tolerance=_number(f"{w}:arm.ik.rot_tolerance", _take(w, ik, "rot_tolerance"),
-                                  positive=True),
-            max_iterations=int(_number(f"{w}:arm.ik.max_iterations",
-                                       _take(w, ik, "max_iterations"), positive=True)),
-            waypoint_spacing=_number(f"{w}:arm.ik.waypoint_spacing",
-                                     _take(w, ik, "waypoint_spacing"), positive=True),
+            base_yaw=_field(w, "arm", arm, "base_yaw"),
+            push_height=_field(w, "arm", arm, "push_height", nonneg=True),
+            pos_tolerance=_field(w, "arm.ik", ik, "pos_tolerance", positive=True),
+            rot_tolerance=_field(w, "arm.ik", ik, "rot_tolerance", positive=True),
+            max_iterations=int(_field(w, "arm.ik", ik, "max_iterations", positive=True)),
+            waypoint_spacing=_field(w, "arm.ik", ik, "waypoint_spacing", positive=True),
         ),
         gripper=GripperSpec(
-            finger_radius=_number(f"{w}:gripper.finger_radius",
-                                  _take(f"{w}:gripper", grip, "finger_radius"), positive=True),
+            finger_radius=_field(w, "gripper", grip, "finger_radius", positive=True),
             push_opening=opening,
-            mass=_number(f"{w}:gripper.mass", _take(w, grip, "mass"), positive=True),
-            max_force=_number(f"{w}:gripper.max_force", _take(w, grip, "max_force"),
-                              positive=True),
-            max_torque=_number(f"{w}:gripper.max_torque", _take(w, grip, "max_torque"),
-                               positive=True),
-            max_speed=_number(f"{w}:gripper.max_speed", _take(w, grip, "max_speed"),
-                              positive=True),
-            contact_friction=_number(f"{w}:gripper.contact_friction",
-                                     _take(w, grip, "contact_friction"), nonneg=True),
+            mass=_field(w, "gripper", grip, "mass", positive=True),
+            max_force=_field(w, "gripper", grip, "max_force", positive=True),
+            max_torque=_field(w, "gripper", grip, "max_torque", positive=True),
+            max_speed=_field(w, "gripper", grip, "max_speed", positive=True),
+            contact_friction=_field(w, "gripper", grip, "contact_friction", nonneg=True),
         ),
         physics=PhysicsSpec(
-            gravity=_number(f"{w}:physics.gravity", _take(w, phys, "gravity"), positive=True),
-            control_rate=_number(f"{w}:physics.control_rate", _take(w, phys, "control_rate"),
-                                 positive=True),
-            substeps=int(_number(f"{w}:physics.substeps", _take(w, phys, "substeps"),
-                                 positive=True)),
-            iterations=int(_number(f"{w}:physics.iterations", _take(w, phys, "iterations"),
-                                   positive=True)),
-            collision_slop=_number(f"{w}:physics.collision_slop",
-                                   _take(w, phys, "collision_slop"), nonneg=True),
-            friction_grid=int(_number(f"{w}:physics.friction_grid",
-                                      _take(w, phys, "friction_grid"), positive=True)),
+            gravity=_field(w, "physics", phys, "gravity", positive=True),
+            control_rate=_field(w, "physics", phys, "control_rate", positive=True),
+            substeps=int(_field(w, "physics", phys, "substeps", positive=True)),
+            iterations=int(_field(w, "physics", phys, "iterations", positive=True)),
+            collision_slop=_field(w, "physics", phys, "collision_slop", nonneg=True),
+            friction_grid=int(_field(w, "physics", phys, "friction_grid", positive=True)),
         ),
-        push_speed=_number(f"{w}:push.speed", _take(w, push, "speed"), positive=True),
-        push_acceleration=_number(f"{w}:push.acceleration", _take(w, push, "acceleration"),
-                                  positive=True),
-        settle_time=_number(f"{w}:push.settle_time", _take(w, push, "settle_time"),
-                            nonneg=True),
-        record_rate=_number(f"{w}:push.record_rate", _take(w, push, "record_rate"),
-                            positive=True),
+        push_speed=_field(w, "push", push, "speed", positive=True),
+        push_acceleration=_field(w, "push", push, "acceleration", positive=True),
+        settle_time=_field(w, "push", push, "settle_time", nonneg=True),
+        record_rate=_field(w, "push", push, "record_rate", positive=True),
     )
 
 
@@ -557,7 +540,7 @@ def load_scene(name: str) -> SceneSpec:
         raise ConfigError(f"{w}:push.target must be 0 (the first object is the pushed one).")
     push = PushSpec(
         target=target,
-        distance=_number(f"{w}:push.distance", _take(f"{w}:push", pr, "distance"), positive=True),
+        distance=_field(w, "push", pr, "distance", positive=True),
         direction=_range(f"{w}:push.direction", _take(f"{w}:push", pr, "direction")),
         lateral_offset=_range(f"{w}:push.lateral_offset", pr.get("lateral_offset", [0.0, 0.0])),
         start_gap=_range(f"{w}:push.start_gap", _take(f"{w}:push", pr, "start_gap"),
