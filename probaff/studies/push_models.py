@@ -250,45 +250,49 @@ def _best_by_nlpd(rows: list[dict[str, Any]]) -> dict[tuple[str, str], int]:
 
 
 def _findings(rows: list[dict[str, Any]]) -> list[str]:
-    """The thesis's chapter 5 claims, checked on these results (EM rows)."""
-    def get(feat: str, m: int, col: str, method: str = "em") -> float | None:
+    """The thesis's chapter 5 claims, checked on these results (EM rows).
+
+    RMSE changes are relative and averaged over the effect dimensions, so metres and radians
+    weigh alike.
+    """
+    def get(feat: str, m: int, col: str) -> float | None:
         for r in rows:
-            if (r["features"], r["method"], r["M"]) == (feat, method, m):
+            if (r["features"], r["method"], r["M"]) == (feat, "em", m):
                 return r[col]
         return None
 
-    def mean_rmse(feat: str, m: int, dims: tuple[str, ...]) -> float | None:
-        vals = [get(feat, m, f"rmse.{d}") for d in dims]
-        return None if any(v is None for v in vals) else float(np.mean(vals))
+    def rel(feat_a: str, m_a: int, feat_b: str, m_b: int, dims: tuple[str, ...]
+            ) -> float | None:
+        """Mean over `dims` of RMSE(a) / RMSE(b) - 1, in %."""
+        pairs = [(get(feat_a, m_a, f"rmse.{d}"), get(feat_b, m_b, f"rmse.{d}")) for d in dims]
+        if any(a is None or b is None for a, b in pairs):
+            return None
+        return 100 * float(np.mean([a / b - 1 for a, b in pairs]))  # type: ignore[operator]
 
     lines = []
     feats = sorted({r["features"] for r in rows if r["method"] == "em"})
     ms = sorted({r["M"] for r in rows if r["method"] == "em"})
     for feat in feats:
-        scores = {m: mean_rmse(feat, m, CH5_EFFECTS) for m in ms}
-        scores = {m: v for m, v in scores.items() if v is not None}
-        if 1 in scores and len(scores) > 1:
-            best = min(scores, key=lambda m: scores[m])
-            gains = ", ".join(f"M={m}: {100 * (1 - scores[m] / scores[1]):+.1f}%"
-                              for m in sorted(scores) if m != 1)
-            lines.append(f"- features {feat}: mean RMSE over the six effects is lowest at "
-                         f"M={best}; reduction relative to M=1 (negative = worse): {gains}.")
+        changes = {m: rel(feat, m, feat, 1, CH5_EFFECTS) for m in ms if m != 1}
+        changes = {m: v for m, v in changes.items() if v is not None}
+        nl = {m: get(feat, m, "nlpd.total") for m in ms}
+        nl = {m: v for m, v in nl.items() if v is not None}
+        if changes:
+            txt = ", ".join(f"M={m}: {v:+.1f}%" for m, v in changes.items())
+            best_nl = min(nl, key=lambda m: nl[m])
+            lines.append(f"- features {feat}: RMSE relative to M=1 (negative = better): {txt}; "
+                         f"lowest NLPD at M={best_nl}.")
+    o1, o2 = CH5_EFFECTS[:3], CH5_EFFECTS[3:]
     for m in ms:
-        o, oc, ocx = (mean_rmse(f, m, ("o2.dy", "o2.dz", "o2.dth")) for f in ("o", "oc", "ocx"))
-        p, q, r_ = (mean_rmse(f, m, ("o1.dy", "o1.dz", "o1.dth")) for f in ("o", "oc", "ocx"))
-        if None not in (o, oc, ocx, p, q, r_):
-            lines.append(
-                f"- M={m}: adding f_x changes o2's mean RMSE by {100 * (ocx / o - 1):+.1f}% vs "
-                f"f_o and {100 * (ocx / oc - 1):+.1f}% vs f_o&f_c (o1: {100 * (r_ / p - 1):+.1f}% "
-                f"and {100 * (r_ / q - 1):+.1f}%)."
-            )
-        split, full = get("gx-eoc", m, "rmse.o1.dz"), get("ocx", m, "rmse.o1.dz")
-        comb = get("oc", m, "rmse.o1.dz")
+        a, b = rel("ocx", m, "o", m, o2), rel("ocx", m, "oc", m, o2)
+        c, d = rel("ocx", m, "o", m, o1), rel("ocx", m, "oc", m, o1)
+        if None not in (a, b, c, d):
+            lines.append(f"- M={m}: adding f_x changes o2's RMSE by {a:+.1f}% vs f_o and {b:+.1f}% "
+                         f"vs f_o&f_c (o1: {c:+.1f}% and {d:+.1f}%).")
+        split, full, comb = (get(f, m, "rmse.o1.dz") for f in ("gx-eoc", "ocx", "oc"))
         if None not in (split, full, comb):
-            lines.append(
-                f"- M={m}: o1 along the push (dz) RMSE: gate-on-context {split:.4f} m, "
-                f"all features {full:.4f} m, f_o&f_c {comb:.4f} m."
-            )
+            lines.append(f"- M={m}: o1 along the push (dz) RMSE: gate-on-context {split:.4f} m, "
+                         f"all features {full:.4f} m, f_o&f_c {comb:.4f} m.")
     return lines
 
 
