@@ -12,7 +12,6 @@ import gpytorch
 import torch
 from gpytorch.constraints import Interval
 from gpytorch.distributions import MultivariateNormal
-from gpytorch.kernels import RBFKernel, ScaleKernel
 from gpytorch.means import ConstantMean
 from gpytorch.mlls import ExactMarginalLogLikelihood
 from gpytorch.priors import LogNormalPrior, Prior
@@ -24,6 +23,7 @@ from probaff._checks import check_positive
 from probaff.errors import InputError, NotFittedError
 from probaff.models._scaling import Standardizer
 from probaff.models._tensors import as_matrix, as_vector
+from probaff.models.kernels import ard_se_kernel
 from probaff.models.likelihood import WeightedGaussianLikelihood
 
 __all__ = ["GPExpert", "exact_gp_settings"]
@@ -72,15 +72,12 @@ class _BatchedExactGP(gpytorch.models.ExactGP):
         batch = torch.Size([n_outputs])
         self.n_outputs = n_outputs
         self.mean_module = ConstantMean(batch_shape=batch)
-        self.covar_module = ScaleKernel(
-            RBFKernel(
-                ard_num_dims=n_features,
-                batch_shape=batch,
-                lengthscale_prior=lengthscale_prior,
-                lengthscale_constraint=Interval(*_LENGTHSCALE_BOUNDS),
-            ),
-            batch_shape=batch,
-            outputscale_constraint=Interval(*_OUTPUTSCALE_BOUNDS),
+        self.covar_module = ard_se_kernel(
+            n_features,
+            batch,
+            lengthscale_bounds=_LENGTHSCALE_BOUNDS,
+            outputscale_bounds=_OUTPUTSCALE_BOUNDS,
+            lengthscale_prior=lengthscale_prior,
         )
 
     def forward(self, x: Tensor) -> MultivariateNormal:  # type: ignore[override]

@@ -19,8 +19,6 @@ import gpytorch
 import pyro
 import pyro.distributions as dist
 import torch
-from gpytorch.constraints import Interval
-from gpytorch.kernels import RBFKernel, ScaleKernel
 from gpytorch.means import ConstantMean
 from gpytorch.variational import CholeskyVariationalDistribution, VariationalStrategy
 from pyro.infer import SVI, TraceEnum_ELBO, config_enumerate
@@ -35,6 +33,7 @@ from probaff.models._tensors import as_matrix
 from probaff.models.columns import FeatureGroups, FeatureSpec, check_feature_spec, resolve_features
 from probaff.models.em import initial_responsibilities
 from probaff.models.gate import SoftmaxGate
+from probaff.models.kernels import ard_se_kernel
 from probaff.models.mixture import mixture_distribution, training_data
 
 __all__ = ["SVGPExpert", "SVIHistory", "VariationalMixtureOfGPExperts", "fit_svi"]
@@ -60,14 +59,8 @@ class SVGPExpert(gpytorch.models.ApproximateGP):
         super().__init__(strategy)
         self.n_outputs = n_outputs
         self.mean_module = ConstantMean(batch_shape=batch)
-        self.covar_module = ScaleKernel(
-            RBFKernel(
-                ard_num_dims=n_features,
-                batch_shape=batch,
-                lengthscale_constraint=Interval(1e-3, 1e4),
-            ),
-            batch_shape=batch,
-            outputscale_constraint=Interval(1e-4, 1e4),
+        self.covar_module = ard_se_kernel(
+            n_features, batch, lengthscale_bounds=(1e-3, 1e4), outputscale_bounds=(1e-4, 1e4)
         )
         self.covar_module.base_kernel.lengthscale = math.sqrt(n_features)
         self.covar_module.outputscale = 1.0
