@@ -109,9 +109,13 @@ class SVGPExpert(gpytorch.models.ApproximateGP):
         call(x.expand(self.n_outputs, *x.shape[-2:]), name_prefix=name_prefix)
 
     def moments(self, x: Tensor) -> tuple[Tensor, Tensor]:
-        """Mean and variance of q(f) at `x: (B, D)`, each `(B, E)`."""
+        """Mean and variance of q(f) at `x: (B, D)`, each `(B, E)`.
+
+        The variance is clamped at 0: round-off in the sparse posterior can make it slightly
+        negative, and a negative variance would inflate the expected log-likelihood.
+        """
         q = self(x.expand(self.n_outputs, *x.shape[-2:]))
-        return q.mean.transpose(-1, -2), q.variance.transpose(-1, -2)
+        return q.mean.transpose(-1, -2), q.variance.clamp_min(0.0).transpose(-1, -2)
 
 
 @contextlib.contextmanager
