@@ -8,14 +8,17 @@ its features, the mixture fitted by EM and the clustered baseline (GMM clusters,
 SVM gate).
 
 Every (experiment, features, method, M, fold) is one task whose scores are saved as soon as it
-finishes (`probaff.eval.tasks`), so an interrupted study resumes where it stopped and can run on
-Dask. Tables (CSV, Markdown) and figures (PNG) go to the output folder.
+finishes (`probaff.eval.tasks`), keyed also by a hash of the settings that shape it, so an
+interrupted study resumes where it stopped, never mixes settings, and can run on Dask. Tables
+(CSV, Markdown) and figures (PNG) go to the output folder.
 """
 
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
+import json
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -135,6 +138,14 @@ def _key(*parts: object) -> str:
     return ".".join(str(p) for p in parts)
 
 
+def _fingerprint(config: PushModelStudyConfig, exp: str) -> str:
+    """Short hash of every setting that shapes a task's result (not where or how it runs)."""
+    keys = ("seed", "em_iterations", "vi_steps", "vi_inducing", "gp_max_iter",
+            "lengthscale_prior", f"{exp}_pushes", f"{exp}_folds")
+    settings = json.dumps({k: getattr(config, k) for k in keys}, sort_keys=True)
+    return hashlib.sha1(settings.encode()).hexdigest()[:8]
+
+
 def _fit_and_score(task: dict[str, Any]) -> dict[str, Any]:
     """Fit one model on one fold's training pushes and score it on the held-out ones."""
     X, Y = np.asarray(task["X"]), np.asarray(task["Y"])
@@ -186,6 +197,7 @@ def _tasks(exp: str, X: np.ndarray, Y: np.ndarray, groups: dict[str, slice],
            methods: tuple[str, ...], experts: tuple[int, ...], folds: int,
            config: PushModelStudyConfig) -> list[tuple[str, tuple[Any, ...]]]:
     splits = list(KFold(folds, shuffle=True, random_state=config.seed).split(X))
+    fingerprint = _fingerprint(config, exp)
     out = []
     for name, (gate, experts_groups) in configs.items():
         for method in methods:
@@ -201,7 +213,8 @@ def _tasks(exp: str, X: np.ndarray, Y: np.ndarray, groups: dict[str, slice],
                         "vi_inducing": config.vi_inducing, "gp_max_iter": config.gp_max_iter,
                         "prior": config.lengthscale_prior,
                     }
-                    out.append((_key(exp, name, method, f"M{m}", f"fold{f}"), (task,)))
+                    out.append((_key(exp, name, method, f"M{m}", f"fold{f}", fingerprint),
+                                (task,)))
     return out
 
 
