@@ -23,6 +23,8 @@ def main() -> None:
     p.add_argument("--max-steps", type=int, default=20, help="most pushes per map and policy")
     p.add_argument("--alpha", type=float, default=0.8, help="reward weight of the gain G")
     p.add_argument("--coupling", type=float, default=0.4, help="Ising strength J of the MRF")
+    p.add_argument("--along-coupling", type=float, default=None,
+                   help="J between neighbours along a direction (default: --coupling)")
     p.add_argument("--symmetry-coupling", type=float, default=None,
                    help="strength of the up/down, left/right symmetry factors (default: none)")
     p.add_argument("--sensor-noise", type=float, default=None,
@@ -34,7 +36,8 @@ def main() -> None:
     cfg = AffordanceMapConfig(
         n_maps=2 if a.smoke else a.n_maps, seed=a.seed,
         train_maps=2 if a.smoke else a.train_maps, alpha=a.alpha, coupling=a.coupling,
-        symmetry_coupling=a.symmetry_coupling, max_steps=3 if a.smoke else a.max_steps,
+        symmetry_coupling=a.symmetry_coupling, along_coupling=a.along_coupling,
+        max_steps=3 if a.smoke else a.max_steps,
         out=a.out, workers=a.workers, scheduler=a.scheduler, progress=not a.smoke,
         sensor_noise=a.sensor_noise, stop_at_no_gain=not a.no_stop)
     result = run(cfg)

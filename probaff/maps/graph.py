@@ -131,6 +131,7 @@ class AffordanceGraph:
         unary: Any,
         coupling: float = DEFAULT_COUPLING,
         symmetry_coupling: float | None = None,
+        along_coupling: float | None = None,
     ) -> None:
         """Build the graph.
 
@@ -142,6 +143,11 @@ class AffordanceGraph:
             coupling: Ising strength ``J`` with ``|J| <= MAX_COUPLING``.
             symmetry_coupling: ``J_sym`` of the up/down and left/right symmetry factors
                 (same range), or None to leave them out.
+            along_coupling: Ising strength between neighbours that lie along the direction
+                itself ("pushable up" of a box and of the box above it); None uses `coupling`
+                for every pair, as in the thesis. Along a direction neighbours tend to differ
+                (the lower box can never be pushed up into the upper one), so 0 or a negative
+                value models that better.
 
         Raises:
             InputError: On a malformed grid, mismatched shapes, NaN/inf, probabilities of
@@ -161,6 +167,10 @@ class AffordanceGraph:
             None
             if symmetry_coupling is None
             else check_coupling("symmetry_coupling", symmetry_coupling)
+        )
+        self.along_coupling = (
+            self.coupling if along_coupling is None
+            else check_coupling("along_coupling", along_coupling)
         )
         self.occupancy = occ.copy()
         self.unary = probs.copy()
@@ -184,7 +194,11 @@ class AffordanceGraph:
             np.stack([left.reshape(-1), right.reshape(-1)], axis=1),
         ]
         kinds = [np.full(sum(p.shape[0] for p in pairs), EDGE_ISING, dtype=np.int8)]
-        couplings = [np.full(kinds[0].shape[0], self.coupling)]
+        vertical_along = np.array([True, True, False, False])  # up/down lie along a column
+        per_dir = np.where(vertical_along, self.along_coupling, self.coupling)
+        per_dir_h = np.where(~vertical_along, self.along_coupling, self.coupling)
+        couplings = [np.concatenate([np.tile(per_dir, upper.shape[0]),
+                                     np.tile(per_dir_h, left.shape[0])])]
         if self.symmetry_coupling is not None:
             sym = np.concatenate(
                 [

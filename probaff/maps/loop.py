@@ -300,6 +300,8 @@ class ManipulationLoop:
         alpha: Weight of the reward in ``G`` (information-gain policy).
         coupling: Ising strength ``J`` of the MRF.
         symmetry_coupling: ``J_sym`` of the MRF's symmetry factors, or None.
+        along_coupling: Ising strength between neighbours along a direction, or None for
+            `coupling` (see `AffordanceGraph`).
         rng: Source of the sensor noise of the scans after each push.
         free_fraction: Share of free sub-cells that makes a cell believed free.
         method: Inference method of `affordance_marginals`.
@@ -316,6 +318,7 @@ class ManipulationLoop:
                  classifier: AffordanceClassifier, *, policy: str = "information_gain",
                  alpha: float = DEFAULT_ALPHA, coupling: float = DEFAULT_COUPLING,
                  symmetry_coupling: float | None = None,
+                 along_coupling: float | None = None,
                  rng: np.random.Generator | None = None, free_fraction: float = 0.75,
                  method: str = "auto", stop_at_no_gain: bool = True) -> None:
         if policy not in POLICIES:
@@ -331,6 +334,8 @@ class ManipulationLoop:
         self.coupling = check_coupling("coupling", coupling)
         self.symmetry_coupling = (None if symmetry_coupling is None
                                   else check_coupling("symmetry_coupling", symmetry_coupling))
+        self.along_coupling = (None if along_coupling is None
+                               else check_coupling("along_coupling", along_coupling))
         self.classifier = classifier
         self.method = method
         self.stop_at_no_gain = bool(stop_at_no_gain)
@@ -370,7 +375,8 @@ class ManipulationLoop:
         """
         if self._graphs is None:
             occ, unary = self.believed, self.unary_probabilities()
-            mrf = AffordanceGraph(occ, unary, self.coupling, self.symmetry_coupling)
+            mrf = AffordanceGraph(occ, unary, self.coupling, self.symmetry_coupling,
+                                  self.along_coupling)
             model = mrf if self.policy == "information_gain" else AffordanceGraph(occ, unary, 0.0)
             self._graphs = (model, mrf)
         return self._graphs

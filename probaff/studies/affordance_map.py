@@ -78,6 +78,8 @@ class AffordanceMapConfig:
         alpha: Weight of the reward in ``G = alpha R - (1 - alpha) C``.
         coupling: Ising strength ``J`` of the MRF.
         symmetry_coupling: ``J_sym`` of the MRF's symmetry factors, or None.
+        along_coupling: Ising strength between neighbours along a direction, or None for
+            `coupling` (the thesis's choice).
         max_steps: Most pushes per map and policy.
         out: Output folder.
         workers: 0 runs in this process; K > 0 or None uses a local Dask cluster.
@@ -94,6 +96,7 @@ class AffordanceMapConfig:
     alpha: float = 0.8
     coupling: float = 0.4
     symmetry_coupling: float | None = None
+    along_coupling: float | None = None
     max_steps: int = 20
     out: str = "results/affordance_map"
     workers: int | None = 0
@@ -115,6 +118,8 @@ class AffordanceMapConfig:
         check_coupling("coupling", self.coupling)
         if self.symmetry_coupling is not None:
             check_coupling("symmetry_coupling", self.symmetry_coupling)
+        if self.along_coupling is not None:
+            check_coupling("along_coupling", self.along_coupling)
         if self.sensor_noise is not None and not (
                 math.isfinite(self.sensor_noise) and self.sensor_noise >= 0):
             raise InputError(f"sensor_noise must be a number >= 0, got {self.sensor_noise!r}.")
@@ -124,7 +129,10 @@ class AffordanceMapConfig:
         """Short hash of every setting that changes a map's result (not `n_maps` or `out`)."""
         keys = ("seed", "train_maps", "alpha", "coupling", "symmetry_coupling", "max_steps",
                 "sensor_noise", "stop_at_no_gain")
-        text = json.dumps({k: getattr(self, k) for k in keys}, sort_keys=True)
+        settings = {k: getattr(self, k) for k in keys}
+        if self.along_coupling is not None:  # absent: the fingerprints of earlier runs hold
+            settings["along_coupling"] = self.along_coupling
+        text = json.dumps(settings, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:10]
 
 
@@ -209,6 +217,7 @@ def map_task(spec: WarehouseSpec, classifier: AffordanceClassifier, index: int,
             loop = ManipulationLoop(spec, m, run_ex, classifier, policy=policy,
                                     alpha=settings["alpha"], coupling=settings["coupling"],
                                     symmetry_coupling=settings["symmetry_coupling"],
+                                    along_coupling=settings.get("along_coupling"),
                                     rng=np.random.default_rng((seed, _STREAM_LOOP, index, k)),
                                     stop_at_no_gain=settings["stop_at_no_gain"])
             if policy == "information_gain":
@@ -358,7 +367,9 @@ def _markdown(config: AffordanceMapConfig, s: dict[str, Any], steps: int) -> str
         "# Affordance map by interactive manipulation (chapter 3)",
         "",
         f"{s['maps']} test maps, classifier trained on {config.train_maps} other maps, seed "
-        f"{config.seed}; alpha = {config.alpha}, J = {config.coupling}, J_sym = "
+        f"{config.seed}; alpha = {config.alpha}, J = {config.coupling}, J_along = "
+        f"{config.along_coupling if config.along_coupling is not None else config.coupling}, "
+        "J_sym = "
         f"{config.symmetry_coupling}, at most {config.max_steps} pushes; sensor noise: {noise}; "
         + ("the information-gain loop stops when every G < 0." if config.stop_at_no_gain else
            "the information-gain loop keeps pushing its best candidate even when G < 0."),
@@ -438,7 +449,8 @@ def run(config: AffordanceMapConfig) -> dict[str, Any]:
         store.save(train_key, training)
     training = store.load(train_key) if store.done(train_key) else None
     settings = {"seed": config.seed, "alpha": config.alpha, "coupling": config.coupling,
-                "symmetry_coupling": config.symmetry_coupling, "max_steps": config.max_steps,
+                "symmetry_coupling": config.symmetry_coupling,
+                "along_coupling": config.along_coupling, "max_steps": config.max_steps,
                 "stop_at_no_gain": config.stop_at_no_gain}
     results = run_tasks(map_task, [(k, (spec, classifier, i, settings))
                                    for i, k in enumerate(keys)],

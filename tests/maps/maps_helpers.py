@@ -58,8 +58,10 @@ def reference_factor_graph(
             for dr, dc in ((1, 0), (0, 1)):
                 rr, cc = r + dr, c + dc
                 if rr < height and cc < width and occ[rr, cc]:
+                    along = (0, 1) if dr else (2, 3)  # up/down lie along a column
                     for d in range(4):
-                        pair(graph.variable(r, c, d), graph.variable(rr, cc, d), graph.coupling)
+                        j = graph.along_coupling if d in along else graph.coupling
+                        pair(graph.variable(r, c, d), graph.variable(rr, cc, d), j)
             if graph.symmetry_coupling is not None:
                 if r > 0 and occ[r - 1, c]:  # up of this cell, down of the cell above
                     pair(

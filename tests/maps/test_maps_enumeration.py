@@ -55,3 +55,22 @@ def test_enumeration_refuses_large_components():
     ev, _ = as_evidence(None, (g.num_variables,))
     with pytest.raises(InputError, match="enumeration handles at most"):
         enumerate_marginals(g, ev, [0])
+
+
+def test_along_coupling_sets_the_aligned_pairs_only():
+    occ = np.zeros((4, 4), dtype=bool)
+    occ[1, 1] = occ[2, 1] = occ[1, 2] = True  # (1,1) has a box below and one to the right
+    g = AffordanceGraph(occ, np.full((4, 4, 4), 0.6), coupling=0.4, along_coupling=-0.3)
+    couplings = {}
+    for (a, b), j in zip(g.edges, g.edge_couplings, strict=True):
+        ca, cb = tuple(g.variable_cells[a]), tuple(g.variable_cells[b])
+        couplings[(ca, cb, int(g.variable_directions[a]))] = j
+    # vertical pair: up/down lie along it, left/right across
+    assert couplings[((1, 1), (2, 1), 0)] == couplings[((1, 1), (2, 1), 1)] == -0.3
+    assert couplings[((1, 1), (2, 1), 2)] == couplings[((1, 1), (2, 1), 3)] == 0.4
+    # horizontal pair: left/right lie along it
+    assert couplings[((1, 1), (1, 2), 2)] == couplings[((1, 1), (1, 2), 3)] == -0.3
+    assert couplings[((1, 1), (1, 2), 0)] == 0.4
+    ev, _ = as_evidence(None, (g.num_variables,))
+    got = enumerate_marginals(g, ev, range(len(g.components)))[0]
+    np.testing.assert_allclose(got.numpy(), reference_marginals(g), atol=1e-12)
