@@ -4,12 +4,14 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
+from probaff._checks import check_positive
 from probaff.errors import InputError
 
 __all__ = [
     "FeatureGroups",
     "FeatureSpec",
     "check_feature_spec",
+    "check_mixture_args",
     "resolve_features",
     "resolve_groups",
 ]
@@ -52,6 +54,23 @@ def check_feature_spec(what: str, spec: FeatureSpec, groups: FeatureGroups | Non
         raise InputError(
             f"{what} names unknown feature group(s) {unknown}; known groups: {listing}."
         )
+
+
+def check_mixture_args(n_experts: int, groups: FeatureGroups | None, gate_features: FeatureSpec,
+                       expert_features: FeatureSpec, gate_l2: float) -> int:
+    """Validate the arguments every mixture of experts takes; return `n_experts` as an int.
+
+    Raises:
+        InputError: For a non-positive or non-integer `n_experts`, an unknown feature group,
+            or a negative `gate_l2`.
+    """
+    check_positive("n_experts", n_experts)
+    if int(n_experts) != n_experts:
+        raise InputError(f"n_experts must be an integer, got {n_experts!r}.")
+    check_feature_spec("gate_features", gate_features, groups)
+    check_feature_spec("expert_features", expert_features, groups)
+    check_positive("gate_l2", gate_l2, allow_zero=True)
+    return int(n_experts)
 
 
 def _group_columns(name: str, cols: slice | Sequence[int], n_features: int) -> list[int]:

@@ -14,7 +14,7 @@ from probaff.models._tensors import as_matrix
 from probaff.models.columns import (
     FeatureGroups,
     FeatureSpec,
-    check_feature_spec,
+    check_mixture_args,
     resolve_features,
     resolve_groups,
 )
@@ -111,14 +111,9 @@ class MixtureOfGPExperts(torch.nn.Module):
         lengthscale_prior: bool = False,
     ) -> None:
         super().__init__()
-        check_positive("n_experts", n_experts)
-        if int(n_experts) != n_experts:
-            raise InputError(f"n_experts must be an integer, got {n_experts!r}.")
-        check_feature_spec("gate_features", gate_features, groups)
-        check_feature_spec("expert_features", expert_features, groups)
-        check_positive("gate_l2", gate_l2, allow_zero=True)
+        self.n_experts = check_mixture_args(n_experts, groups, gate_features, expert_features,
+                                            gate_l2)
         check_positive("gp_max_iter", gp_max_iter)
-        self.n_experts = int(n_experts)
         self.groups = dict(groups or {})
         self.gate_features = gate_features
         self.expert_features = expert_features

@@ -30,7 +30,12 @@ from probaff._checks import check_positive
 from probaff.errors import NotFittedError
 from probaff.models._scaling import Standardizer
 from probaff.models._tensors import as_matrix
-from probaff.models.columns import FeatureGroups, FeatureSpec, check_feature_spec, resolve_features
+from probaff.models.columns import (
+    FeatureGroups,
+    FeatureSpec,
+    check_mixture_args,
+    resolve_features,
+)
 from probaff.models.em import initial_responsibilities
 from probaff.models.gate import SoftmaxGate
 from probaff.models.kernels import ard_se_kernel
@@ -168,12 +173,9 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
         gate_l2: float = 1e-3,
     ) -> None:
         super().__init__()
-        check_positive("n_experts", n_experts)
+        self.n_experts = check_mixture_args(n_experts, groups, gate_features, expert_features,
+                                            gate_l2)
         check_positive("n_inducing", n_inducing)
-        check_positive("gate_l2", gate_l2, allow_zero=True)
-        check_feature_spec("gate_features", gate_features, groups)
-        check_feature_spec("expert_features", expert_features, groups)
-        self.n_experts = int(n_experts)
         self.groups = dict(groups or {})
         self.gate_features = gate_features
         self.expert_features = expert_features
