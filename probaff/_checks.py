@@ -11,7 +11,13 @@ import torch
 
 from probaff.errors import InputError
 
-__all__ = ["check_finite", "check_positive", "check_probability", "check_shape"]
+__all__ = [
+    "check_count",
+    "check_finite",
+    "check_positive",
+    "check_probability",
+    "check_shape",
+]
 
 
 def _as_array(x: Any) -> np.ndarray:
@@ -68,6 +74,34 @@ def check_positive(name: str, value: float, *, allow_zero: bool = False) -> None
     if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
         bound = ">= 0" if allow_zero else "> 0"
         raise InputError(f"{name} must be a finite number {bound}, got {value!r}.")
+
+
+def check_count(name: str, value: Any, *, minimum: int = 1) -> int:
+    """Return `value` as an `int`, or raise `InputError` unless it is an integer >= `minimum`.
+
+    Every count argument in probaff (iterations, restarts, samples, experts, workers, ...)
+    goes through this one check. Integral numbers of another type (``numpy.int64``,
+    ``3.0``) are accepted; booleans, fractions (``0.5``), NaN, infinities and strings are
+    not.
+
+    Args:
+        name: The argument's name, as the user wrote it.
+        value: The count to check.
+        minimum: Smallest allowed value (``1`` for "positive", ``0`` for "non-negative").
+
+    Returns:
+        `value` as a builtin `int`.
+    """
+    bound = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
+    if isinstance(value, bool) or isinstance(value, (str, bytes)):
+        raise InputError(f"{name} must be {bound}, got {value!r}.")
+    try:
+        as_float = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be {bound}, got {value!r}.") from None
+    if not math.isfinite(as_float) or as_float != int(as_float) or int(as_float) < minimum:
+        raise InputError(f"{name} must be {bound}, got {value!r}.")
+    return int(as_float)
 
 
 def check_probability(name: str, x: Any) -> None:
