@@ -93,7 +93,7 @@ def check_count(name: str, value: Any, *, minimum: int = 1) -> int:
         `value` as a builtin `int`.
     """
     bound = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
-    if isinstance(value, bool) or isinstance(value, (str, bytes)):
+    if isinstance(value, (bool, str, bytes)):
         raise InputError(f"{name} must be {bound}, got {value!r}.")
     try:
         as_float = float(value)

@@ -9,9 +9,9 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from probaff._checks import check_positive
+from probaff._checks import check_count, check_positive
 
-__all__ = ["piecewise_1d", "regime_features"]
+__all__ = ["piecewise_1d", "regime_features", "softmax_regimes"]
 
 _NOISE_STD = (0.05, 0.1, 0.2)
 
@@ -77,4 +77,45 @@ def regime_features(n: int, d: int, e: int, *, seed: int = 0) -> tuple[Tensor, T
         rows = labels == k
         z = x[rows, 3 + 4 * k : 7 + 4 * k]
         y[rows] = 3.0 * (k - 1) + torch.sin(z) @ w[k] + s * eps[rows]
+    return x, y, labels
+
+
+def softmax_regimes(n: int, *, seed: int = 0) -> tuple[Tensor, Tensor, Tensor]:
+    r"""Three regimes drawn from a softmax gate on two inputs, overlapping in effect space.
+
+    Features `x ~ U(-2, 2)^4`. The regime is drawn from
+    :math:`\mathrm{softmax}(4\,(A x_{0:2} + c))` with the three gate directions 120 degrees
+    apart, so the regions meet at the origin and their borders are soft. The outputs are
+
+    * regime 0: :math:`(\sin 2x_2,\; 0.5\,x_3)`, noise std 0.05;
+    * regime 1: :math:`(0.8\,x_3,\; \cos 2x_2)`, noise std 0.1;
+    * regime 2: :math:`(-\sin 2x_2,\; -0.5\,x_3)`, noise std 0.15,
+
+    all with the same range, so no clustering of the outputs alone can tell the regimes
+    apart: only the gate inputs `x0, x1` decide them, and the experts need `x2, x3`.
+
+    Args:
+        n: Number of samples.
+        seed: Random seed.
+
+    Returns:
+        Features `(n, 4)`, outputs `(n, 2)` and regime labels `(n,)` (long).
+    """
+    n = check_count("n", n)
+    g = torch.Generator().manual_seed(seed)
+    x = torch.rand(n, 4, generator=g, dtype=torch.float64) * 4 - 2
+    angles = torch.tensor([0.0, 2.0, 4.0], dtype=torch.float64) * torch.pi / 3
+    directions = torch.stack([angles.cos(), angles.sin()], dim=1)
+    probs = torch.softmax(4.0 * (x[:, :2] @ directions.T), dim=1)
+    labels = torch.multinomial(probs, 1, generator=g)[:, 0]
+    a, b = x[:, 2], x[:, 3]
+    means = torch.stack([
+        torch.stack([torch.sin(2 * a), 0.5 * b], dim=1),
+        torch.stack([0.8 * b, torch.cos(2 * a)], dim=1),
+        torch.stack([-torch.sin(2 * a), -0.5 * b], dim=1),
+    ], dim=1)
+    noise = torch.tensor([0.05, 0.1, 0.15], dtype=torch.float64)
+    eps = torch.randn(n, 2, generator=g, dtype=torch.float64)
+    rows = torch.arange(n)
+    y = means[rows, labels] + noise[labels, None] * eps
     return x, y, labels
