@@ -7,16 +7,28 @@ import os
 from collections.abc import Iterator
 from typing import Any
 
+from probaff._checks import check_count
 from probaff.errors import InputError
 
 __all__ = ["check_workers", "dask_client"]
 
 
-def check_workers(workers: int | None) -> None:
-    """Raise `InputError` unless `workers` is None or a non-negative integer."""
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
-                                or workers < 0):
-        raise InputError(f"workers must be None or an integer >= 0, got {workers!r}.")
+def check_workers(workers: int | None) -> int | None:
+    """Return `workers` as an `int` (or ``None``), or raise `InputError`.
+
+    Args:
+        workers: ``None`` (one local worker per core), 0 (run in this process) or a number
+            of local worker processes.
+
+    Returns:
+        ``None``, or `workers` as a builtin `int` >= 0.
+    """
+    if workers is None:
+        return None
+    try:
+        return check_count("workers", workers, minimum=0)
+    except InputError:
+        raise InputError(f"workers must be None or an integer >= 0, got {workers!r}.") from None
 
 
 @contextlib.contextmanager

@@ -11,7 +11,7 @@ from collections.abc import Iterator
 
 import torch
 
-from probaff._checks import check_positive
+from probaff._checks import check_count
 
 __all__ = ["torch_threads"]
 
@@ -21,11 +21,14 @@ def torch_threads(n: int) -> Iterator[None]:
     """Run the block with `torch.set_num_threads(n)`, restoring the previous count after.
 
     Args:
-        n: Number of intra-op threads.
+        n: Number of intra-op threads (a positive integer).
+
+    Raises:
+        InputError: If `n` is not a positive integer.
     """
-    check_positive("n", n)
+    n = check_count("n", n)
     previous = torch.get_num_threads()
-    torch.set_num_threads(int(n))
+    torch.set_num_threads(n)
     try:
         yield
     finally:

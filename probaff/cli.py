@@ -27,6 +27,10 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
     g.add_argument("--shard-size", type=int, default=64)
     g.add_argument("--no-trajectories", action="store_true", help="do not store trajectories")
+    g.add_argument("--pose-noise", metavar="POS_M,YAW_DEG", default=None,
+                   help="record object poses with Gaussian measurement noise of these standard "
+                        "deviations (metres, degrees), e.g. 0.003,1; exact values are kept in "
+                        "the true_* arrays (default: exact poses)")
     g.add_argument("--resume", action="store_true", help="finish an interrupted dataset")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -46,9 +50,12 @@ def build_parser() -> argparse.ArgumentParser:
 def _dispatch(args: argparse.Namespace) -> None:
     if args.command == "generate":
         from probaff.data.generation import GenerateConfig, generate
+        from probaff.data.noise import parse_pose_noise
 
+        noise = None if args.pose_noise is None else parse_pose_noise(args.pose_noise)
         cfg = GenerateConfig(scene=args.scene, n=args.n, seed=args.seed,
-                             shard_size=args.shard_size, trajectories=not args.no_trajectories)
+                             shard_size=args.shard_size, trajectories=not args.no_trajectories,
+                             pose_noise=noise)
         ds = generate(cfg, args.out, workers=args.workers, scheduler=args.scheduler,
                       resume=args.resume, progress=not args.quiet)
         print(f"wrote {len(ds)} pushes to {args.out}")

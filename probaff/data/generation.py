@@ -2,25 +2,28 @@
 
 Shard ``i`` of a dataset with seed ``s`` is simulated from ``SeedSequence(s, spawn_key=(i,))``
 alone, so a serial run, a local Dask cluster and a remote scheduler all produce the same bytes.
-Workers return arrays; only the calling process writes files, so a remote cluster needs no
-shared file system.
+Its three children drive, in order, the physics (scenes and pushes), the cloud sensor and the
+optional pose-measurement noise; the noise stream is separate, so turning noise on changes
+only the observed poses and effects, never which pushes are simulated. Workers return arrays;
+only the calling process writes files, so a remote cluster needs no shared file system.
 """
 
 from __future__ import annotations
 
 import hashlib
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from tqdm.auto import tqdm
 
-from probaff._checks import check_positive
+from probaff._checks import check_count, check_positive
 from probaff._dask import check_workers, dask_client
 from probaff._threads import torch_threads
-from probaff.data.schema import SCHEMA_VERSION, PushDataset
+from probaff.data.noise import PoseNoise, observe_poses
+from probaff.data.schema import PushDataset, schema_version_for
 from probaff.data.store import (
     FORMAT_NAME,
     load_dataset,
@@ -35,7 +38,7 @@ from probaff.sim.config import load_catalogue
 from probaff.sim.runner import PushSample, PushSimulator
 from probaff.sim.sensing import object_cloud
 
-__all__ = ["GenerateConfig", "generate", "make_shard", "samples_to_arrays"]
+__all__ = ["GenerateConfig", "add_pose_noise", "generate", "make_shard", "samples_to_arrays"]
 
 
 @dataclass(frozen=True)
@@ -50,6 +53,10 @@ class GenerateConfig:
         trajectories: Store gripper and object trajectories.
         cloud_points: Points per object cloud.
         cloud_noise: Standard deviation of the cloud noise (m).
+        pose_noise: Measurement noise on the recorded object poses, or ``None`` (the default)
+            to record the simulator's exact poses. With noise, ``state_before``,
+            ``state_after`` and ``effect`` hold noisy observations and the exact values are
+            kept in ``true_state_before``, ``true_state_after`` and ``true_effect``.
     """
 
     scene: str
@@ -59,16 +66,29 @@ class GenerateConfig:
     trajectories: bool = True
     cloud_points: int = 256
     cloud_noise: float = 0.002
+    pose_noise: PoseNoise | None = None
 
-    def validate(self) -> None:
-        """Raise `InputError` for a non-positive count or size, or a negative noise or seed."""
-        for name in ("n", "shard_size", "cloud_points"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
-                raise InputError(f"{name} must be a positive integer, got {v!r}.")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise InputError(f"seed must be a non-negative integer, got {self.seed!r}.")
+    def validate(self) -> GenerateConfig:
+        """Check the config and return it with its counts as builtin ints.
+
+        Returns:
+            An equal config whose ``n``, ``seed``, ``shard_size`` and ``cloud_points`` are
+            `int` (``numpy.int64(8)`` or ``8.0`` become ``8``).
+
+        Raises:
+            InputError: For a non-positive count or size, a negative seed or noise, or a
+                `pose_noise` that is not a `PoseNoise`.
+        """
+        n = check_count("n", self.n)
+        shard_size = check_count("shard_size", self.shard_size)
+        cloud_points = check_count("cloud_points", self.cloud_points)
+        seed = check_count("seed", self.seed, minimum=0)
         check_positive("cloud_noise", self.cloud_noise, allow_zero=True)
+        if self.pose_noise is not None and not isinstance(self.pose_noise, PoseNoise):
+            raise InputError(
+                f"pose_noise must be None or a probaff.data.PoseNoise, got {self.pose_noise!r}."
+            )
+        return replace(self, n=n, shard_size=shard_size, cloud_points=cloud_points, seed=seed)
 
     @property
     def n_shards(self) -> int:
@@ -147,17 +167,63 @@ def make_shard(config: GenerateConfig, index: int) -> dict[str, np.ndarray]:
     Returns:
         The shard's arrays.
     """
+    index = check_count("index", index, minimum=0)
     ss = np.random.SeedSequence(config.seed, spawn_key=(index,))
-    sim_rng, sense_rng = (np.random.default_rng(s) for s in ss.spawn(2))
+    # spawn(3)'s first two children equal spawn(2)'s, so the noise stream leaves them unchanged
+    sim_rng, sense_rng, noise_rng = (np.random.default_rng(s) for s in ss.spawn(3))
     with torch_threads(1):
         sim = PushSimulator(config.scene)
         samples = list(sim.run(config.shard_rows(index), sim_rng))
-    return samples_to_arrays(samples, sorted(load_catalogue()), sense_rng, config.cloud_points,
-                             config.cloud_noise, config.trajectories)
+    arrays = samples_to_arrays(samples, sorted(load_catalogue()), sense_rng, config.cloud_points,
+                               config.cloud_noise, config.trajectories)
+    if config.pose_noise is not None:
+        arrays = add_pose_noise(arrays, config.pose_noise, noise_rng)
+    return arrays
+
+
+def add_pose_noise(arrays: dict[str, np.ndarray], noise: PoseNoise, rng: np.random.Generator
+                   ) -> dict[str, np.ndarray]:
+    """Turn exact recorded poses into noisy observations, keeping the exact ones.
+
+    Args:
+        arrays: Schema arrays with exact ``state_before``, ``state_after`` (N, K, 3) and
+            ``effect`` (N, K, 3), as `samples_to_arrays` returns them.
+        noise: The measurement noise.
+        rng: Source of the noise, separate from the physics' and the sensor's.
+
+    Returns:
+        A new dict: the exact arrays moved to ``true_state_before``, ``true_state_after`` and
+        ``true_effect``; ``state_before`` and ``state_after`` replaced by noisy measurements
+        and ``effect`` by the pushing-frame difference between them. Other arrays are shared.
+    """
+    before, after, effect = observe_poses(noise, arrays["state_before"], arrays["state_after"],
+                                          arrays["push_yaw"], rng)
+    return {
+        **arrays,
+        "true_state_before": arrays["state_before"],
+        "true_state_after": arrays["state_after"],
+        "true_effect": arrays["effect"],
+        "state_before": before,
+        "state_after": after,
+        "effect": effect,
+    }
 
 
 def _plan(config: GenerateConfig) -> dict[str, Any]:
-    return asdict(config)
+    """The manifest's record of `config`; ``pose_noise`` appears only when it is set."""
+    plan = asdict(config)
+    del plan["pose_noise"]
+    if config.pose_noise is not None:
+        plan["pose_noise"] = config.pose_noise.to_dict()
+    return plan
+
+
+def _describe_noise(plan: dict[str, Any]) -> str:
+    noise = plan.get("pose_noise")
+    if noise is None:
+        return "no pose noise"
+    return (f"pose noise position_std={noise['position_std']} m, "
+            f"yaw_std={noise['yaw_std']} rad")
 
 
 def _prepare(out: Path, config: GenerateConfig, resume: bool) -> dict[str, Any]:
@@ -168,6 +234,12 @@ def _prepare(out: Path, config: GenerateConfig, resume: bool) -> dict[str, Any]:
         )
     if out.exists() and (out / "manifest.json").is_file():
         manifest = read_manifest(out)
+        if manifest["plan"].get("pose_noise") != _plan(config).get("pose_noise"):
+            raise DatasetError(
+                f"{out} was started with {_describe_noise(manifest['plan'])}, not "
+                f"{_describe_noise(_plan(config))}; resume it with the same pose noise "
+                "(--pose-noise) or choose a new output path."
+            )
         if manifest["plan"] != _plan(config):
             raise DatasetError(
                 f"{out} was started with {manifest['plan']}, not {_plan(config)}; resume it "
@@ -179,7 +251,7 @@ def _prepare(out: Path, config: GenerateConfig, resume: bool) -> dict[str, Any]:
     sim = PushSimulator(config.scene)  # validates the scene before any work starts
     manifest = {
         "format": FORMAT_NAME,
-        "schema_version": SCHEMA_VERSION,
+        "schema_version": schema_version_for(config.pose_noise is not None),
         "plan": _plan(config),
         "object_names": sorted(load_catalogue()),
         "meta": {
@@ -242,11 +314,13 @@ def generate(config: GenerateConfig, out: str | os.PathLike[str], *, workers: in
         The complete dataset, loaded from disk.
 
     Raises:
-        DatasetError: If `out` exists without `resume`, or belongs to another config.
+        DatasetError: If `out` exists without `resume`, or belongs to another config (another
+            pose noise included).
+        InputError: For a bad config or `workers`.
         ConfigError: For an unknown scene or object.
     """
-    config.validate()
-    check_workers(workers)
+    config = config.validate()
+    workers = check_workers(workers)
     out = Path(out)
     manifest = _prepare(out, config, resume)
     _adopt_orphans(out, config, manifest)

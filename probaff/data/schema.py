@@ -8,9 +8,13 @@ trajectory samples and D the arm's degrees of freedom.
 array                         shape            dtype     meaning
 ============================  ===============  ========  ====================================
 ``object_ids``                (N, K)           int16     index into ``object_names``
-``state_before``              (N, K, 3)        float64   world (x, y, theta) before the push
-``state_after``               (N, K, 3)        float64   world (x, y, theta) after (unwrapped)
-``effect``                    (N, K, 3)        float64   (dy_p, dz_p, dtheta_p), pushing frame
+``state_before``              (N, K, 3)        float64   observed world (x, y, theta) before
+                                                         the push
+``state_after``               (N, K, 3)        float64   observed world (x, y, theta) after
+                                                         (unwrapped)
+``effect``                    (N, K, 3)        float64   observed (dy_p, dz_p, dtheta_p) from
+                                                         ``state_before`` to ``state_after``,
+                                                         pushing frame
 ``push_origin``               (N, 2)           float64   hand start = pushing-frame origin
 ``push_yaw``                  (N,)             float64   world yaw of z_p
 ``push_distance``             (N,)             float64   d_p (m)
@@ -32,7 +36,21 @@ array                         shape            dtype     meaning
 ``traj_time`` (optional)      (N, T)           float64   trajectory sample times (s)
 ``traj_hand`` (optional)      (N, T, 3)        float32   world (x, y, yaw) of the hand
 ``traj_objects`` (optional)   (N, T, K, 3)     float32   world (x, y, theta) of the objects
+``true_state_before`` (opt.)  (N, K, 3)        float64   exact world (x, y, theta) before
+``true_state_after`` (opt.)   (N, K, 3)        float64   exact world (x, y, theta) after
+``true_effect`` (optional)    (N, K, 3)        float64   exact (dy_p, dz_p, dtheta_p)
 ============================  ===============  ========  ====================================
+
+Observed and exact poses. Without pose noise (the default) the recorded poses are the
+simulator's exact ones and the three ``true_*`` arrays are absent. A dataset generated with a
+`probaff.data.noise.PoseNoise` model stores, in ``state_before``, ``state_after`` and
+``effect``, what a camera would measure (the exact poses plus independent Gaussian noise before
+and after the push, and the pushing-frame difference of those measurements), and keeps the
+simulator's exact values in the ``true_*`` arrays, so models are fitted to observations and
+studies can score against either (`PushDataset.true_effect` gives the exact effect in both
+cases). Everything else is exact whether or not there is pose noise: the contact and
+``fell_off`` flags come from the simulator, ``traj_objects`` holds the exact trajectories, and
+the clouds are sensed around the exact start poses with their own noise.
 """
 
 from __future__ import annotations
@@ -44,9 +62,20 @@ import numpy as np
 
 from probaff.errors import DatasetError
 
-__all__ = ["OPTIONAL_ARRAYS", "REQUIRED_ARRAYS", "SCHEMA_VERSION", "PushDataset"]
+__all__ = [
+    "GROUND_TRUTH_ARRAYS",
+    "OPTIONAL_ARRAYS",
+    "READABLE_SCHEMA_VERSIONS",
+    "REQUIRED_ARRAYS",
+    "SCHEMA_VERSION",
+    "PushDataset",
+    "schema_version_for",
+]
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+"""Newest schema version: 2 added the optional ``true_*`` arrays and pose noise."""
+READABLE_SCHEMA_VERSIONS = (1, 2)
+"""Versions this probaff reads: a version 1 dataset is a version 2 one without pose noise."""
 
 REQUIRED_ARRAYS: dict[str, str] = {
     "object_ids": "int16",
@@ -75,7 +104,25 @@ OPTIONAL_ARRAYS: dict[str, str] = {
     "traj_time": "float64",
     "traj_hand": "float32",
     "traj_objects": "float32",
+    "true_state_before": "float64",
+    "true_state_after": "float64",
+    "true_effect": "float64",
 }
+GROUND_TRUTH_ARRAYS = ("true_state_before", "true_state_after", "true_effect")
+"""The exact poses and effect, stored (all three together) when the observed ones are noisy."""
+
+
+def schema_version_for(pose_noise: bool) -> int:
+    """The schema version a new dataset is written with.
+
+    A dataset without pose noise uses nothing that version 2 added, so it is written as
+    version 1, byte-identical to what earlier releases wrote; one with pose noise is version 2,
+    which earlier releases refuse by its version number.
+
+    Args:
+        pose_noise: Whether the dataset records noisy observed poses.
+    """
+    return SCHEMA_VERSION if pose_noise else 1
 
 
 @dataclass
@@ -114,6 +161,18 @@ class PushDataset:
                 raise DatasetError(f"array {name!r} has dtype {arr.dtype}, expected {want}.")
             if len(arr) != n:
                 raise DatasetError(f"array {name!r} has {len(arr)} rows, expected {n}.")
+        truth = [name in self.arrays for name in GROUND_TRUTH_ARRAYS]
+        if any(truth) and not all(truth):
+            raise DatasetError(
+                f"push dataset holds only some of the ground-truth arrays {GROUND_TRUTH_ARRAYS}; "
+                "they are stored all together or not at all."
+            )
+        for name in (n for n in GROUND_TRUTH_ARRAYS if n in self.arrays):
+            observed = self.arrays[name.removeprefix("true_")]
+            if self.arrays[name].shape != observed.shape:
+                raise DatasetError(f"array {name!r} has shape {self.arrays[name].shape}, "
+                                   f"expected that of {name.removeprefix('true_')!r}, "
+                                   f"{observed.shape}.")
         ids = self.arrays["object_ids"]
         if ids.size and (ids.min() < 0 or ids.max() >= len(self.object_names)):
             raise DatasetError("object_ids index outside object_names.")
@@ -133,6 +192,20 @@ class PushDataset:
     def has_trajectories(self) -> bool:
         """Whether the optional trajectories are stored."""
         return "traj_hand" in self.arrays
+
+    @property
+    def has_pose_noise(self) -> bool:
+        """Whether the observed poses and effects are noisy (the ``true_*`` arrays are stored)."""
+        return "true_effect" in self.arrays
+
+    @property
+    def true_effect(self) -> np.ndarray:
+        """(N, K, 3) exact ``(dy_p, dz_p, dtheta_p)`` in the pushing frame (m, m, rad).
+
+        ``arrays["true_effect"]`` when the dataset has pose noise, else ``arrays["effect"]``,
+        which is then exact.
+        """
+        return self.arrays["true_effect"] if self.has_pose_noise else self.arrays["effect"]
 
     def objects_of(self, i: int) -> list[str]:
         """Catalogue names of the objects of push `i`."""

@@ -1,10 +1,10 @@
 """The on-disk dataset format: a folder of a JSON manifest and checksummed shards.
 
-Layout (schema version 1)::
+Layout (schema versions 1 and 2)::
 
     PATH/
-      manifest.json        {"format": "probaff-push-dataset", "schema_version": 1,
-                            "plan": {scene, n, seed, shard_size, ...},
+      manifest.json        {"format": "probaff-push-dataset", "schema_version": 1 or 2,
+                            "plan": {scene, n, seed, shard_size, ...[, pose_noise]},
                             "object_names": [...], "meta": {...},
                             "shards": {"00000": {"rows": R, "sha256": HEX}, ...}}
       shards/00000.npz     rows [0, shard_size) as a NumPy .npz archive, one .npy per array
@@ -15,6 +15,11 @@ the dataset seed and ``i`` alone, so it is identical however and wherever it is 
 file is written to a temporary name, flushed and renamed into place, so a run killed at any
 moment leaves only complete files; the manifest is rewritten (atomically) after each shard. The
 archives carry fixed timestamps, so the same seed gives byte-identical files.
+
+Version 2 adds measurement noise on the recorded poses: ``plan.pose_noise`` holds its
+parameters, ``{"position_std": metres, "yaw_std": radians}``, and each shard then also holds the
+exact ``true_*`` arrays (see `probaff.data.schema`). A dataset without pose noise has no
+``pose_noise`` key and is written as version 1, exactly as before version 2 existed.
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from probaff._io import atomic_write_bytes
-from probaff.data.schema import SCHEMA_VERSION, PushDataset
+from probaff.data.schema import READABLE_SCHEMA_VERSIONS, SCHEMA_VERSION, PushDataset
 from probaff.errors import DatasetError
 
 __all__ = [
@@ -121,8 +126,8 @@ def read_manifest(root: Path) -> dict[str, Any]:
     """Read and check a dataset's manifest.
 
     Raises:
-        DatasetError: If it is missing, not JSON, not a probaff dataset, or of another schema
-            version.
+        DatasetError: If it is missing, not JSON, not a probaff dataset, of a schema version
+            this probaff does not read, or records pose noise under version 1.
     """
     path = Path(root) / "manifest.json"
     if not path.is_file():
@@ -137,10 +142,16 @@ def read_manifest(root: Path) -> dict[str, Any]:
     if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
         raise DatasetError(f"{path} does not describe a {FORMAT_NAME}.")
     version = manifest.get("schema_version")
-    if version != SCHEMA_VERSION:
+    if version not in READABLE_SCHEMA_VERSIONS:
+        readable = ", ".join(str(v) for v in READABLE_SCHEMA_VERSIONS)
         raise DatasetError(
-            f"{root} has schema version {version}, but this probaff reads version "
-            f"{SCHEMA_VERSION}; regenerate it with `probaff generate`."
+            f"{root} has schema version {version}, but this probaff reads versions "
+            f"{readable} (newest {SCHEMA_VERSION}); regenerate it with `probaff generate`."
+        )
+    if version == 1 and manifest.get("plan", {}).get("pose_noise") is not None:
+        raise DatasetError(
+            f"{path} records pose noise under schema version 1, which has none; the manifest "
+            "was edited or is corrupt: regenerate the dataset with `probaff generate`."
         )
     return manifest
 
@@ -176,5 +187,12 @@ def load_dataset(root: str | os.PathLike[str]) -> PushDataset:
                                f"{entry['rows']}.")
         parts.append(PushDataset(arrays, list(manifest["object_names"]), manifest["meta"]))
     ds = PushDataset.concatenate(parts)
+    noisy = plan.get("pose_noise") is not None
+    if ds.has_pose_noise != noisy:
+        raise DatasetError(
+            f"the shards of {root} {'lack' if noisy else 'hold'} the ground-truth arrays but its "
+            f"manifest says pose noise is {'on' if noisy else 'off'}; regenerate the dataset "
+            "with `probaff generate`."
+        )
     ds.meta = {**manifest["meta"], **plan}
     return ds

@@ -17,15 +17,23 @@ MOVED_THRESHOLD = 0.01  # an object "moved" when its centre travelled more than 
 def summarize(ds: PushDataset) -> dict[str, Any]:
     """Counts and effect statistics per object slot (o1 is the pushed object).
 
+    Every statistic describes what the simulator did: the mean |effect| and the "moved"
+    fractions use the exact effect (`PushDataset.true_effect`), never a noisy observation, and
+    the fell-off and contact fractions come from the simulator's flags. A dataset with pose
+    noise also reports, per slot, the standard deviation of its observation error
+    ``effect - true_effect``.
+
     Args:
         ds: A push dataset.
 
     Returns:
-        A JSON-serialisable dict: counts, per-slot mean |effect| (dy_p and dz_p in m, dtheta_p
-        in rad), the fraction of pushes that moved each slot more than 1 cm, the fraction in
-        which it fell off the table, and contact rates.
+        A JSON-serialisable dict: counts; ``pose_noise`` (``None``, or the measurement noise's
+        ``position_std_m`` and ``yaw_std_rad``); per slot, the mean exact |effect| (dy_p and
+        dz_p in m, dtheta_p in rad), the fraction of pushes that moved it more than 1 cm, the
+        fraction in which it fell off the table, contact rates and, with pose noise,
+        ``observed_effect_error_std`` (m, m, rad).
     """
-    eff = ds["effect"]
+    eff = ds.true_effect
     moved = np.hypot(eff[..., 0], eff[..., 1]) > MOVED_THRESHOLD
     names = Counter(n for i in range(len(ds)) for n in ds.objects_of(i))
     slots = {}
@@ -40,6 +48,13 @@ def summarize(ds: PushDataset) -> dict[str, Any]:
             "fraction_fell_off": float(ds["fell_off"][:, k].mean()) if len(ds) else 0.0,
             "fraction_hand_contact": float(ds["hand_contact"][:, k].mean()) if len(ds) else 0.0,
         }
+        if ds.has_pose_noise:
+            err = ds["effect"][:, k] - eff[:, k]
+            std = err.std(axis=0) if len(ds) else np.zeros(3)
+            slots[f"o{k + 1}"]["observed_effect_error_std"] = {
+                "dy_p_m": float(std[0]), "dz_p_m": float(std[1]), "dtheta_p_rad": float(std[2]),
+            }
+    noise = ds.meta.get("pose_noise")
     return {
         "scene": ds.meta.get("scene"),
         "seed": ds.meta.get("seed"),
@@ -48,6 +63,8 @@ def summarize(ds: PushDataset) -> dict[str, Any]:
         "object_counts": dict(sorted(names.items())),
         "push_distance_m": sorted({float(d) for d in np.unique(ds["push_distance"])}),
         "has_trajectories": ds.has_trajectories,
+        "pose_noise": None if noise is None else {"position_std_m": noise["position_std"],
+                                                  "yaw_std_rad": noise["yaw_std"]},
         "fraction_objects_touching": float(ds["object_contact"].any(axis=(1, 2)).mean())
         if len(ds) else 0.0,
         "objects": slots,

@@ -12,7 +12,7 @@ import math
 import torch
 from torch.distributions import Distribution, Independent, MixtureSameFamily, Normal
 
-from probaff._checks import check_finite, check_shape
+from probaff._checks import check_count, check_finite, check_shape
 from probaff.errors import InputError
 
 __all__ = ["interval_coverage", "marginal_components", "nlpd", "rmse"]
@@ -95,11 +95,16 @@ def interval_coverage(dist: Distribution, y: torch.Tensor, level: float = 0.9,
         dist: Predictive distribution over (N, E).
         y: (N, E) observed effects.
         level: Central probability mass of the interval, in (0, 1).
-        iterations: Bisection steps.
+        iterations: Bisection steps (a positive integer).
 
     Returns:
         (E,) coverage in [0, 1]; a calibrated model gives about `level`.
+
+    Raises:
+        InputError: For `level` outside (0, 1), `iterations` that is not a positive integer,
+            or mismatched targets.
     """
+    iterations = check_count("iterations", iterations)
     if not 0 < level < 1:
         raise InputError(f"level must lie in (0, 1), got {level}.")
     y = _check_targets(dist, y)

@@ -15,6 +15,7 @@ import numpy as np
 import torch
 from sklearn.model_selection import KFold
 
+from probaff._checks import check_count
 from probaff.errors import InputError
 from probaff.eval.metrics import nlpd, rmse
 from probaff.models import MixtureOfGPExperts, fit_em
@@ -56,9 +57,9 @@ def select_n_experts(X: Any, Y: Any, candidates: Sequence[int] = (1, 2, 3, 4, 5,
     Args:
         X: Features, (N, D).
         Y: Effects, (N, E).
-        candidates: Numbers of experts to try.
-        folds: K.
-        seed: Seed of the folds and the fits.
+        candidates: Numbers of experts to try (positive integers).
+        folds: K (an integer in ``[2, N]``).
+        seed: Seed of the folds and the fits (an integer >= 0).
         make_model: ``make_model(M)`` returns an unfitted model with a ``predict`` method
             returning a distribution over (N, E); default an EM mixture with the length-scale
             prior.
@@ -68,15 +69,18 @@ def select_n_experts(X: Any, Y: Any, candidates: Sequence[int] = (1, 2, 3, 4, 5,
         The selection and the scores of every candidate.
 
     Raises:
-        InputError: For fewer than 2 folds, no candidates, or a candidate larger than a
-            training fold.
+        InputError: For fewer than 2 folds, a fold count, seed or candidate that is not an
+            integer, no candidates, or a candidate larger than a training fold.
     """
     x = as_matrix("features X", X)
     y = as_matrix("effects Y", Y, n_rows=x.shape[0])
-    if folds < 2 or folds > x.shape[0]:
+    folds = check_count("folds", folds, minimum=2)
+    if folds > x.shape[0]:
         raise InputError(f"folds must lie in [2, {x.shape[0]}], got {folds}.")
+    seed = check_count("seed", seed, minimum=0)
     if not candidates:
         raise InputError("give at least one candidate number of experts.")
+    candidates = [check_count(f"candidates[{i}]", m) for i, m in enumerate(candidates)]
     splits = list(KFold(folds, shuffle=True, random_state=seed).split(x.numpy()))
     smallest = min(len(tr) for tr, _ in splits)
     if max(candidates) > smallest:
@@ -89,12 +93,12 @@ def select_n_experts(X: Any, Y: Any, candidates: Sequence[int] = (1, 2, 3, 4, 5,
     for m in candidates:
         nl, rm = [], []
         for train, test in splits:
-            model = make_model(int(m))
+            model = make_model(m)
             fit(model, x[train], y[train], seed)
             pred = model.predict(x[test])
             nl.append(float(nlpd(pred, y[test]).sum()))
             rm.append(rmse(pred, y[test]).numpy())
-        scores[int(m)] = float(np.mean(nl))
-        errors[int(m)] = np.mean(rm, axis=0).tolist()
+        scores[m] = float(np.mean(nl))
+        errors[m] = np.mean(rm, axis=0).tolist()
     best = min(scores, key=lambda m: scores[m])
     return ExpertSelection(best=best, nlpd=scores, rmse=errors)

@@ -76,7 +76,7 @@ def run_tasks(fn: Callable[..., dict[str, Any]], tasks: Sequence[tuple[str, tupl
     Returns:
         The results of all tasks, in the order of `tasks`.
     """
-    check_workers(workers)
+    workers = check_workers(workers)
     keys = [k for k, _ in tasks]
     if len(set(keys)) != len(keys):
         raise InputError("task keys must be unique.")

@@ -6,7 +6,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from probaff._checks import check_finite
+from probaff._checks import check_count, check_finite
 from probaff.data.schema import PushDataset
 from probaff.errors import InputError
 from probaff.features.frames import directions_to_push_frame, points_to_push_frame
@@ -49,7 +49,21 @@ class PushClouds:
 
 def chunked(ds: PushDataset, dim: int, fn: Callable[[PushClouds], np.ndarray],
             chunk: int = 1024) -> np.ndarray:
-    """Apply `fn` to consecutive chunks of pushes and stack the (n, dim) results."""
+    """Apply `fn` to consecutive chunks of pushes and stack the (n, dim) results.
+
+    Args:
+        ds: A push dataset of N pushes.
+        dim: Columns `fn` returns per push.
+        fn: Maps the clouds of a chunk of n pushes to an (n, dim) array.
+        chunk: Pushes per chunk (a positive integer).
+
+    Returns:
+        (N, dim) the stacked results.
+
+    Raises:
+        InputError: For an empty dataset or a `chunk` that is not a positive integer.
+    """
+    chunk = check_count("chunk", chunk)
     if len(ds) == 0:
         raise InputError("the dataset has no pushes; features need at least one.")
     out = np.empty((len(ds), dim))

@@ -35,8 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from probaff._checks import check_finite, check_positive, check_shape
-from probaff.errors import InputError
+from probaff._checks import check_count, check_finite, check_positive, check_shape
 from probaff.features.featureset import FeatureSet
 from probaff.grid import DIRECTION_NAMES, DIRECTION_OFFSETS
 from probaff.perception.occupancy import OccupancyGrid
@@ -165,9 +164,10 @@ def cell_features(points: np.ndarray, grid: OccupancyGrid, n_layers: int = 2,
     Args:
         points: (M, 3) world frame, the merged cloud of the exploration.
         grid: The occupancy grid of the same exploration.
-        n_layers: Voxel layers above the floor (2 for 2 m boxes in 1 m cells).
+        n_layers: Voxel layers above the floor (2 for 2 m boxes in 1 m cells); a positive
+            integer.
         floor_height: Points below this height (m) are floor.
-        min_points: Fewest points a described voxel holds (at least 3).
+        min_points: Fewest points a described voxel holds (an integer >= 3).
 
     Returns:
         The features of every described voxel, row-major by cell then by layer; see the module
@@ -179,11 +179,8 @@ def cell_features(points: np.ndarray, grid: OccupancyGrid, n_layers: int = 2,
     check_shape("points", points, (None, 3))
     check_finite("points", points)
     check_positive("floor_height", floor_height, allow_zero=True)
-    if int(n_layers) < 1:
-        raise InputError(f"n_layers must be a positive integer, got {n_layers}.")
-    if int(min_points) < 3:
-        raise InputError(f"min_points must be at least 3 (a covariance needs 3), got {min_points}.")
-    n_layers, min_points = int(n_layers), int(min_points)
+    n_layers = check_count("n_layers", n_layers)
+    min_points = check_count("min_points", min_points, minimum=3)
     rows, cols = grid.shape
     s = grid.cell_size
     pts = np.asarray(points, dtype=float)

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from probaff._checks import check_count
 from probaff.data.schema import PushDataset
 from probaff.features._common import PushClouds, chunked, meta_float, principal_yaw
 from probaff.features.featureset import FeatureSet
@@ -145,11 +146,15 @@ def chapter4_features(ds: PushDataset, table: TableGeometry | None = None,
         ds: A push dataset (clouds, walls and push poses are used).
         table: The table top in the world; by default the dataset's table, centred at the
             origin.
-        chunk: Pushes processed at once (bounds memory).
+        chunk: Pushes processed at once (bounds memory); a positive integer.
 
     Returns:
         A (N, 631) `FeatureSet` with groups ``f_o``, ``f_c``, ``f_x``.
+
+    Raises:
+        InputError: For an empty dataset or a `chunk` that is not a positive integer.
     """
+    chunk = check_count("chunk", chunk)
     if table is None:
         size = ds.meta.get("table_size", (1.0, 0.8))
         table = TableGeometry(size=(float(size[0]), float(size[1])))

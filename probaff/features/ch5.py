@@ -116,10 +116,13 @@ def chapter5_features(ds: PushDataset, chunk: int = 1024) -> FeatureSet:
 
     Args:
         ds: A push dataset (its clouds, push poses and gripper geometry are used).
-        chunk: Pushes processed at once (bounds memory).
+        chunk: Pushes processed at once (bounds memory); a positive integer.
 
     Returns:
         A (N, 101) `FeatureSet` with groups ``f_o``, ``f_c``, ``f_x``.
+
+    Raises:
+        InputError: For an empty dataset or a `chunk` that is not a positive integer.
     """
     opening = meta_float(ds, "gripper_opening")
     height = meta_float(ds, "push_height")

@@ -18,6 +18,7 @@ import math
 
 import torch
 
+from probaff._checks import check_count
 from probaff.errors import InputError
 
 __all__ = [
@@ -37,24 +38,22 @@ def resolve_dtype(dtype: torch.dtype) -> torch.dtype:
     return dtype
 
 
-def check_solver_options(damping: float, tol: float, max_iterations: int) -> None:
+def check_solver_options(damping: float, tol: float, max_iterations: int) -> int:
     """Raise `InputError` unless ``0 <= damping < 1``, ``tol >= 0`` and ``max_iterations >= 1``.
 
     Args:
         damping: Weight of the old message in each update.
         tol: Convergence threshold on the largest message change.
-        max_iterations: Iteration budget.
+        max_iterations: Iteration budget (a positive integer).
+
+    Returns:
+        `max_iterations` as a builtin `int`.
     """
     if not (isinstance(damping, (int, float)) and 0.0 <= float(damping) < 1.0):
         raise InputError(f"damping must be a number in [0, 1), got {damping!r}.")
     if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol >= 0):
         raise InputError(f"tol must be a finite number >= 0, got {tol!r}.")
-    if (
-        isinstance(max_iterations, bool)
-        or not isinstance(max_iterations, int)
-        or (max_iterations < 1)
-    ):
-        raise InputError(f"max_iterations must be an integer >= 1, got {max_iterations!r}.")
+    return check_count("max_iterations", max_iterations)
 
 
 def clamp_fields(fields: torch.Tensor, evidence: torch.Tensor) -> torch.Tensor:

@@ -164,7 +164,7 @@ def loopy_belief_propagation(
     Raises:
         InputError: On malformed potentials, edges, evidence or solver options.
     """
-    check_solver_options(damping, tol, max_iterations)
+    max_iterations = check_solver_options(damping, tol, max_iterations)
     dtype = resolve_dtype(dtype)
     fields, coupling, edge_t = ising_form(unary_log, edges, pairwise_log)
     num_variables, num_edges = fields.shape[0], edge_t.shape[0]

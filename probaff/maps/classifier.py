@@ -24,7 +24,7 @@ from sklearn.model_selection import GroupKFold, StratifiedKFold
 from sklearn.pipeline import Pipeline, make_pipeline
 from sklearn.preprocessing import StandardScaler
 
-from probaff._checks import check_finite, check_shape
+from probaff._checks import check_count, check_finite, check_shape
 from probaff.errors import InputError
 from probaff.features.cells import cell_features
 from probaff.grid import DIRECTION_NAMES
@@ -47,12 +47,15 @@ class AffordanceClassifier:
 
     Args:
         C: Inverse L2 regularisation strength of each logistic regression.
-        max_iter: Iteration limit of the solver.
+        max_iter: Iteration limit of the solver (a positive integer).
+
+    Raises:
+        InputError: If `max_iter` is not a positive integer.
     """
 
     def __init__(self, C: float = 1.0, max_iter: int = 2000) -> None:
         self.C = float(C)
-        self.max_iter = int(max_iter)
+        self.max_iter = check_count("max_iter", max_iter)
         self._models: list[Pipeline | float] | None = None
         self._dim: int | None = None
 
@@ -188,19 +191,21 @@ def collect_voxels(spec: WarehouseSpec, n_maps: int, rng: np.random.Generator) -
 
     Args:
         spec: The warehouse world.
-        n_maps: How many maps.
+        n_maps: How many maps (a positive integer).
         rng: Source of the maps, the starts and the sensor noise.
 
     Returns:
         The labelled voxels of all maps.
+
+    Raises:
+        InputError: If `n_maps` is not a positive integer.
     """
-    if int(n_maps) < 1:
-        raise InputError(f"n_maps must be a positive integer, got {n_maps}.")
+    n_maps = check_count("n_maps", n_maps)
     n_cells = spec.rows * spec.cols
     feats, labels, cell_ids, map_ids, coverage = [], [], [], [], []
     unseen = boxes = scans = 0
     names: tuple[str, ...] = ()
-    for i in range(int(n_maps)):
+    for i in range(n_maps):
         m = generate_map(spec, rng)
         free = np.argwhere(~m.occupancy)
         start = free[rng.integers(len(free))]
@@ -325,9 +330,9 @@ def evaluate(n_maps: int = 20, folds: int = 10, seed: int = 0, grouped: bool = T
     """Cross-validate the classifier on freshly generated and explored maps.
 
     Args:
-        n_maps: Maps to generate and explore.
-        folds: Folds of each cross-validation.
-        seed: Seed of the maps, starts, sensor noise and fold assignment.
+        n_maps: Maps to generate and explore (a positive integer).
+        folds: Folds of each cross-validation (an integer >= 2).
+        seed: Seed of the maps, starts, sensor noise and fold assignment (an integer >= 0).
         grouped: Also run K-fold grouped by map (``min(folds, n_maps)`` folds).
         C: Inverse regularisation strength of the logistic regressions.
         spec: The warehouse world; default `load_warehouse()`.
@@ -336,11 +341,13 @@ def evaluate(n_maps: int = 20, folds: int = 10, seed: int = 0, grouped: bool = T
         Precision and recall per direction, with dataset statistics.
 
     Raises:
-        InputError: For fewer than 2 folds, or too few described cells for them.
+        InputError: For a non-integer or negative count or seed, fewer than 2 folds, or too
+            few described cells for them.
     """
     t0 = time.perf_counter()
-    if int(folds) < 2:
-        raise InputError(f"folds must be at least 2, got {folds}.")
+    n_maps = check_count("n_maps", n_maps)
+    folds = check_count("folds", folds, minimum=2)
+    seed = check_count("seed", seed, minimum=0)
     spec = spec or load_warehouse()
     data = collect_voxels(spec, n_maps, np.random.default_rng(seed))
     cells, cell_index = np.unique(data.cell_ids, return_inverse=True)
@@ -351,20 +358,20 @@ def evaluate(n_maps: int = 20, folds: int = 10, seed: int = 0, grouped: bool = T
     first[cell_index] = np.arange(len(cell_index))
     truth = data.labels[first]
     map_of_cell = data.map_ids[first]
-    strata = _strata(truth.sum(1), int(folds))
-    kfold = StratifiedKFold(n_splits=int(folds), shuffle=True, random_state=seed)
+    strata = _strata(truth.sum(1), folds)
+    kfold = StratifiedKFold(n_splits=folds, shuffle=True, random_state=seed)
     splits = list(kfold.split(np.zeros(n_cells), strata))
     precision, recall = _scores(_out_of_fold(data, splits, cell_index, n_cells, C), truth)
     g_precision = g_recall = None
     n_groups = len(np.unique(map_of_cell))
     if grouped and n_groups >= 2:
-        gkf = GroupKFold(n_splits=min(int(folds), n_groups))
+        gkf = GroupKFold(n_splits=min(folds, n_groups))
         g_splits = list(gkf.split(np.zeros(n_cells), groups=map_of_cell))
         g_precision, g_recall = _scores(_out_of_fold(data, g_splits, cell_index, n_cells, C),
                                         truth)
     return AffordanceEvaluation(
         precision=precision, recall=recall, grouped_precision=g_precision,
-        grouped_recall=g_recall, n_maps=int(n_maps), n_cells=n_cells,
+        grouped_recall=g_recall, n_maps=n_maps, n_cells=n_cells,
         n_voxels=len(data.features), positives=truth.sum(0), coverage=float(data.coverage.mean()),
         unseen_boxes=data.unseen_boxes, n_boxes=data.n_boxes, scans=data.scans,
         seconds=time.perf_counter() - t0)

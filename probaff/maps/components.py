@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from probaff._checks import check_count
+
 __all__ = ["component_labels", "group_components"]
 
 
@@ -15,12 +17,16 @@ def component_labels(num_nodes: int, edges: np.ndarray) -> np.ndarray:
     different roots. Each pass is a handful of vectorised numpy operations.
 
     Args:
-        num_nodes: Number of nodes ``N``.
+        num_nodes: Number of nodes ``N`` (an integer >= 0).
         edges: ``(E, 2)`` integer node indices in ``[0, N)``.
 
     Returns:
         ``(N,)`` int64 labels; two nodes share a label iff they are connected.
+
+    Raises:
+        InputError: If `num_nodes` is not an integer >= 0.
     """
+    num_nodes = check_count("num_nodes", num_nodes, minimum=0)
     parent = np.arange(num_nodes, dtype=np.int64)
     edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
     if edges.shape[0] == 0:

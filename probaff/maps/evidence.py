@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from probaff._checks import check_finite
+from probaff._checks import check_count, check_finite
 from probaff.errors import InputError
 
 __all__ = ["FREE", "as_evidence", "make_evidence", "single_variable_evidence"]
@@ -72,15 +72,17 @@ def make_evidence(num_variables: int, assignments: Sequence[Mapping[int, int]]) 
     """Build an evidence batch from ``{variable: value}`` mappings.
 
     Args:
-        num_variables: Number of variables ``V`` of the model.
+        num_variables: Number of variables ``V`` of the model (an integer >= 0).
         assignments: One mapping per batch row; values must be 0 or 1.
 
     Returns:
         ``(B, V)`` int8 tensor, `FREE` where a row does not mention a variable.
 
     Raises:
-        InputError: If a variable index does not exist or a value is not 0/1.
+        InputError: If `num_variables` is not an integer >= 0, a variable index does not
+            exist or a value is not 0/1.
     """
+    num_variables = check_count("num_variables", num_variables, minimum=0)
     out = torch.full((len(assignments), num_variables), FREE, dtype=torch.int8)
     for row, assignment in enumerate(assignments):
         for var, value in assignment.items():
@@ -102,7 +104,7 @@ def single_variable_evidence(
     """Every candidate observation of one variable: each clamped to 1, then to 0.
 
     Args:
-        num_variables: Number of variables ``V``.
+        num_variables: Number of variables ``V`` (an integer >= 0).
         variables: ``(n,)`` candidate variables; all ``V`` when None.
 
     Returns:
@@ -110,8 +112,10 @@ def single_variable_evidence(
         ``2k + 1`` clamps it to 0.
 
     Raises:
-        InputError: If a candidate variable does not exist.
+        InputError: If `num_variables` is not an integer >= 0, or a candidate variable does
+            not exist.
     """
+    num_variables = check_count("num_variables", num_variables, minimum=0)
     cand = (
         np.arange(num_variables)
         if variables is None

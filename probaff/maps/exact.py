@@ -18,6 +18,7 @@ import gtsam
 import numpy as np
 import torch
 
+from probaff._checks import check_count
 from probaff.errors import InputError
 from probaff.maps.evidence import as_evidence
 from probaff.maps.graph import AffordanceGraph
@@ -42,15 +43,21 @@ def elimination_width(num_variables: int, edges: np.ndarray, *, limit: int | Non
     """Width of a greedy min-degree elimination order, an upper bound on the treewidth.
 
     Args:
-        num_variables: Number of variables ``n`` (indices ``0..n-1``).
+        num_variables: Number of variables ``n`` (indices ``0..n-1``), an integer >= 0.
         edges: ``(E, 2)`` variable pairs.
         limit: Stop as soon as the width exceeds this value (the returned value is then
-            only known to be ``> limit``).
+            only known to be ``> limit``); an integer >= 0, or None for no limit.
 
     Returns:
         The largest number of neighbours a variable had when it was eliminated (0 for
         isolated variables, 1 for forests).
+
+    Raises:
+        InputError: If `num_variables` or `limit` is not an integer >= 0.
     """
+    num_variables = check_count("num_variables", num_variables, minimum=0)
+    if limit is not None:
+        limit = check_count("limit", limit, minimum=0)
     edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
     if edges.shape[0] == 0:
         return 0
@@ -92,7 +99,8 @@ def component_widths(
     Args:
         graph: The affordance map.
         components: Indices into ``graph.components``; all when None.
-        limit: Passed to `elimination_width` (values above it are lower bounds only).
+        limit: Passed to `elimination_width` (values above it are lower bounds only); an
+            integer >= 0, or None.
 
     Returns:
         One width per selected component: 0 for a single variable, 1 for a tree, ``n - 1``
@@ -100,8 +108,10 @@ def component_widths(
         min-degree elimination width.
 
     Raises:
-        InputError: On an unknown component index.
+        InputError: On an unknown component index, or a `limit` that is not an integer >= 0.
     """
+    if limit is not None:
+        limit = check_count("limit", limit, minimum=0)
     selected = _check_components(graph, components)
     widths = []
     for k in selected:
@@ -149,7 +159,8 @@ def exact_marginals(
     Args:
         graph: The affordance map.
         evidence: None, ``(V,)`` or ``(B, V)`` values in {-1 (free), 0, 1}.
-        max_width: Refuse components whose min-degree elimination width exceeds this.
+        max_width: Refuse components whose min-degree elimination width exceeds this (an
+            integer >= 0).
         components: Indices into ``graph.components`` to solve; all when None. Variables of
             other components are left NaN.
 
@@ -158,9 +169,10 @@ def exact_marginals(
         evidence.
 
     Raises:
-        InputError: If a selected component is too wide for exact inference, or on
-            malformed evidence.
+        InputError: If a selected component is too wide for exact inference, on malformed
+            evidence, or if `max_width` is not an integer >= 0.
     """
+    max_width = check_count("max_width", max_width, minimum=0)
     ev, batched = as_evidence(evidence, (graph.num_variables,))
     selected = _check_components(graph, components)
     widths = component_widths(graph, selected, limit=max_width)

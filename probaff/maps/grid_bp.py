@@ -106,7 +106,7 @@ def grid_belief_propagation(
     Raises:
         InputError: On malformed potentials, couplings, evidence or solver options.
     """
-    check_solver_options(damping, tol, max_iterations)
+    max_iterations = check_solver_options(damping, tol, max_iterations)
     dtype = resolve_dtype(dtype)
     unary = torch.as_tensor(unary_log).detach()
     device = unary.device

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from probaff._checks import check_count
 from probaff.errors import InputError
 from probaff.maps.bp import (
     DEFAULT_DAMPING,
@@ -69,21 +70,23 @@ def affordance_marginals(
             propagation everywhere) or ``"auto"`` (batched enumeration for small components;
             for larger ones gtsam where the width allows and the evidence is a single row,
             else BP; all BP components in one batched run).
-        max_exact_width: Width limit of exact inference.
+        max_exact_width: Width limit of exact inference (an integer >= 0).
         damping: BP damping, see `loopy_belief_propagation`.
         tol: BP convergence tolerance.
-        max_iterations: BP iteration budget.
+        max_iterations: BP iteration budget (a positive integer).
         dtype: Floating dtype of BP and of the returned marginals.
 
     Returns:
         The marginals and per-component methods.
 
     Raises:
-        InputError: On an unknown method, malformed evidence, or an exact request on a
-            component that is too wide.
+        InputError: On an unknown method, malformed evidence, a count that is not an
+            integer, or an exact request on a component that is too wide.
     """
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}.")
+    max_exact_width = check_count("max_exact_width", max_exact_width, minimum=0)
+    max_iterations = check_count("max_iterations", max_iterations)
     ev, batched = as_evidence(evidence, (graph.num_variables,))
     count = len(graph.components)
     if method == "exact":

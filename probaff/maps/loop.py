@@ -50,7 +50,7 @@ import numpy as np
 import torch
 from scipy.spatial import cKDTree
 
-from probaff._checks import check_shape
+from probaff._checks import check_count, check_shape
 from probaff.errors import InputError
 from probaff.features.cells import cell_features
 from probaff.grid import DIRECTION_OFFSETS
@@ -551,18 +551,22 @@ class ManipulationLoop:
         """Run the loop until it stops or has made `max_steps` pushes.
 
         Args:
-            max_steps: Most pushes to make.
-            snapshots: How many of the first pushes to keep a `LoopSnapshot` of.
+            max_steps: Most pushes to make (an integer >= 0).
+            snapshots: How many of the first pushes to keep a `LoopSnapshot` of (an integer
+                >= 0).
 
         Returns:
             The recorded steps (step 0 first) and snapshots.
+
+        Raises:
+            InputError: If `max_steps` or `snapshots` is not an integer >= 0.
         """
-        if int(max_steps) < 0:
-            raise InputError(f"max_steps must be >= 0, got {max_steps}.")
+        max_steps = check_count("max_steps", max_steps, minimum=0)
+        snapshots = check_count("snapshots", snapshots, minimum=0)
         steps = [self.record(0)]
         shots: list[LoopSnapshot] = []
         stop = "max_steps"
-        for k in range(1, int(max_steps) + 1):
+        for k in range(1, max_steps + 1):
             choice, reason = self.choose()
             if len(shots) < snapshots:
                 shots.append(self.snapshot(choice))

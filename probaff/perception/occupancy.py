@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from probaff._checks import check_finite, check_positive, check_shape
+from probaff._checks import check_count, check_finite, check_positive, check_shape
 from probaff.errors import InputError
 from probaff.grid import DIRECTION_OFFSETS
 from probaff.sim.depth import DepthScan
@@ -43,7 +43,7 @@ class OccupancyGrid:
     """Free/occupied/unknown sub-cells over a warehouse map.
 
     Args:
-        shape: ``(rows, cols)`` of the warehouse map.
+        shape: ``(rows, cols)`` of the warehouse map, positive integers.
         cell_size: Side of a warehouse cell (m).
         resolution: Side of a sub-cell (m); must divide `cell_size`.
         margin: How far short of a ray's end the free trace stops (m).
@@ -54,7 +54,8 @@ class OccupancyGrid:
         hits: (rows k, cols k) int, how many rays ended in each sub-cell.
 
     Raises:
-        InputError: For a non-positive size, or a resolution that does not divide the cell.
+        InputError: For a non-positive size, a shape that is not two positive integers, or a
+            resolution that does not divide the cell.
     """
 
     def __init__(self, shape: tuple[int, int], cell_size: float = 1.0, resolution: float = 0.25,
@@ -63,9 +64,9 @@ class OccupancyGrid:
         check_positive("resolution", resolution)
         check_positive("margin", margin, allow_zero=True)
         check_positive("hit_offset", hit_offset, allow_zero=True)
-        rows, cols = (int(v) for v in shape)
-        if rows < 1 or cols < 1:
-            raise InputError(f"the grid shape must be positive (rows, cols), got {shape}.")
+        if len(shape) != 2:
+            raise InputError(f"the grid shape must be (rows, cols), got {shape}.")
+        rows, cols = (check_count(f"shape[{i}]", v) for i, v in enumerate(shape))
         k = round(cell_size / resolution)
         if k < 1 or abs(k * resolution - cell_size) > 1e-9 * cell_size:
             raise InputError(

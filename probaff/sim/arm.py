@@ -19,8 +19,8 @@ import numpy as np
 import pytorch_kinematics as pk
 import torch
 
-from probaff._checks import check_finite, check_shape
-from probaff.errors import ConfigError, UnreachablePoseError
+from probaff._checks import check_count, check_finite, check_shape
+from probaff.errors import ConfigError, InputError, UnreachablePoseError
 from probaff.sim.config import ArmSpec
 
 __all__ = ["Arm", "IKResult", "PushPathIK", "load_arm", "topdown_pose"]
@@ -286,16 +286,20 @@ class Arm:
             x_range: World x extent (m).
             y_range: World y extent (m).
             resolution: Grid spacing (m).
-            n_yaws: Tool yaws tried per point.
+            n_yaws: Tool yaws tried per point (a positive integer).
             require: ``"any"`` or ``"all"``.
 
         Returns:
             ``(mask, xs, ys)``: mask (H, W) bool indexed ``[iy, ix]``, xs (W,), ys (H,).
+
+        Raises:
+            InputError: If `n_yaws` is not a positive integer or `require` is unknown.
         """
+        n_yaws = check_count("n_yaws", n_yaws)
         if require not in ("any", "all"):
-            raise ValueError(f"require must be 'any' or 'all', got {require!r}.")
+            raise InputError(f"require must be 'any' or 'all', got {require!r}.")
         return _reachable_mask_cached(self, tuple(x_range), tuple(y_range), float(resolution),
-                                      int(n_yaws), require)
+                                      n_yaws, require)
 
     def require_reachable(self, xy: torch.Tensor, yaw: torch.Tensor) -> None:
         """Raise `UnreachablePoseError` if any of the poses cannot be reached.

@@ -16,7 +16,8 @@ from typing import Any
 
 import yaml
 
-from probaff.errors import ConfigError
+from probaff._checks import check_count
+from probaff.errors import ConfigError, InputError
 
 __all__ = [
     "ArmSpec",
@@ -85,6 +86,20 @@ def _number(where: str, value: Any, *, positive: bool = False, nonneg: bool = Fa
     if nonneg and v < 0:
         raise ConfigError(f"{where} must be >= 0, got {value!r}.")
     return v
+
+
+def _count(where: str, value: Any, *, minimum: int = 1) -> int:
+    """`check_count` for a world file's field: the same rule, reported as a `ConfigError`."""
+    try:
+        return check_count(where, value, minimum=minimum)
+    except InputError as exc:
+        raise ConfigError(str(exc)) from None
+
+
+def _count_field(w: str, where: str, table: dict[str, Any], key: str, *, minimum: int = 1
+                 ) -> int:
+    """The count ``table[key]`` of section `where` of file `w`, validated by `_count`."""
+    return _count(f"{w}:{where}.{key}", _take(f"{w}:{where}", table, key), minimum=minimum)
 
 
 def _range(where: str, value: Any, *, nonneg: bool = False, positive: bool = False) -> Range:
@@ -313,10 +328,15 @@ def load_warehouse(path: Path | None = None) -> WarehouseSpec:
     _no_extra(w, raw, {"grid", "cell_size", "boxes", "box", "wall", "robot", "sensor",
                        "physics"})
     grid = _take(w, raw, "grid")
-    if not isinstance(grid, list) or len(grid) != 2 or not all(
-            isinstance(g, int) and not isinstance(g, bool) and g >= 2 for g in grid):
+    if not isinstance(grid, list) or len(grid) != 2:
         raise ConfigError(f"{w}:grid must be [rows, cols], integers >= 2, got {grid!r}.")
-    nb = _range(f"{w}:boxes", _take(w, raw, "boxes"), nonneg=True)
+    rows, cols = (_count(f"{w}:grid[{i}]", g, minimum=2) for i, g in enumerate(grid))
+    nb_raw = _take(w, raw, "boxes")
+    if not isinstance(nb_raw, (list, tuple)) or len(nb_raw) != 2:
+        raise ConfigError(f"{w}:boxes must be a [low, high] pair of counts, got {nb_raw!r}.")
+    nb = tuple(_count(f"{w}:boxes[{i}]", b, minimum=0) for i, b in enumerate(nb_raw))
+    if nb[0] > nb[1]:
+        raise ConfigError(f"{w}:boxes has low {nb[0]} > high {nb[1]}; swap them.")
     box = _mapping(f"{w}:box", _take(w, raw, "box"))
     wall = _mapping(f"{w}:wall", _take(w, raw, "wall"))
     robot = _mapping(f"{w}:robot", _take(w, raw, "robot"))
@@ -331,10 +351,10 @@ def load_warehouse(path: Path | None = None) -> WarehouseSpec:
         raise ConfigError(f"{w}:sensor.elevations must be a non-empty list of degrees.")
 
     return WarehouseSpec(
-        rows=grid[0],
-        cols=grid[1],
+        rows=rows,
+        cols=cols,
         cell_size=cell,
-        boxes=(int(nb[0]), int(nb[1])),
+        boxes=(nb[0], nb[1]),
         box_size=size,
         box_height=_field(w, "box", box, "height", positive=True),
         box_mass=_field(w, "box", box, "mass", positive=True),
@@ -348,13 +368,13 @@ def load_warehouse(path: Path | None = None) -> WarehouseSpec:
         robot_acceleration=_field(w, "robot", robot, "acceleration", positive=True),
         sensor_height=_field(w, "sensor", sensor, "height", positive=True),
         sensor_range=_field(w, "sensor", sensor, "max_range", positive=True),
-        sensor_azimuths=int(_field(w, "sensor", sensor, "azimuths", positive=True)),
+        sensor_azimuths=_count_field(w, "sensor", sensor, "azimuths"),
         sensor_elevations=tuple(_number(f"{w}:sensor.elevations", e) for e in elev),
         sensor_noise=_field(w, "sensor", sensor, "noise", nonneg=True),
         control_rate=_field(w, "physics", phys, "control_rate", positive=True),
-        substeps=int(_field(w, "physics", phys, "substeps", positive=True)),
-        iterations=int(_field(w, "physics", phys, "iterations", positive=True)),
-        friction_grid=int(_field(w, "physics", phys, "friction_grid", positive=True)),
+        substeps=_count_field(w, "physics", phys, "substeps"),
+        iterations=_count_field(w, "physics", phys, "iterations"),
+        friction_grid=_count_field(w, "physics", phys, "friction_grid"),
         collision_slop=_field(w, "physics", phys, "collision_slop", nonneg=True),
     )
 
@@ -443,7 +463,7 @@ def load_tabletop(path: Path | None = None) -> TabletopSpec:
             push_height=_field(w, "arm", arm, "push_height", nonneg=True),
             pos_tolerance=_field(w, "arm.ik", ik, "pos_tolerance", positive=True),
             rot_tolerance=_field(w, "arm.ik", ik, "rot_tolerance", positive=True),
-            max_iterations=int(_field(w, "arm.ik", ik, "max_iterations", positive=True)),
+            max_iterations=_count_field(w, "arm.ik", ik, "max_iterations"),
             waypoint_spacing=_field(w, "arm.ik", ik, "waypoint_spacing", positive=True),
         ),
         gripper=GripperSpec(
@@ -458,10 +478,10 @@ def load_tabletop(path: Path | None = None) -> TabletopSpec:
         physics=PhysicsSpec(
             gravity=_field(w, "physics", phys, "gravity", positive=True),
             control_rate=_field(w, "physics", phys, "control_rate", positive=True),
-            substeps=int(_field(w, "physics", phys, "substeps", positive=True)),
-            iterations=int(_field(w, "physics", phys, "iterations", positive=True)),
+            substeps=_count_field(w, "physics", phys, "substeps"),
+            iterations=_count_field(w, "physics", phys, "iterations"),
             collision_slop=_field(w, "physics", phys, "collision_slop", nonneg=True),
-            friction_grid=int(_field(w, "physics", phys, "friction_grid", positive=True)),
+            friction_grid=_count_field(w, "physics", phys, "friction_grid"),
         ),
         push_speed=_field(w, "push", push, "speed", positive=True),
         push_acceleration=_field(w, "push", push, "acceleration", positive=True),
@@ -535,7 +555,7 @@ def load_scene(name: str) -> SceneSpec:
         ))
     pr = _mapping(f"{w}:push", _take(w, raw, "push"))
     _no_extra(f"{w}:push", pr, {"target", "distance", "direction", "lateral_offset", "start_gap"})
-    target = int(_number(f"{w}:push.target", pr.get("target", 0), nonneg=True))
+    target = _count(f"{w}:push.target", pr.get("target", 0), minimum=0)
     if target != 0:
         raise ConfigError(f"{w}:push.target must be 0 (the first object is the pushed one).")
     push = PushSpec(

@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from probaff._checks import check_count
 from probaff.sim.config import ObjectSpec
 
 __all__ = [
@@ -64,11 +65,15 @@ def friction_points(obj: ObjectSpec, n: int) -> np.ndarray:
 
     Args:
         obj: Catalogue object.
-        n: Grid cells per axis (>= 1).
+        n: Grid cells per axis (a positive integer).
 
     Returns:
         (P, 2) points (m), P <= n * n.
+
+    Raises:
+        InputError: If `n` is not a positive integer.
     """
+    n = check_count("n", n)
     hx, hy = 0.5 * obj.size[0], 0.5 * obj.size[1]
     u = (np.arange(n) + 0.5) / n * 2.0 - 1.0
     gx, gy = np.meshgrid(u * hx, u * hy)

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from probaff._checks import check_count
 from probaff.errors import ConfigError, UnreachablePoseError
 from probaff.sim.arm import Arm, load_arm
 from probaff.sim.config import SceneSpec, TabletopSpec, load_catalogue, load_scene, load_tabletop
@@ -153,12 +154,17 @@ class PushSimulator:
         the arm are discarded, so the result depends only on `rng`'s state.
 
         Args:
-            n: Number of pushes.
+            n: Number of pushes (an integer >= 0).
             rng: Source of randomness.
 
         Yields:
             `n` samples, in order.
+
+        Raises:
+            InputError: If `n` is not an integer >= 0.
+            ConfigError: If valid, reachable pushes are too rare to draw.
         """
+        n = check_count("n", n, minimum=0)
         done, draws = 0, 0
         while done < n:
             want = n - done

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from probaff._checks import check_positive
+from probaff._checks import check_count, check_positive
 from probaff.sim.config import ObjectSpec
 
 __all__ = ["Scan", "object_cloud", "scan_scene", "table_cloud"]
@@ -78,13 +78,17 @@ def object_cloud(obj: ObjectSpec, pose: np.ndarray, n_points: int, noise: float,
     Args:
         obj: Catalogue object.
         pose: (3,) world ``(x, y, theta)``.
-        n_points: Number of points P.
+        n_points: Number of points P (a positive integer).
         noise: Standard deviation of the Gaussian position noise (m).
         rng: Source of randomness.
 
     Returns:
         ``(points, normals)``, each (P, 3) in the world frame.
+
+    Raises:
+        InputError: If `n_points` is not a positive integer or `noise` is negative.
     """
+    n_points = check_count("n_points", n_points)
     check_positive("noise", noise, allow_zero=True)
     sampler = _circle_surface if obj.shape == "circle" else _box_surface
     pts, nrm = sampler(obj, n_points, rng)
@@ -143,13 +147,18 @@ def scan_scene(objects: tuple[ObjectSpec, ...], poses: np.ndarray,
         poses: (K, 3) world ``(x, y, theta)``.
         table_size: Table extent (m).
         rng: Source of randomness.
-        n_points: Points per object P.
+        n_points: Points per object P (a positive integer).
         noise: Position noise standard deviation (m).
         table_spacing: Grid spacing of the table cloud (m).
 
     Returns:
         The scan.
+
+    Raises:
+        InputError: If `n_points` is not a positive integer, or `noise` or `table_spacing` is
+            out of range.
     """
+    n_points = check_count("n_points", n_points)
     clouds = [object_cloud(o, p, n_points, noise, rng)
               for o, p in zip(objects, poses, strict=True)]
     return Scan(

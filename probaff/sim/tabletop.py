@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import pymunk
 
+from probaff._checks import check_count
 from probaff.sim.config import ObjectSpec, TabletopSpec
 from probaff.sim.friction import add_sliding_body
 from probaff.sim.geometry import friction_points, push_frame_effect
@@ -70,9 +71,13 @@ class SceneInstance:
             push_origin: (2,) world start of the hand.
             push_yaw: World yaw of z_p (rad).
             push_distance: d_p (m).
-            friction_grid: The world's ``physics.friction_grid``.
+            friction_grid: The world's ``physics.friction_grid`` (a positive integer).
             walls: (W, 4) wall segments, or ``None``.
+
+        Raises:
+            InputError: If `friction_grid` is not a positive integer.
         """
+        friction_grid = check_count("friction_grid", friction_grid)
         objects = tuple(objects)
         return cls(
             objects=objects,

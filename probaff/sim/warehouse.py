@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import pymunk
 
+from probaff._checks import check_count
 from probaff.errors import ConfigError, InputError
 from probaff.grid import DIRECTION_NAMES, DIRECTION_OFFSETS
 from probaff.sim.config import WarehouseSpec
@@ -135,18 +136,25 @@ def generate_map(spec: WarehouseSpec, rng: np.random.Generator,
     Args:
         spec: The warehouse world.
         rng: Source of randomness.
-        shape: ``(rows, cols)``; default the spec's grid. Any size works (e.g. 100 x 100).
-        n_boxes: Inclusive range of the box count; default the spec's range, scaled by area
-            for another shape.
+        shape: ``(rows, cols)``, integers >= 2; default the spec's grid. Any size works (e.g.
+            100 x 100).
+        n_boxes: Inclusive range ``(low, high)`` of the box count, integers >= 0; default the
+            spec's range, scaled by area for another shape.
 
     Returns:
         A map with boxes on distinct cells chosen uniformly.
+
+    Raises:
+        InputError: If a size or box count is not such an integer.
+        ConfigError: If the boxes cannot fit with one cell left free.
     """
     rows, cols = shape or (spec.rows, spec.cols)
+    rows, cols = (check_count("shape[0]", rows, minimum=2),
+                  check_count("shape[1]", cols, minimum=2))
     if n_boxes is None:
         scale = rows * cols / (spec.rows * spec.cols)
         n_boxes = (round(spec.boxes[0] * scale), round(spec.boxes[1] * scale))
-    lo, hi = n_boxes
+    lo, hi = (check_count(f"n_boxes[{i}]", v, minimum=0) for i, v in enumerate(n_boxes))
     if lo < 0 or hi < lo or hi > rows * cols - 1:
         raise ConfigError(
             f"cannot place {n_boxes} boxes in a {rows} x {cols} warehouse; keep at least one "
@@ -220,11 +228,16 @@ def push_box(spec: WarehouseSpec, m: WarehouseMap, cell: tuple[int, int], direct
         m: The map.
         cell: ``(row, col)`` of the box.
         direction: Index into `DIRECTION_NAMES`.
-        neighbourhood: Radius of the simulated neighbourhood (cells).
+        neighbourhood: Radius of the simulated neighbourhood (cells), an integer >= 0.
 
     Returns:
         What the push did.
+
+    Raises:
+        InputError: If there is no box at `cell`, `direction` is not 0..3 or `neighbourhood`
+            is not an integer >= 0.
     """
+    neighbourhood = check_count("neighbourhood", neighbourhood, minimum=0)
     r, c = cell
     if not m.inside(np.array(cell)) or not m.occupancy[r, c]:
         raise InputError(f"there is no box at cell {cell} to push.")

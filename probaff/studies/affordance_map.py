@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from probaff._checks import check_count
 from probaff._dask import check_workers
 from probaff._io import atomic_write_text
 from probaff._threads import torch_threads
@@ -105,15 +106,21 @@ class AffordanceMapConfig:
     sensor_noise: float | None = None
     stop_at_no_gain: bool = True
 
-    def validate(self) -> None:
-        """Raise `InputError` for a setting out of range."""
-        for name in ("n_maps", "train_maps"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise InputError(f"{name} must be a positive integer, got {value!r}.")
-        if isinstance(self.max_steps, bool) or not isinstance(self.max_steps, int) \
-                or self.max_steps < 0:
-            raise InputError(f"max_steps must be an integer >= 0, got {self.max_steps!r}.")
+    def validate(self) -> AffordanceMapConfig:
+        """Check the settings and return them with their counts as builtin ints.
+
+        Returns:
+            An equal config whose ``n_maps``, ``train_maps``, ``max_steps``, ``seed`` and
+            ``workers`` are `int` (``numpy.int64(3)`` or ``3.0`` become ``3``), so that its
+            fingerprint does not depend on how a count was typed.
+
+        Raises:
+            InputError: For a setting out of range.
+        """
+        n_maps = check_count("n_maps", self.n_maps)
+        train_maps = check_count("train_maps", self.train_maps)
+        max_steps = check_count("max_steps", self.max_steps, minimum=0)
+        seed = check_count("seed", self.seed, minimum=0)
         check_alpha(self.alpha)
         check_coupling("coupling", self.coupling)
         if self.symmetry_coupling is not None:
@@ -123,7 +130,9 @@ class AffordanceMapConfig:
         if self.sensor_noise is not None and not (
                 math.isfinite(self.sensor_noise) and self.sensor_noise >= 0):
             raise InputError(f"sensor_noise must be a number >= 0, got {self.sensor_noise!r}.")
-        check_workers(self.workers)
+        workers = check_workers(self.workers)
+        return dataclasses.replace(self, n_maps=n_maps, train_maps=train_maps,
+                                   max_steps=max_steps, seed=seed, workers=workers)
 
     def fingerprint(self) -> str:
         """Short hash of every setting that changes a map's result (not `n_maps` or `out`)."""
@@ -149,15 +158,20 @@ def train_classifier(spec: WarehouseSpec, n_maps: int, seed: int
 
     Args:
         spec: The warehouse world.
-        n_maps: Training maps.
-        seed: Study seed; the training maps come from its own stream.
+        n_maps: Training maps (a positive integer).
+        seed: Study seed (an integer >= 0); the training maps come from its own stream.
 
     Returns:
         The classifier and a description of its training data.
+
+    Raises:
+        InputError: If `n_maps` or `seed` is not such an integer.
     """
+    n_maps = check_count("n_maps", n_maps)
+    seed = check_count("seed", seed, minimum=0)
     data = collect_voxels(spec, n_maps, np.random.default_rng((seed, _STREAM_TRAIN)))
     model = AffordanceClassifier().fit(data.features, data.labels)
-    info = {"maps": int(n_maps), "voxels": len(data.features), "boxes": data.n_boxes,
+    info = {"maps": n_maps, "voxels": len(data.features), "boxes": data.n_boxes,
             "unseen_boxes": data.unseen_boxes, "positives": data.labels.sum(0).tolist()}
     return model, info
 
@@ -192,17 +206,23 @@ def map_task(spec: WarehouseSpec, classifier: AffordanceClassifier, index: int,
     Args:
         spec: The warehouse world.
         classifier: The trained classifier.
-        index: Test map index.
+        index: Test map index (an integer >= 0).
         settings: ``seed``, ``alpha``, ``coupling``, ``symmetry_coupling``, ``max_steps`` and
             ``stop_at_no_gain``.
 
     Returns:
         A JSON-ready result: the map, its exploration, the classifier's confusion counts, each
         policy's steps and stop reason, and the data of the figures.
+
+    Raises:
+        InputError: If `index`, ``settings["seed"]`` or ``settings["max_steps"]`` is not an
+            integer >= 0.
     """
+    index = check_count("index", index, minimum=0)
+    seed = check_count("seed", settings["seed"], minimum=0)
+    max_steps = check_count("max_steps", settings["max_steps"], minimum=0)
     with torch_threads(1):  # one core per task, and reproducible reductions
         t0 = time.perf_counter()
-        seed = int(settings["seed"])
         rng = np.random.default_rng((seed, _STREAM_TEST, index))
         m = generate_map(spec, rng)
         free = np.argwhere(~m.occupancy)
@@ -229,7 +249,7 @@ def map_task(spec: WarehouseSpec, classifier: AffordanceClassifier, index: int,
                                                  loop.unary_probabilities(), np.nan)),
                     "mrf": _grid_json(mrf.to_map(loop.marginals(mrf)[:, 1]).numpy()),
                 }
-            result = loop.run(int(settings["max_steps"]),
+            result = loop.run(max_steps,
                               snapshots=_SNAPSHOTS if policy == "information_gain" else 0)
             out["policies"][policy] = {"steps": [s.to_dict() for s in result.steps],
                                        "stop": result.stop}
@@ -434,7 +454,7 @@ def run(config: AffordanceMapConfig) -> dict[str, Any]:
     Raises:
         InputError: For settings out of range.
     """
-    config.validate()
+    config = config.validate()
     t0 = time.perf_counter()
     out = Path(config.out)
     store = ResultStore(out / "tasks")
@@ -475,13 +495,18 @@ def demo(out_dir: str | os.PathLike[str], seed: int = 0, steps: int = 3,
 
     Args:
         out_dir: Folder of the figure ``loop_steps.png`` (created).
-        seed: Seed of the maps and the sensor noise.
-        steps: Most pushes.
+        seed: Seed of the maps and the sensor noise (an integer >= 0).
+        steps: Most pushes (an integer >= 0).
         sensor_noise: Range noise (m) of the sensor; None keeps the world file's value.
 
     Returns:
         ``{"entropy_before", "entropy_after", "pushes", "stop", "figure"}``.
+
+    Raises:
+        InputError: If `seed` or `steps` is not an integer >= 0.
     """
+    seed = check_count("seed", seed, minimum=0)
+    steps = check_count("steps", steps, minimum=0)
     spec = dataclasses.replace(world(sensor_noise), rows=8, cols=8, boxes=(8, 14))
     classifier, _ = train_classifier(spec, 6, seed)
     rng = np.random.default_rng((seed, _STREAM_TEST, 0))
