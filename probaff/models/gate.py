@@ -1,59 +1,266 @@
-"""Softmax gate: multinomial logistic regression fitted to soft assignment targets."""
+"""Gates: multinomial logistic regression fitted to soft assignment targets.
+
+`SoftmaxGate` is linear in the standardised gate features; `FourierGate` runs the same
+regression on random Fourier features of them, for regimes that no hyperplane separates.
+Either chooses its L2 penalty by inner K-fold cross-validation when built with ``l2="cv"``.
+`make_gate` builds either by name.
+"""
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import torch
 from torch import Tensor
 
-from probaff._checks import check_positive, check_probability
-from probaff.errors import NotFittedError
+from probaff._checks import check_count, check_positive, check_probability
+from probaff.errors import InputError, NotFittedError
 from probaff.models._scaling import Standardizer
 from probaff.models._tensors import as_matrix, as_vector
 
-__all__ = ["SoftmaxGate"]
+__all__ = ["DEFAULT_L2_GRID", "GATE_KINDS", "FourierGate", "SoftmaxGate", "make_gate"]
+
+DEFAULT_L2_GRID: tuple[float, ...] = (1e1, 1e0, 1e-1, 1e-2, 1e-3, 1e-4)
+"""Penalties tried by ``l2="cv"`` unless `l2_grid` is given (strongest first)."""
+
+GATE_KINDS: tuple[str, ...] = ("linear", "fourier")
+"""Gate kinds `make_gate` builds."""
+
+_TINY = torch.finfo(torch.float64).tiny
+
+# L-BFGS curvature pairs kept by cross-validated fits (a short history keeps iterations cheap).
+_CV_HISTORY = 10
+# Gradient tolerance of the refit that ends a cross-validated fit.
+_CV_TOLERANCE = 1e-6
+
+# Most rows used by the median heuristic; larger data sets use a seeded subset.
+_MEDIAN_ROWS = 1000
+
+
+def _minimise(
+    params: Sequence[Tensor],
+    closure: Callable[[], Tensor],
+    *,
+    max_iter: int,
+    tolerance_grad: float,
+    tolerance_change: float,
+    history_size: int = 100,
+) -> None:
+    """Minimise a loss over `params` in place with strong-Wolfe L-BFGS.
+
+    Args:
+        params: Tensors to optimise.
+        closure: Returns the loss at the current `params` after setting their ``grad``.
+        max_iter: Most L-BFGS iterations.
+        tolerance_grad: Stop when the largest gradient entry is below this.
+        tolerance_change: Stop when the loss or step changes less than this.
+        history_size: Curvature pairs kept by L-BFGS.
+    """
+    optimiser = torch.optim.LBFGS(
+        params,
+        lr=1.0,
+        max_iter=max_iter,
+        history_size=history_size,
+        line_search_fn="strong_wolfe",
+        tolerance_grad=tolerance_grad,
+        tolerance_change=tolerance_change,
+    )
+    optimiser.step(closure)  # type: ignore[no-untyped-call]
+
+
+def _log_softmax(logits: Tensor) -> Tensor:
+    """`log_softmax` over the last, short axis, `(..., M)` (faster than the fused kernel)."""
+    shifted = logits - logits.amax(-1, keepdim=True)
+    return shifted - shifted.exp().sum(-1, keepdim=True).log()
+
+
+def _penalised_loss(
+    phi: Tensor, r: Tensor, s: Tensor, l2: float, weight: Tensor, bias: Tensor
+) -> float:
+    """The fitting objective of `SoftmaxGate` at `weight` `(M, P)` and `bias` `(M,)`.
+
+    Args:
+        phi: Basis, `(N, P)`.
+        r: Targets, `(N, M)`.
+        s: Sample weights summing to 1, `(N,)`.
+        l2: Penalty.
+        weight: Weights, `(M, P)`.
+        bias: Intercepts, `(M,)`.
+
+    Returns:
+        Weighted cross-entropy plus the L2 penalty.
+    """
+    log_p = torch.log_softmax(phi @ weight.T + bias, dim=-1)
+    return float(-(s * (r * log_p).sum(-1)).sum() + 0.5 * l2 * weight.square().sum())
+
+
+def _check_l2(l2: Any) -> float | str:
+    if isinstance(l2, str):
+        if l2 != "cv":
+            raise InputError(
+                f"l2 must be a number >= 0 or the string 'cv' (choose it by cross-validation), "
+                f"got {l2!r}."
+            )
+        return l2
+    check_positive("l2", l2, allow_zero=True)
+    return float(l2)
+
+
+def _check_grid(name: str, grid: Any, *, allow_zero: bool) -> tuple[float, ...]:
+    if isinstance(grid, (str, bytes)) or not isinstance(grid, Sequence):
+        raise InputError(f"{name} must be a sequence of numbers, got {grid!r}.")
+    if len(grid) == 0:
+        raise InputError(f"{name} is empty; give at least one value.")
+    for value in grid:
+        check_positive(f"every entry of {name}", value, allow_zero=allow_zero)
+    return tuple(float(v) for v in grid)
 
 
 class SoftmaxGate(torch.nn.Module):
-    r"""Gate :math:`p(m = j \mid f) = \mathrm{softmax}(W z + b)_j` on standardised features `z`.
+    r"""Linear gate :math:`p(m = j \mid f) = \mathrm{softmax}(W \phi(z) + b)_j` on features `f`.
 
-    Fitted by minimising the soft-target cross-entropy
+    Here `z` is `f` standardised and :math:`\phi(z) = z`. Fitted by minimising the
+    soft-target cross-entropy
     :math:`-\frac{1}{\sum_i s_i} \sum_i s_i \sum_j r_{ij} \log p(m = j \mid f_i)
     + \frac{\lambda}{2} \lVert W \rVert^2` (the intercept `b` is not penalised) with
-    L-BFGS. The objective is convex, so the fit is unique up to the optimiser's tolerance
-    and deterministic; it warm-starts from the current parameters.
+    L-BFGS. The objective is convex, so the fit is unique up to the optimiser's tolerance.
+
+    With a fixed `l2`, `fit` warm-starts from the current parameters. With ``l2="cv"``,
+    `fit` chooses :math:`\lambda` from `l2_grid` by `n_folds`-fold cross-validation: the
+    folds (stratified by each row's most likely expert, drawn from `seed`) are fitted
+    together along the grid from the strongest penalty to the weakest, each step
+    warm-started from the last and capped at `cv_max_iter` iterations; the penalty with the
+    lowest pooled held-out weighted cross-entropy wins (ties go to the stronger penalty).
+    The gate is then refitted on all rows with it (to a gradient tolerance of 1e-6),
+    starting from whichever of the current parameters and the all-rows solution of the
+    same path has the lower objective; a fresh gate's result thus depends only on the data
+    and `seed`, and refits in a loop start close to their optimum. The standardisation is
+    computed once from all rows and shared by the folds.
 
     Args:
         n_features: Number of gate features `D`.
         n_experts: Number of experts `M`.
-        l2: Penalty :math:`\lambda` on the weights.
-        max_iter: L-BFGS iterations per call to `fit`.
+        l2: Penalty :math:`\lambda` on the weights, or ``"cv"`` to choose it per `fit`.
+        max_iter: L-BFGS iterations of the final fit in each call to `fit`.
+        l2_grid: Penalties tried by ``l2="cv"``; `DEFAULT_L2_GRID` if ``None``. Only
+            allowed with ``l2="cv"``.
+        n_folds: Folds of the inner cross-validation (at least 2).
+        cv_max_iter: L-BFGS iterations per penalty on the cross-validation path.
+        seed: Seed of the fold assignment.
 
     Attributes:
-        weight: `W`, `(M, D)`.
+        weight: `W`, `(M, D_basis)`; `D_basis = D` here.
         bias: `b`, `(M,)`.
+        fitted: Boolean buffer, true once `fit` has run.
+        n_features: `D`.
+        n_experts: `M`.
+        n_basis: `D_basis`, the width of :math:`\phi(z)`.
+        l2_grid_: The penalties cross-validation tries, strongest first, `L` of them.
+        cv_scores_: Held-out cross-entropy of the last cross-validated `fit`, one row per
+            basis setting (one row here) and one column per entry of `l2_grid_`, `(G, L)`;
+            ``None`` before such a fit. Not saved in the state dict.
     """
 
+    fitted: Tensor
+    chosen_l2: Tensor
+
     def __init__(
-        self, n_features: int, n_experts: int, *, l2: float = 1e-3, max_iter: int = 200
+        self,
+        n_features: int,
+        n_experts: int,
+        *,
+        l2: float | str = 1e-3,
+        max_iter: int = 200,
+        l2_grid: Sequence[float] | None = None,
+        n_folds: int = 3,
+        cv_max_iter: int = 10,
+        seed: int = 0,
     ) -> None:
         super().__init__()
-        check_positive("n_features", n_features)
-        check_positive("n_experts", n_experts)
-        check_positive("l2", l2, allow_zero=True)
-        check_positive("max_iter", max_iter)
-        self.n_features = int(n_features)
-        self.n_experts = int(n_experts)
-        self.l2 = float(l2)
-        self.max_iter = int(max_iter)
+        self.n_features = check_count("n_features", n_features)
+        self.n_experts = check_count("n_experts", n_experts)
+        self.l2: float | str = _check_l2(l2)
+        self.max_iter = check_count("max_iter", max_iter)
+        if l2_grid is not None and self.l2 != "cv":
+            raise InputError(
+                f"l2_grid is only used when l2='cv', but l2={l2!r}; pass l2='cv' or drop "
+                "l2_grid."
+            )
+        grid = DEFAULT_L2_GRID if l2_grid is None else _check_grid("l2_grid", l2_grid,
+                                                                    allow_zero=True)
+        self.l2_grid_: tuple[float, ...] = tuple(sorted(grid, reverse=True))
+        self.n_folds = check_count("n_folds", n_folds, minimum=2)
+        self.cv_max_iter = check_count("cv_max_iter", cv_max_iter)
+        self.seed = check_count("seed", seed, minimum=0)
         self.scaler = Standardizer(self.n_features)
-        self.weight = torch.nn.Parameter(torch.zeros(self.n_experts, self.n_features).double())
-        self.bias = torch.nn.Parameter(torch.zeros(self.n_experts).double())
         self.register_buffer("fitted", torch.tensor(False))
+        if self.l2 == "cv":
+            self.register_buffer("chosen_l2", torch.tensor(math.nan, dtype=torch.float64))
+        self.cv_scores_: Tensor | None = None
+        self._reset_parameters(self.n_features)
+
+    def _reset_parameters(self, n_basis: int) -> None:
+        """Create zero `weight` `(M, n_basis)` and `bias` `(M,)`."""
+        self.n_basis = int(n_basis)
+        self.weight = torch.nn.Parameter(torch.zeros(self.n_experts, self.n_basis).double())
+        self.bias = torch.nn.Parameter(torch.zeros(self.n_experts).double())
+
+    # ----------------------------------------------------------------- basis hooks
+
+    def _expand(self, z: Tensor, setting: float | None) -> Tensor:
+        r"""The basis :math:`\phi(z)` under one basis setting.
+
+        Args:
+            z: Standardised features, `(N, D)`.
+            setting: Basis hyperparameter (unused by the linear gate).
+
+        Returns:
+            `(N, D_basis)`.
+        """
+        return z
+
+    def _settings(self, z: Tensor) -> list[float | None]:
+        """Candidate basis settings for a fit on standardised data `z` `(N, D)`."""
+        return [None]
+
+    def _apply_setting(self, setting: float | None) -> None:
+        """Make `setting` the basis used by `logits`."""
+
+    def _current_setting(self) -> float | None:
+        return None
+
+    # ------------------------------------------------------------------ public API
+
+    @property
+    def l2_(self) -> float:
+        """The penalty of the last fit: `l2` itself, or the one cross-validation chose.
+
+        Raises:
+            NotFittedError: If ``l2="cv"`` and the gate was never fitted.
+        """
+        if self.l2 != "cv":
+            return float(self.l2)
+        if not bool(self.fitted):
+            raise NotFittedError(
+                f"{type(self).__name__} chooses l2 by cross-validation in fit; call fit first."
+            )
+        return float(self.chosen_l2)
+
+    def basis(self, x: Tensor) -> Tensor:
+        r"""Differentiable basis :math:`\phi(z)` of raw gate features.
+
+        Args:
+            x: Gate features as a float64 tensor, `(N, D)`.
+
+        Returns:
+            `(N, D_basis)`.
+        """
+        return self._expand(self.scaler(x), self._current_setting())
 
     def logits(self, x: Tensor) -> Tensor:
-        """Differentiable gate logits `W z + b`.
+        r"""Differentiable gate logits :math:`W \phi(z) + b`.
 
         Args:
             x: Gate features as a float64 tensor, `(N, D)`.
@@ -61,7 +268,7 @@ class SoftmaxGate(torch.nn.Module):
         Returns:
             Logits, `(N, M)`.
         """
-        return self.scaler(x) @ self.weight.T + self.bias
+        return self.basis(x) @ self.weight.T + self.bias
 
     def fit(self, X: Any, targets: Any, sample_weight: Any | None = None) -> SoftmaxGate:
         """Fit the gate to soft targets.
@@ -73,6 +280,10 @@ class SoftmaxGate(torch.nn.Module):
 
         Returns:
             This gate.
+
+        Raises:
+            InputError: For malformed inputs, or fewer rows than `n_folds` when
+                cross-validating.
         """
         x = as_matrix("gate features X", X, n_cols=self.n_features)
         r = as_matrix("gate targets", targets, n_rows=x.shape[0], n_cols=self.n_experts)
@@ -81,25 +292,16 @@ class SoftmaxGate(torch.nn.Module):
             s = torch.ones(x.shape[0], dtype=torch.float64)
         else:
             s = as_vector("sample_weight", sample_weight, n=x.shape[0]).clamp_min(0.0)
-        s = s / s.sum().clamp_min(torch.finfo(torch.float64).tiny)
+        s = s / s.sum().clamp_min(_TINY)
         self.scaler.fit(x)
-        optimiser = torch.optim.LBFGS(
-            [self.weight, self.bias],
-            lr=1.0,
-            max_iter=self.max_iter,
-            line_search_fn="strong_wolfe",
-            tolerance_grad=1e-9,
-            tolerance_change=1e-12,
-        )
-
-        def closure() -> Tensor:
-            optimiser.zero_grad()
-            log_p = torch.log_softmax(self.logits(x), dim=-1)
-            loss = -(s * (r * log_p).sum(-1)).sum() + 0.5 * self.l2 * self.weight.square().sum()
-            loss.backward()
-            return loss
-
-        optimiser.step(closure)
+        z = self.scaler(x)
+        settings = self._settings(z)
+        if self.l2 == "cv" or len(settings) > 1:
+            self._fit_cv(z, r, s, settings)
+        else:
+            self._apply_setting(settings[0])
+            assert isinstance(self.l2, float)
+            self._fit_fixed(self._expand(z, settings[0]), r, s, self.l2)
         self.fitted.fill_(True)
         return self
 
@@ -116,7 +318,7 @@ class SoftmaxGate(torch.nn.Module):
             NotFittedError: If the gate was never fitted.
         """
         if not bool(self.fitted):
-            raise NotFittedError("SoftmaxGate is not fitted; call fit first.")
+            raise NotFittedError(f"{type(self).__name__} is not fitted; call fit first.")
         x = as_matrix("gate features X", X, n_cols=self.n_features)
         with torch.no_grad():
             return torch.log_softmax(self.logits(x), dim=-1)
@@ -131,3 +333,305 @@ class SoftmaxGate(torch.nn.Module):
             `p(m = j | f_i)`, rows summing to 1, `(N, M)`.
         """
         return self.log_proba(X).exp()
+
+    # -------------------------------------------------------------------- fitting
+
+    def _fit_fixed(
+        self,
+        phi: Tensor,
+        r: Tensor,
+        s: Tensor,
+        l2: float,
+        *,
+        history_size: int = 100,
+        tolerance_grad: float = 1e-9,
+    ) -> None:
+        """Fit `weight` and `bias` from their current values with penalty `l2`.
+
+        Args:
+            phi: Basis, `(N, D_basis)`.
+            r: Targets, `(N, M)`.
+            s: Sample weights summing to 1, `(N,)`.
+            l2: Penalty.
+            history_size: Curvature pairs kept by L-BFGS.
+            tolerance_grad: Stop when the largest gradient entry is below this.
+        """
+        params = [self.weight, self.bias]
+
+        def closure() -> Tensor:
+            for p in params:
+                p.grad = None
+            log_p = torch.log_softmax(phi @ self.weight.T + self.bias, dim=-1)
+            loss = -(s * (r * log_p).sum(-1)).sum() + 0.5 * l2 * self.weight.square().sum()
+            loss.backward()
+            return loss
+
+        _minimise(params, closure, max_iter=self.max_iter, tolerance_grad=tolerance_grad,
+                  tolerance_change=1e-12, history_size=history_size)
+
+    def _folds(self, r: Tensor) -> Tensor:
+        """Fold of each row, `(N,)`, stratified by the row's most likely expert."""
+        n = r.shape[0]
+        if n < self.n_folds:
+            raise InputError(
+                f"gate features X has {n} row(s), fewer than n_folds={self.n_folds}; use "
+                "fewer folds or a fixed l2."
+            )
+        g = torch.Generator().manual_seed(self.seed)
+        perm = torch.randperm(n, generator=g)
+        order = perm[torch.argsort(r.argmax(1)[perm], stable=True)]
+        folds = torch.empty(n, dtype=torch.long)
+        folds[order] = torch.arange(n) % self.n_folds
+        return folds
+
+    def _cv_path(
+        self, phi: Tensor, r: Tensor, s: Tensor, folds: Tensor, grid: Sequence[float]
+    ) -> tuple[Tensor, list[tuple[Tensor, Tensor]]]:
+        """Fit every fold and all rows together along `grid`.
+
+        Args:
+            phi: Basis, `(N, P)`.
+            r: Targets, `(N, M)`.
+            s: Sample weights summing to 1, `(N,)`.
+            folds: Fold of each row, `(N,)`.
+            grid: Penalties, strongest first, `L` of them.
+
+        Returns:
+            Pooled held-out cross-entropy per penalty `(L,)`, and the all-rows
+            `(weight (M, P), bias (M,))` per penalty.
+        """
+        k, m = self.n_folds, self.n_experts
+        n, width = phi.shape
+        held = folds[:, None] == torch.arange(k)[None, :]  # (N, K)
+        train = torch.cat([~held, torch.ones(n, 1, dtype=torch.bool)], dim=1)
+        w_train = s[:, None] * train  # (N, K + 1)
+        w_train = (w_train / w_train.sum(0).clamp_min(_TINY))[..., None]
+        w_held = (s[:, None] * held)[..., None]  # (N, K, 1)
+        target = r[:, None, :]  # (N, 1, M)
+        # Problem p (fold p left out; p = K: all rows) owns columns p*M .. p*M + M - 1.
+        weight = torch.zeros(width, (k + 1) * m, dtype=torch.float64)
+        bias = torch.zeros((k + 1) * m, dtype=torch.float64)
+
+        def log_proba() -> Tensor:
+            return _log_softmax(torch.addmm(bias, phi, weight).view(n, k + 1, m))
+
+        scores = torch.empty(len(grid), dtype=torch.float64)
+        solutions: list[tuple[Tensor, Tensor]] = []
+        for i, l2 in enumerate(grid):
+
+            def closure(l2: float = l2) -> Tensor:
+                log_p = log_proba()
+                loss = -(w_train * (target * log_p)).sum() + 0.5 * l2 * weight.square().sum()
+                residual = ((log_p.exp() - target) * w_train).view(n, (k + 1) * m)
+                weight.grad = torch.addmm(weight, phi.T, residual, beta=l2)
+                bias.grad = residual.sum(0)
+                return loss
+
+            _minimise([weight, bias], closure, max_iter=self.cv_max_iter,
+                      tolerance_grad=1e-7, tolerance_change=1e-10, history_size=_CV_HISTORY)
+            log_p = log_proba()
+            scores[i] = -(w_held * (target * log_p[:, :k])).sum()
+            solutions.append((weight[:, k * m:].T.clone(), bias[k * m:].clone()))
+        return scores, solutions
+
+    def _fit_cv(self, z: Tensor, r: Tensor, s: Tensor, settings: list[float | None]) -> None:
+        """Choose the basis setting and penalty by cross-validation, then refit on all rows."""
+        grid = self.l2_grid_ if self.l2 == "cv" else (float(self.l2),)
+        folds = self._folds(r)
+        scores = torch.empty(len(settings), len(grid), dtype=torch.float64)
+        best: tuple[float, int, int] | None = None
+        best_solution: tuple[Tensor, Tensor] | None = None
+        for g, setting in enumerate(settings):
+            scores[g], solutions = self._cv_path(self._expand(z, setting), r, s, folds, grid)
+            for i in range(len(grid)):
+                if best is None or float(scores[g, i]) < best[0]:
+                    best = (float(scores[g, i]), g, i)
+                    best_solution = solutions[i]
+        assert best is not None and best_solution is not None
+        _, g_best, i_best = best
+        l2 = grid[i_best]
+        phi = self._expand(z, settings[g_best])
+        with torch.no_grad():
+            keep_current = bool(self.fitted) and _penalised_loss(
+                phi, r, s, l2, self.weight, self.bias
+            ) < _penalised_loss(phi, r, s, l2, *best_solution)
+            if not keep_current:
+                self.weight.copy_(best_solution[0])
+                self.bias.copy_(best_solution[1])
+        self._apply_setting(settings[g_best])
+        if self.l2 == "cv":
+            self.chosen_l2.fill_(l2)
+        self.cv_scores_ = scores
+        self._fit_fixed(phi, r, s, l2, history_size=_CV_HISTORY, tolerance_grad=_CV_TOLERANCE)
+
+
+class FourierGate(SoftmaxGate):
+    r"""Softmax gate on random Fourier features of the standardised gate features.
+
+    The basis is :math:`\phi(z) = [z, \sqrt{2/K} \cos(z \Omega / \ell + b_\phi)]` with
+    :math:`\Omega \sim \mathcal{N}(0, I)` `(D, K)` and :math:`b_\phi \sim U[0, 2\pi)` `(K,)`
+    drawn from `seed` (buffers, so they are saved in the state dict), approximating a
+    squared-exponential kernel of lengthscale :math:`\ell` next to the linear terms. The
+    regression, its penalty (fixed or ``"cv"``) and its fitting are those of `SoftmaxGate`.
+
+    Args:
+        n_features: Number of gate features `D`.
+        n_experts: Number of experts `M`.
+        l2: Penalty :math:`\lambda` on all weights, or ``"cv"``.
+        n_random_features: `K`.
+        lengthscale: :math:`\ell` in standardised units; ``"median"`` for the median
+            pairwise distance of the standardised rows of each `fit`; ``"cv"`` to choose it
+            by the same cross-validation as `l2` from that median times each of
+            `lengthscale_factors`.
+        lengthscale_factors: Multiples of the median tried by ``lengthscale="cv"``.
+        max_iter: L-BFGS iterations of the final fit in each call to `fit`.
+        l2_grid: Penalties tried by ``l2="cv"``.
+        n_folds: Folds of the inner cross-validation.
+        cv_max_iter: L-BFGS iterations per penalty on the cross-validation path.
+        seed: Seed of :math:`\Omega`, :math:`b_\phi` and the folds.
+
+    Attributes:
+        weight: `W`, `(M, D + K)`.
+        bias: `b`, `(M,)`.
+        omega: :math:`\Omega`, `(D, K)`.
+        phase: :math:`b_\phi`, `(K,)`.
+        chosen_lengthscale: :math:`\ell` in use (NaN before a rule-based fit), scalar.
+    """
+
+    omega: Tensor
+    phase: Tensor
+    chosen_lengthscale: Tensor
+
+    def __init__(
+        self,
+        n_features: int,
+        n_experts: int,
+        *,
+        l2: float | str = "cv",
+        n_random_features: int = 128,
+        lengthscale: float | str = "median",
+        lengthscale_factors: Sequence[float] = (0.5, 1.0, 2.0),
+        max_iter: int = 200,
+        l2_grid: Sequence[float] | None = None,
+        n_folds: int = 3,
+        cv_max_iter: int = 10,
+        seed: int = 0,
+    ) -> None:
+        super().__init__(n_features, n_experts, l2=l2, max_iter=max_iter, l2_grid=l2_grid,
+                         n_folds=n_folds, cv_max_iter=cv_max_iter, seed=seed)
+        self.n_random_features = check_count("n_random_features", n_random_features)
+        if isinstance(lengthscale, str):
+            if lengthscale not in ("median", "cv"):
+                raise InputError(
+                    "lengthscale must be a number > 0, 'median' (median heuristic) or 'cv' "
+                    f"(cross-validated), got {lengthscale!r}."
+                )
+            initial = math.nan
+        else:
+            check_positive("lengthscale", lengthscale)
+            initial = float(lengthscale)
+        self.lengthscale: float | str = lengthscale if isinstance(lengthscale, str) else initial
+        self.lengthscale_factors = _check_grid("lengthscale_factors", lengthscale_factors,
+                                               allow_zero=False)
+        g = torch.Generator().manual_seed(self.seed)
+        k = self.n_random_features
+        self.register_buffer(
+            "omega", torch.randn(self.n_features, k, generator=g, dtype=torch.float64)
+        )
+        self.register_buffer(
+            "phase", 2.0 * math.pi * torch.rand(k, generator=g, dtype=torch.float64)
+        )
+        self.register_buffer("chosen_lengthscale", torch.tensor(initial, dtype=torch.float64))
+        self._reset_parameters(self.n_features + k)
+
+    @property
+    def lengthscale_(self) -> float:
+        """The lengthscale in use, in standardised units.
+
+        Raises:
+            NotFittedError: If it is set by a rule and the gate was never fitted.
+        """
+        value = float(self.chosen_lengthscale)
+        if math.isnan(value):
+            raise NotFittedError("FourierGate sets its lengthscale in fit; call fit first.")
+        return value
+
+    def _expand(self, z: Tensor, setting: float | None) -> Tensor:
+        assert setting is not None
+        k = self.n_random_features
+        waves = math.sqrt(2.0 / k) * torch.cos(z @ self.omega / setting + self.phase)
+        return torch.cat([z, waves], dim=-1)
+
+    def _settings(self, z: Tensor) -> list[float | None]:
+        if not isinstance(self.lengthscale, str):
+            return [self.lengthscale]
+        median = self._median_distance(z)
+        if self.lengthscale == "median":
+            return [median]
+        return [median * f for f in self.lengthscale_factors]
+
+    def _apply_setting(self, setting: float | None) -> None:
+        assert setting is not None
+        self.chosen_lengthscale.fill_(setting)
+
+    def _current_setting(self) -> float | None:
+        return self.lengthscale_
+
+    def _median_distance(self, z: Tensor) -> float:
+        """Median pairwise Euclidean distance of the rows of `z` `(N, D)` (1 if undefined)."""
+        if z.shape[0] > _MEDIAN_ROWS:
+            g = torch.Generator().manual_seed(self.seed)
+            z = z[torch.randperm(z.shape[0], generator=g)[:_MEDIAN_ROWS]]
+        if z.shape[0] < 2:
+            return 1.0
+        median = float(torch.pdist(z).median())
+        return median if median > 0.0 else 1.0
+
+
+_OPTIONS: dict[str, tuple[type[SoftmaxGate], tuple[str, ...]]] = {
+    "linear": (SoftmaxGate, ("max_iter", "l2_grid", "n_folds", "cv_max_iter")),
+    "fourier": (
+        FourierGate,
+        ("max_iter", "l2_grid", "n_folds", "cv_max_iter", "n_random_features", "lengthscale",
+         "lengthscale_factors"),
+    ),
+}
+
+
+def make_gate(
+    kind: str,
+    n_features: int,
+    n_experts: int,
+    *,
+    l2: float | str = "cv",
+    seed: int = 0,
+    **options: Any,
+) -> SoftmaxGate:
+    """Build a gate by name.
+
+    Args:
+        kind: ``"linear"`` (`SoftmaxGate`) or ``"fourier"`` (`FourierGate`).
+        n_features: Number of gate features `D`.
+        n_experts: Number of experts `M`.
+        l2: Penalty on the weights, or ``"cv"`` to choose it by cross-validation.
+        seed: Seed of the folds (and of the random features of ``"fourier"``).
+        **options: Further keyword arguments of the gate's class.
+
+    Returns:
+        An unfitted gate.
+
+    Raises:
+        InputError: For an unknown `kind` or option, or a bad argument value.
+    """
+    if not isinstance(kind, str) or kind not in _OPTIONS:
+        raise InputError(
+            f"kind must be one of {', '.join(repr(k) for k in GATE_KINDS)}, got {kind!r}."
+        )
+    cls, allowed = _OPTIONS[kind]
+    unknown = sorted(set(options) - set(allowed))
+    if unknown:
+        raise InputError(
+            f"unknown option(s) {', '.join(unknown)} for a {kind!r} gate; it accepts "
+            f"{', '.join(allowed)}."
+        )
+    return cls(n_features, n_experts, l2=l2, seed=seed, **options)
