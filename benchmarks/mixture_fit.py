@@ -53,7 +53,7 @@ def time_em(
     elapsed = time.perf_counter() - start
     prior = ", length-scale prior" if args.lengthscale_prior else ""
     print(f"EM: M={args.experts}{prior}, {history.n_iter} iterations in {elapsed:.2f} s")
-    print("  log-likelihood per iteration:", " ".join(f"{v:.1f}" for v in history.log_likelihood))
+    print("  objective per iteration:", " ".join(f"{v:.1f}" for v in history.objective))
     assign = history.responsibilities.argmax(1).numpy()
     print(f"  assignment purity {purity(assign, labels):.3f}")
     return model, elapsed

@@ -55,7 +55,8 @@ def main() -> None:
     print(f"EM  exact GPs on {a.em_n} rows:      {em_s:7.1f} s  held-out NLPD {em_nlpd:7.2f}  "
           f"mean RMSE {em_rmse:.3f}")
     if losses.size:
-        print(f"negative ELBO per sample: first {losses[0]:.1f}, last {losses[-1]:.1f}")
+        print(f"negative ELBO per sample: first {losses[0]:.1f}, last {losses[-1]:.1f}, "
+              f"min {losses.min():.4g}, max {losses.max():.4g}")
 
 
 if __name__ == "__main__":

@@ -8,8 +8,8 @@ from torch.distributions import MixtureSameFamily
 from probaff._threads import torch_threads
 from probaff.errors import InputError
 from probaff.models import MixtureOfGPExperts, NotFittedError, fit_em
-from probaff.models.synthetic import piecewise_1d
-from probaff.models.vi import SVIHistory, VariationalMixtureOfGPExperts, fit_svi
+from probaff.models.synthetic import piecewise_1d, regime_features
+from probaff.models.vi import SVGPExpert, SVIHistory, VariationalMixtureOfGPExperts, fit_svi
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -69,3 +69,61 @@ def test_svi_is_deterministic_and_validates_inputs():
         fit_svi(VariationalMixtureOfGPExperts(2), x, y[:-1], n_steps=1)
     with pytest.raises(InputError, match="unknown feature group"):
         VariationalMixtureOfGPExperts(2, gate_features=("f_x",))
+
+
+def _spike_ratio(loss: list[float], half_window: int = 5) -> float:
+    """Largest distance of a step's loss from the median of the steps around it.
+
+    Measured in units of the median absolute step-to-step change around it, so a steep
+    but smooth descent scores a few units and an isolated jump scores its size over the
+    local noise.
+
+    Args:
+        loss: Per-step losses, `(T,)`.
+        half_window: Steps on either side of the window.
+
+    Returns:
+        The largest ratio over all steps.
+    """
+    v = torch.tensor(loss, dtype=torch.float64)
+    jumps = v.diff().abs()
+    worst = 0.0
+    for i in range(len(v)):
+        lo, hi = max(0, i - half_window), min(len(v), i + half_window + 1)
+        scale = jumps[lo : hi - 1].median().clamp_min(1e-12)
+        worst = max(worst, float((v[i] - v[lo:hi].median()).abs() / scale))
+    return worst
+
+
+def test_svi_loss_has_no_spikes():
+    # With 10k rows Adam soon makes the Cholesky factor of q(u) ill-conditioned (condition
+    # number > 1e16); a single-sample KL estimate, which solves with that factor, then
+    # produced losses down to -1e126 per sample within these 30 steps.
+    x, y, _ = regime_features(10_000, 15, 6, seed=0)
+    vi = VariationalMixtureOfGPExperts(3, gate_features=[0, 1, 2], n_inducing=64)
+    loss = fit_svi(vi, x, y, n_steps=30, batch_size=256, seed=0).loss
+    assert len(loss) == 30 and all(math.isfinite(v) for v in loss)
+    # KL >= 0 and the gate penalty >= 0, so -ELBO / N is at least minus the largest
+    # Gaussian log-density, which the noise floor of 1e-6 (standardised units) caps.
+    floor = 0.5 * y.shape[1] * math.log(2 * math.pi * 1e-6)
+    assert min(loss) >= floor, min(loss)
+    assert _spike_ratio(loss) < 50, loss
+
+
+def test_expert_kl_is_closed_form_for_ill_conditioned_factor():
+    g = torch.Generator().manual_seed(0)
+    n_outputs, k = 2, 24
+    expert = SVGPExpert(torch.randn(n_outputs, k, 3, generator=g, dtype=torch.float64)).double()
+    variational = expert.variational_strategy._variational_distribution
+    diag = torch.full((n_outputs, k), 0.02, dtype=torch.float64)
+    diag[:, ::5] = 1e-9
+    chol = torch.diag_embed(diag) + 0.3 * torch.ones(k, k, dtype=torch.float64).tril(-1)
+    mean = torch.randn(n_outputs, k, generator=g, dtype=torch.float64)
+    with torch.no_grad():
+        variational.chol_variational_covar.copy_(chol)
+        variational.variational_mean.copy_(mean)
+    assert float(torch.linalg.cond(chol).min()) > 1e16
+    expected = 0.5 * (
+        chol.square().sum((-2, -1)) + mean.square().sum(-1) - k - diag.square().log().sum(-1)
+    )
+    torch.testing.assert_close(expert.kl_divergence(), expected, rtol=1e-10, atol=1e-8)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-from probaff._checks import check_positive
+from probaff._checks import check_count, check_positive
 from probaff.errors import InputError
 
 __all__ = [
@@ -57,20 +57,19 @@ def check_feature_spec(what: str, spec: FeatureSpec, groups: FeatureGroups | Non
 
 
 def check_mixture_args(n_experts: int, groups: FeatureGroups | None, gate_features: FeatureSpec,
-                       expert_features: FeatureSpec, gate_l2: float) -> int:
+                       expert_features: FeatureSpec, gate_l2: float | str) -> int:
     """Validate the arguments every mixture of experts takes; return `n_experts` as an int.
 
     Raises:
         InputError: For a non-positive or non-integer `n_experts`, an unknown feature group,
-            or a negative `gate_l2`.
+            or a `gate_l2` that is neither ``"cv"`` nor a number >= 0.
     """
-    check_positive("n_experts", n_experts)
-    if int(n_experts) != n_experts:
-        raise InputError(f"n_experts must be an integer, got {n_experts!r}.")
+    n_experts = check_count("n_experts", n_experts)
     check_feature_spec("gate_features", gate_features, groups)
     check_feature_spec("expert_features", expert_features, groups)
-    check_positive("gate_l2", gate_l2, allow_zero=True)
-    return int(n_experts)
+    if gate_l2 != "cv":
+        check_positive("gate_l2", gate_l2, allow_zero=True)
+    return n_experts
 
 
 def _group_columns(name: str, cols: slice | Sequence[int], n_features: int) -> list[int]:

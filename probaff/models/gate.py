@@ -270,13 +270,17 @@ class SoftmaxGate(torch.nn.Module):
         """
         return self.basis(x) @ self.weight.T + self.bias
 
-    def fit(self, X: Any, targets: Any, sample_weight: Any | None = None) -> SoftmaxGate:
+    def fit(self, X: Any, targets: Any, sample_weight: Any | None = None, *,
+            reuse_choice: bool = False) -> SoftmaxGate:
         """Fit the gate to soft targets.
 
         Args:
             X: Gate features, `(N, D)`.
             targets: Target probabilities whose rows sum to 1, `(N, M)`.
             sample_weight: Non-negative weights `s`, `(N,)`; uniform if ``None``.
+            reuse_choice: Keep the penalty (and basis setting) that the last
+                cross-validated fit chose instead of cross-validating again; EM uses this
+                between the iterations of one run. Ignored before the first fit.
 
         Returns:
             This gate.
@@ -295,6 +299,10 @@ class SoftmaxGate(torch.nn.Module):
         s = s / s.sum().clamp_min(_TINY)
         self.scaler.fit(x)
         z = self.scaler(x)
+        if reuse_choice and bool(self.fitted):
+            self._fit_fixed(self._expand(z, self._current_setting()), r, s, self.l2_,
+                            history_size=_CV_HISTORY, tolerance_grad=_CV_TOLERANCE)
+            return self
         settings = self._settings(z)
         if self.l2 == "cv" or len(settings) > 1:
             self._fit_cv(z, r, s, settings)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import contextlib
 import math
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import gpytorch
@@ -19,14 +19,14 @@ from linear_operator.utils.errors import NanError, NotPSDError
 from torch import Tensor
 from torch.distributions import Normal
 
-from probaff._checks import check_positive
+from probaff._checks import check_count, check_finite
 from probaff.errors import InputError, NotFittedError
 from probaff.models._scaling import Standardizer
 from probaff.models._tensors import as_matrix, as_vector
 from probaff.models.kernels import ard_se_kernel
 from probaff.models.likelihood import WeightedGaussianLikelihood
 
-__all__ = ["GPExpert", "exact_gp_settings"]
+__all__ = ["GPExpert", "exact_gp_settings", "noise_floor_vector"]
 
 # Diagonal jitter levels tried in turn when a kernel matrix is numerically singular.
 _JITTERS = (1e-8, 1e-6, 1e-4, 1e-2)
@@ -36,6 +36,35 @@ _OUTPUTSCALE_BOUNDS = (1e-4, 1e4)
 _NOISE_BOUNDS = (1e-6, 1e2)
 # Floor on predictive variances (in standardised output units).
 _MIN_VARIANCE = 1e-12
+
+
+def noise_floor_vector(
+    noise_floor: float | Sequence[float] | Tensor | None, n_outputs: int
+) -> Tensor:
+    """A noise floor (standard deviations in output units) as one value per output.
+
+    Args:
+        noise_floor: ``None`` (no floor), a scalar, or one value per output.
+        n_outputs: Number of outputs `E`.
+
+    Returns:
+        Non-negative standard deviations, `(E,)`, float64.
+
+    Raises:
+        InputError: For negative, NaN or infinite values, or the wrong number of values.
+    """
+    if noise_floor is None:
+        return torch.zeros(n_outputs, dtype=torch.float64)
+    floor = torch.as_tensor(noise_floor, dtype=torch.float64).flatten()
+    check_finite("noise_floor", floor)
+    if floor.numel() == 1:
+        floor = floor.expand(n_outputs)
+    if floor.numel() != n_outputs or bool((floor < 0).any()):
+        raise InputError(
+            f"noise_floor must be one non-negative standard deviation or {n_outputs} of them "
+            f"(one per output), got {noise_floor!r}."
+        )
+    return floor.clone()
 
 
 @contextlib.contextmanager
@@ -108,6 +137,11 @@ class GPExpert(torch.nn.Module):
         n_outputs: Number of outputs `E`.
         max_iter: L-BFGS iterations per call to `fit`.
         lengthscale_prior: Put the dimension-scaled log-normal prior on the length scales.
+        noise_floor: Smallest observation-noise standard deviation, in output units: a
+            scalar or one value per output `(E,)`. The noise variance is the learned one plus
+            the floor's square, so experts whose samples have (nearly) identical targets,
+            such as the exact zeros of an object that did not move, keep a finite noise
+            level and a meaningful predictive density. ``None`` (default) is no floor.
 
     Attributes:
         gp: The batched gpytorch model.
@@ -123,14 +157,12 @@ class GPExpert(torch.nn.Module):
         *,
         max_iter: int = 50,
         lengthscale_prior: bool = False,
+        noise_floor: float | Sequence[float] | Tensor | None = None,
     ) -> None:
         super().__init__()
-        check_positive("n_features", n_features)
-        check_positive("n_outputs", n_outputs)
-        check_positive("max_iter", max_iter)
-        self.n_features = int(n_features)
-        self.n_outputs = int(n_outputs)
-        self.max_iter = int(max_iter)
+        self.n_features = check_count("n_features", n_features)
+        self.n_outputs = check_count("n_outputs", n_outputs)
+        self.max_iter = check_count("max_iter", max_iter)
         self.lengthscale_prior = bool(lengthscale_prior)
         batch = torch.Size([self.n_outputs])
         self.likelihood = WeightedGaussianLikelihood(
@@ -148,6 +180,7 @@ class GPExpert(torch.nn.Module):
         self.x_scaler = Standardizer(self.n_features)
         self.y_scaler = Standardizer(self.n_outputs)
         self.register_buffer("jitter", torch.tensor(_JITTERS[0], dtype=torch.float64))
+        self.register_buffer("noise_floor", noise_floor_vector(noise_floor, self.n_outputs))
         self.to(torch.float64)
         self.reset_hyperparameters()
         self.eval()
@@ -204,6 +237,8 @@ class GPExpert(torch.nn.Module):
         x, y, w = x[keep], y[keep], w[keep]
         self.x_scaler.fit(x, w)
         self.y_scaler.fit(y, w)
+        floor = (self.noise_floor / self.y_scaler.std).square()
+        self.likelihood.noise_covar.floor.copy_(floor[:, None])
         self.likelihood.weights = w
         self.gp.set_train_data(self.x_scaler(x), self.y_scaler(y).T.contiguous(), strict=False)
         return self
@@ -304,6 +339,51 @@ class GPExpert(torch.nn.Module):
         var = var.clamp_min(_MIN_VARIANCE)
         mean = mean * self.y_scaler.std + self.y_scaler.mean
         std = var.sqrt() * self.y_scaler.std
+        return Normal(mean, std)
+
+    def loo_predict(self) -> Normal:
+        r"""Leave-one-out predictive distribution of every training sample.
+
+        For sample `i` of the training set, the distribution of a new observation at
+        :math:`x_i` (noise of weight 1) given every *other* training sample, from the
+        closed form of Rasmussen & Williams (2006, eq. 5.12): with
+        :math:`A = K + \sigma^2 W^{-1}` and :math:`\alpha = A^{-1}(y - m)`,
+        :math:`\mu_{-i} = y_i - \alpha_i / [A^{-1}]_{ii}` and the latent variance
+        :math:`1/[A^{-1}]_{ii} - \sigma^2 / w_i`. It costs one Cholesky factorisation.
+
+        Returns:
+            Independent normals with loc and scale `(n_train, E)`, in output units, one row
+            per training sample with non-zero weight, in the order given to `fit`.
+
+        Raises:
+            NotFittedError: If the expert has no training data yet.
+        """
+        if not self.is_fitted:
+            raise NotFittedError("GPExpert has no training data; call fit first.")
+        x = self.gp.train_inputs[0]
+        y = self.gp.train_targets  # (E, n), standardised
+        n = y.shape[-1]
+        self.eval()
+        with torch.no_grad(), exact_gp_settings(float(self.jitter)):
+            k = self.gp.covar_module(x.expand(self.n_outputs, n, x.shape[-1])).to_dense()
+            noise = self.likelihood.noise  # (E, 1)
+            own = noise / self.likelihood.weights  # (E, n)
+            eye = torch.eye(n, dtype=k.dtype)
+            a = k + torch.diag_embed(own)
+            chol, info = torch.linalg.cholesky_ex(a + float(self.jitter) * eye)
+            for jitter in _JITTERS:
+                if not bool(info.any()):
+                    break
+                chol, info = torch.linalg.cholesky_ex(a + jitter * eye)
+            resid = y - self.gp.mean_module.constant[:, None]
+            alpha = torch.cholesky_solve(resid[..., None], chol)[..., 0]
+            chol_inv = torch.linalg.solve_triangular(chol, eye.expand_as(chol), upper=False)
+            diag_inv = chol_inv.square().sum(-2)  # diag(A^-1), (E, n)
+            mean = y - alpha / diag_inv
+            latent = (1.0 / diag_inv - own).clamp_min(_MIN_VARIANCE)
+            var = latent + noise
+        mean = mean.T * self.y_scaler.std + self.y_scaler.mean
+        std = var.T.sqrt() * self.y_scaler.std
         return Normal(mean, std)
 
     def log_prob(self, X: Any, Y: Any) -> Tensor:

@@ -49,16 +49,27 @@ class WeightedNoise(Noise):
             "raw_noise", GreaterThan(1e-6) if noise_constraint is None else noise_constraint
         )
         self.register_buffer("weights", torch.ones(0, dtype=torch.float64), persistent=False)
+        self.register_buffer("floor", torch.zeros(*batch_shape, 1, dtype=torch.float64))
 
     @property
     def noise(self) -> Tensor:
-        r""":math:`\sigma^2`, `(*batch_shape, 1)`."""
-        return self.raw_noise_constraint.transform(self.raw_noise)
+        r"""Noise variance :math:`\sigma^2_{\text{free}} + \sigma^2_{\text{floor}}`, `(*b, 1)`.
+
+        The learnable part is kept inside the constraint; the buffer `floor` (a variance,
+        `(*batch_shape, 1)`, zero by default) is added on top, so no fit can take the noise
+        below it.
+        """
+        return self.raw_noise_constraint.transform(self.raw_noise) + self.floor
 
     @noise.setter
     def noise(self, value: Tensor | float) -> None:
         value = torch.as_tensor(value, dtype=self.raw_noise.dtype).expand_as(self.raw_noise)
-        self.initialize(raw_noise=self.raw_noise_constraint.inverse_transform(value))
+        c = self.raw_noise_constraint
+        lo, hi = float(c.lower_bound.max()), float(c.upper_bound.min())
+        free = (value - self.floor).clamp_min(1.01 * lo + 1e-300)
+        if math.isfinite(hi):
+            free = free.clamp_max(0.99 * hi)
+        self.initialize(raw_noise=self.raw_noise_constraint.inverse_transform(free))
 
     def forward(
         self,

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import torch
 from torch import Tensor
 from torch.distributions import Categorical, Independent, MixtureSameFamily, Normal
 
-from probaff._checks import check_positive
+from probaff._checks import check_count
 from probaff.errors import InputError, NotFittedError
 from probaff.models._tensors import as_matrix
 from probaff.models.columns import (
@@ -18,10 +19,13 @@ from probaff.models.columns import (
     resolve_features,
     resolve_groups,
 )
-from probaff.models.gate import SoftmaxGate
-from probaff.models.gp_expert import GPExpert
+from probaff.models.gate import GATE_KINDS, SoftmaxGate, make_gate
+from probaff.models.gp_expert import GPExpert, noise_floor_vector
 
-__all__ = ["MixtureOfGPExperts", "mixture_distribution", "training_data"]
+__all__ = ["MixtureOfGPExperts", "gated_probs", "mixture_distribution", "training_data"]
+
+# Noise floor of `noise_floor="auto"`, as a fraction of each effect's standard deviation.
+_AUTO_NOISE_FLOOR = 0.01
 
 _NOT_FITTED = "MixtureOfGPExperts is not fitted; call probaff.models.fit_em(model, X, Y) first."
 
@@ -75,6 +79,26 @@ def mixture_distribution(probs: Tensor, components: Normal) -> MixtureSameFamily
     return MixtureSameFamily(Categorical(probs=probs), Independent(components, 1))
 
 
+def gated_probs(probs: Tensor, gating: str) -> Tensor:
+    """Mixture weights for a gating mode: the gate's probabilities or their one-hot argmax.
+
+    Args:
+        probs: Gate probabilities, `(N, M)`.
+        gating: ``"soft"`` (the probabilities) or ``"hard"`` (the most probable expert).
+
+    Returns:
+        Mixture weights, `(N, M)`.
+
+    Raises:
+        InputError: For an unknown `gating`.
+    """
+    if gating == "soft":
+        return probs
+    if gating == "hard":
+        return torch.nn.functional.one_hot(probs.argmax(1), probs.shape[1]).to(probs.dtype)
+    raise InputError(f"gating must be 'soft' or 'hard', got {gating!r}.")
+
+
 class MixtureOfGPExperts(torch.nn.Module):
     r"""Mixture of `M` GP experts: :math:`p(e \mid f) = \sum_j g_j(f_g)\, p_j(e \mid f_e)`.
 
@@ -90,10 +114,18 @@ class MixtureOfGPExperts(torch.nn.Module):
         groups: Named column groups (slices or index lists of the feature matrix).
         gate_features: Gate columns: ``None`` (all), group name(s) or column indices.
         expert_features: Expert columns, shared by every expert, in the same forms.
-        gate_l2: L2 penalty of the gate's weights.
+        gate: Kind of gate: ``"linear"`` (the thesis's softmax on the gate features) or
+            ``"fourier"`` (softmax on random Fourier features, for regimes that no
+            hyperplane separates); see `probaff.models.gate.make_gate`.
+        gate_l2: L2 penalty of the gate's weights, or ``"cv"`` (default) to choose it by
+            inner 3-fold cross-validation at every fit of the gate.
         gp_max_iter: L-BFGS iterations per expert fit.
         lengthscale_prior: Give the experts' length scales the dimension-scaled log-normal
             prior (see `GPExpert`).
+        noise_floor: Smallest observation-noise standard deviation of every expert, in
+            effect units: ``"auto"`` (default) is 1 % of each effect's standard deviation
+            over the training set; a scalar or one value per effect sets it (for data from
+            a sensor, its measurement noise); ``None`` is no floor. See `GPExpert`.
 
     Raises:
         InputError: If a selection names an unknown group or `n_experts` is not positive.
@@ -106,18 +138,32 @@ class MixtureOfGPExperts(torch.nn.Module):
         groups: FeatureGroups | None = None,
         gate_features: FeatureSpec = None,
         expert_features: FeatureSpec = None,
-        gate_l2: float = 1e-3,
+        gate: str = "linear",
+        gate_l2: float | str = "cv",
         gp_max_iter: int = 50,
         lengthscale_prior: bool = False,
+        noise_floor: float | Sequence[float] | str | None = "auto",
     ) -> None:
         super().__init__()
         self.n_experts = check_mixture_args(n_experts, groups, gate_features, expert_features,
                                             gate_l2)
-        check_positive("gp_max_iter", gp_max_iter)
+        check_count("gp_max_iter", gp_max_iter)
+        if isinstance(noise_floor, str) and noise_floor != "auto":
+            raise InputError(
+                f"noise_floor must be 'auto', None, or standard deviations, got {noise_floor!r}."
+            )
+        if not isinstance(noise_floor, str):
+            noise_floor_vector(noise_floor, 1 if noise_floor is None else
+                               torch.as_tensor(noise_floor).numel())
+        self.noise_floor = (noise_floor if noise_floor is None or isinstance(noise_floor, str)
+                            else [float(v) for v in torch.as_tensor(noise_floor).flatten()])
         self.groups = dict(groups or {})
         self.gate_features = gate_features
         self.expert_features = expert_features
-        self.gate_l2 = float(gate_l2)
+        if gate not in GATE_KINDS:
+            raise InputError(f"gate must be one of {list(GATE_KINDS)}, got {gate!r}.")
+        self.gate_kind = gate
+        self.gate_l2: float | str = gate_l2 if isinstance(gate_l2, str) else float(gate_l2)
         self.gp_max_iter = int(gp_max_iter)
         self.lengthscale_prior = bool(lengthscale_prior)
         self.n_features: int | None = None
@@ -143,9 +189,11 @@ class MixtureOfGPExperts(torch.nn.Module):
             "groups": groups,
             "gate_features": _plain(self.gate_features),
             "expert_features": _plain(self.expert_features),
+            "gate": self.gate_kind,
             "gate_l2": self.gate_l2,
             "gp_max_iter": self.gp_max_iter,
             "lengthscale_prior": self.lengthscale_prior,
+            "noise_floor": self.noise_floor,
         }
 
     @property
@@ -167,7 +215,7 @@ class MixtureOfGPExperts(torch.nn.Module):
         if not self.is_fitted:
             raise NotFittedError(_NOT_FITTED)
 
-    def build(self, n_features: int, n_outputs: int) -> None:
+    def build(self, n_features: int, n_outputs: int, noise_floor: Tensor | None = None) -> None:
         """Resolve the feature selections and create a fresh gate and fresh experts.
 
         Called by `fit_em` (so every fit starts from the same initial state) and `load`.
@@ -175,7 +223,14 @@ class MixtureOfGPExperts(torch.nn.Module):
         Args:
             n_features: Columns `D` of the feature matrix.
             n_outputs: Effect dimensions `E`.
+            noise_floor: The experts' noise floor in effect units, `(E,)`; defaults to the
+                constructor's value (``"auto"`` then means no floor until `check_data`
+                resolves it from the training data).
         """
+        if noise_floor is None:
+            noise_floor = (torch.zeros(n_outputs, dtype=torch.float64)
+                           if self.noise_floor is None or isinstance(self.noise_floor, str)
+                           else noise_floor_vector(self.noise_floor, n_outputs))
         self.gate_columns = resolve_features(
             "gate_features", self.gate_features, self.groups, n_features
         )
@@ -183,13 +238,15 @@ class MixtureOfGPExperts(torch.nn.Module):
             "expert_features", self.expert_features, self.groups, n_features
         )
         self.n_features, self.n_outputs = int(n_features), int(n_outputs)
-        self.gate = SoftmaxGate(len(self.gate_columns), self.n_experts, l2=self.gate_l2)
+        self.gate = make_gate(self.gate_kind, len(self.gate_columns), self.n_experts,
+                              l2=self.gate_l2)
         self.experts = torch.nn.ModuleList(
             GPExpert(
                 len(self.expert_columns),
                 n_outputs,
                 max_iter=self.gp_max_iter,
                 lengthscale_prior=self.lengthscale_prior,
+                noise_floor=noise_floor,
             )
             for _ in range(self.n_experts)
         )
@@ -214,8 +271,16 @@ class MixtureOfGPExperts(torch.nn.Module):
             InputError: For NaN/inf, empty or mismatched inputs, or more experts than samples.
         """
         x, y = training_data(X, Y, self.n_experts)
-        self.build(x.shape[1], y.shape[1])
+        self.build(x.shape[1], y.shape[1], self.resolve_noise_floor(y))
         return x, y
+
+    def resolve_noise_floor(self, Y: Tensor) -> Tensor:
+        """The experts' noise floor for training effects `Y: (N, E)`, in effect units, `(E,)`."""
+        if self.noise_floor is None:
+            return torch.zeros(Y.shape[1], dtype=torch.float64)
+        if isinstance(self.noise_floor, str):
+            return _AUTO_NOISE_FLOOR * Y.std(dim=0, correction=0)
+        return noise_floor_vector(self.noise_floor, Y.shape[1])
 
     # --------------------------------------------------------------- fitting
     def fit_experts(
@@ -250,14 +315,17 @@ class MixtureOfGPExperts(torch.nn.Module):
     def _set_train_data(self, X: Tensor, Y: Tensor, weights: Tensor) -> None:
         self.train_X, self.train_Y, self.train_weights = X, Y, weights.clone()
 
-    def fit_gate(self, X: Tensor, responsibilities: Tensor) -> None:
+    def fit_gate(self, X: Tensor, responsibilities: Tensor, *, reuse_choice: bool = False
+                 ) -> None:
         """Refit the gate to soft targets (the gate's half of the M-step).
 
         Args:
             X: Features, `(N, D)`.
             responsibilities: Rows summing to 1, `(N, M)`.
+            reuse_choice: Keep the gate's cross-validated penalty from its last fit.
         """
-        self._built_gate().fit(X[:, self.gate_columns], responsibilities)
+        self._built_gate().fit(X[:, self.gate_columns], responsibilities,
+                               reuse_choice=reuse_choice)
 
     # ------------------------------------------------------------ prediction
     def gate_probs(self, X: Any) -> Tensor:
@@ -290,17 +358,25 @@ class MixtureOfGPExperts(torch.nn.Module):
             torch.stack([p.loc for p in preds], dim=1), torch.stack([p.scale for p in preds], dim=1)
         )
 
-    def predict(self, X: Any) -> MixtureSameFamily:
+    def predict(self, X: Any, *, gating: str = "soft") -> MixtureSameFamily:
         """Predictive distribution of the effects, one mixture per sample.
 
         Args:
             X: Features, `(N, D)`.
+            gating: ``"soft"`` (default) weights every expert by its gate probability (the
+                model's predictive distribution); ``"hard"`` uses only the most probable
+                expert of each sample (a one-component mixture, for comparison with models
+                that pick one expert).
 
         Returns:
             Mixture over `M` of independent normals over `E`: batch shape `(N,)`,
             event shape `(E,)`, with `mean`, `variance`, `sample()` and `log_prob(Y)`.
+
+        Raises:
+            InputError: For an unknown `gating`.
         """
-        return mixture_distribution(self.gate_probs(X), self.expert_predictions(X))
+        return mixture_distribution(gated_probs(self.gate_probs(X), gating),
+                                    self.expert_predictions(X))
 
     def log_joint(self, X: Any, Y: Any) -> Tensor:
         """`log p(m = j | f_i) + log p_j(e_i | f_i)` for every sample and expert.
@@ -318,6 +394,37 @@ class MixtureOfGPExperts(torch.nn.Module):
         log_gate = self._built_gate().log_proba(x[:, self.gate_columns])
         log_lik = self.expert_predictions(x).log_prob(y[:, None, :]).sum(-1)
         return log_gate + log_lik
+
+    def loo_log_joint(self, X: Tensor, Y: Tensor) -> Tensor:
+        """Like `log_joint` on the training set, with leave-one-out expert densities.
+
+        Expert `j`'s density of a sample it was trained on is its leave-one-out predictive
+        density (`GPExpert.loo_predict`): the sample's own target is not used to predict it.
+        A sample that expert `j` holds no weight of is scored by its ordinary predictive
+        density, which is already out-of-sample. This removes the bias of in-sample GP
+        densities towards the expert that already holds a sample, which otherwise locks EM
+        into its initial assignment (Rasmussen & Ghahramani, 2002, score the assignment of
+        a sample the same way).
+
+        Args:
+            X: The training features, `(N, D)`.
+            Y: The training effects, `(N, E)`.
+
+        Returns:
+            Log joint densities, `(N, M)`.
+        """
+        self.check_fitted()
+        if self.train_weights is None or self.train_weights.shape[0] != X.shape[0]:
+            raise InputError("loo_log_joint needs the training set the mixture was fitted on.")
+        log_gate = self._built_gate().log_proba(X[:, self.gate_columns])
+        pred = self.expert_predictions(X)
+        loc, scale = pred.loc.clone(), pred.scale.clone()
+        for j, expert in enumerate(self.experts):
+            held = self.train_weights[:, j] > 0
+            loo = expert.loo_predict()  # type: ignore[operator]
+            loc[held, j] = loo.loc
+            scale[held, j] = loo.scale
+        return log_gate + Normal(loc, scale).log_prob(Y[:, None, :]).sum(-1)
 
     def lengthscales(self) -> list[Tensor]:
         """ARD length scales of every expert (standardised units; short means relevant).

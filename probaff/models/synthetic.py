@@ -106,7 +106,7 @@ def softmax_regimes(n: int, *, seed: int = 0) -> tuple[Tensor, Tensor, Tensor]:
     x = torch.rand(n, 4, generator=g, dtype=torch.float64) * 4 - 2
     angles = torch.tensor([0.0, 2.0, 4.0], dtype=torch.float64) * torch.pi / 3
     directions = torch.stack([angles.cos(), angles.sin()], dim=1)
-    probs = torch.softmax(4.0 * (x[:, :2] @ directions.T), dim=1)
+    probs = torch.softmax(40.0 * (x[:, :2] @ directions.T), dim=1)
     labels = torch.multinomial(probs, 1, generator=g)[:, 0]
     a, b = x[:, 2], x[:, 3]
     means = torch.stack([

@@ -1,10 +1,11 @@
-"""Stochastic variational inference for a mixture of sparse GP experts with Pyro.
+r"""Stochastic variational inference for a mixture of sparse GP experts with Pyro.
 
 The same generative model as `MixtureOfGPExperts`, trained by minibatch SVI instead of EM:
-each expert is a gpytorch `ApproximateGP` (SVGP with learned inducing points) whose
-inducing values are Pyro sample sites (`pyro_model` / `pyro_guide` with one `name_prefix`
-per expert), and each sample's expert assignment is a discrete latent variable that
-`TraceEnum_ELBO` sums out exactly.
+each expert is a gpytorch `ApproximateGP` (SVGP with learned inducing points and a
+whitened Gaussian q(u)), and each sample's expert assignment is a discrete latent variable
+that `TraceEnum_ELBO` sums out exactly. Both the expected log-likelihood and
+:math:`\mathrm{KL}(q(u) \Vert p(u))` enter the ELBO in closed form, so the only
+Monte Carlo noise is the minibatch.
 """
 
 from __future__ import annotations
@@ -36,8 +37,8 @@ from probaff.models.columns import (
     check_mixture_args,
     resolve_features,
 )
-from probaff.models.em import initial_responsibilities
 from probaff.models.gate import SoftmaxGate
+from probaff.models.initialization import initial_responsibilities
 from probaff.models.kernels import ard_se_kernel
 from probaff.models.mixture import mixture_distribution, training_data
 
@@ -99,19 +100,21 @@ class SVGPExpert(gpytorch.models.ApproximateGP):
         """Prior over the `E` outputs at `x: (..., n, D)`, batch `(E,)`."""
         return gpytorch.distributions.MultivariateNormal(self.mean_module(x), self.covar_module(x))
 
-    def inducing_site(self, x: Tensor, name_prefix: str, *, guide: bool) -> None:
-        r"""Register this expert's inducing-value site, ``{name_prefix}.u``.
+    def kl_divergence(self) -> Tensor:
+        r"""Closed-form :math:`\mathrm{KL}(q(u) \Vert p(u))` of every output, `(E,)`.
 
-        In the model the site has the GP prior p(u) (plus any gpytorch priors); in the
-        guide it has q(u), so the ELBO holds :math:`-\mathrm{KL}(q(u) \Vert p(u))`.
-
-        Args:
-            x: Standardised inputs of a minibatch, `(B, D)`.
-            name_prefix: Prefix of this expert's Pyro sites.
-            guide: Register q(u) (guide) rather than p(u) (model).
+        With whitened inducing values, :math:`p(u) = \mathcal N(0, I)` and
+        :math:`q(u) = \mathcal N(m, L L^T)`, so the KL is
+        :math:`\tfrac12 (\lVert L \rVert_F^2 + \lVert m \rVert^2 - K
+        - \sum_k \log L_{kk}^2)`: products with `L` and logs of its diagonal, no solve
+        with it. It therefore stays exact however ill-conditioned `L` becomes, whereas the
+        single-sample estimate :math:`\log q(u) - \log p(u)` at :math:`u = m + L\epsilon`
+        needs :math:`L^{-1}(u - m)`, whose round-off grows with the condition number of
+        `L`. Unconstrained Adam steps on the entries of `L` readily drive that condition
+        number past :math:`10^{16}`, where the estimate becomes arbitrarily negative.
         """
-        call = self.pyro_guide if guide else self.pyro_model
-        call(x.expand(self.n_outputs, *x.shape[-2:]), name_prefix=name_prefix)
+        kl: Tensor = self.variational_strategy.kl_divergence()
+        return kl
 
     def moments(self, x: Tensor) -> tuple[Tensor, Tensor]:
         """Mean and variance of q(f) at `x: (B, D)`, each `(B, E)`.
@@ -263,22 +266,29 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
 
     @config_enumerate
     def model(self, x_g: Tensor, x_e: Tensor, y: Tensor, idx: Tensor) -> None:
-        """Pyro model on standardised data; `idx` are the minibatch rows, `(B,)`."""
+        """Pyro model on standardised data; `idx` are the minibatch rows, `(B,)`.
+
+        Global factors: the gate's L2 penalty and every expert's closed-form KL. In the
+        subsampled plate (scaled by `N / B`): each sample's expected log-likelihood under
+        its expert `m`, which `TraceEnum_ELBO` enumerates.
+        """
         pyro.module("mixture", self)
         gate = self._built_gate()
         n = x_g.shape[0]
         pyro.factor("gate.l2", -0.5 * self.gate_l2 * n * gate.weight.square().sum())
         for j, expert in enumerate(self.experts):
-            expert.inducing_site(x_e[idx], f"expert{j}", guide=False)  # type: ignore[operator]
+            pyro.factor(f"expert{j}.kl", -expert.kl_divergence().sum())  # type: ignore[operator]
         with pyro.plate("data", n, subsample=idx):
             ell = self.expected_log_lik(x_e[idx], y[idx])
             m = pyro.sample("m", dist.Categorical(logits=gate.logits(x_g[idx])))
             pyro.factor("e", Vindex(ell)[..., m])
 
     def guide(self, x_g: Tensor, x_e: Tensor, y: Tensor, idx: Tensor) -> None:
-        """Pyro guide: q(u) of every expert."""
-        for j, expert in enumerate(self.experts):
-            expert.inducing_site(x_e[idx], f"expert{j}", guide=True)  # type: ignore[operator]
+        """Pyro guide without sample sites.
+
+        q(u) enters the ELBO through `SVGPExpert.kl_divergence` and q(f) through
+        `expected_log_lik`, both in the model; the assignments are enumerated there.
+        """
 
     # ------------------------------------------------------------ prediction
     def _built_gate(self) -> SoftmaxGate:
@@ -347,7 +357,7 @@ def fit_svi(
         batch_size: Minibatch size (capped at `N`).
         lr: Adam step size.
         n_init: Restarts of the initial Gaussian mixture.
-        seed: Seed of the initialisation, minibatches and Monte Carlo samples.
+        seed: Seed of the initialisation and the minibatches.
 
     Returns:
         The per-step losses.
@@ -359,7 +369,7 @@ def fit_svi(
     check_positive("batch_size", batch_size)
     check_positive("lr", lr)
     x, y = training_data(X, Y, model.n_experts)
-    resp, _ = initial_responsibilities(y, model.n_experts, n_init=n_init, seed=seed)
+    resp = initial_responsibilities("effects", x, y, model.n_experts, n_init=n_init, seed=seed)
     model.fitted = False
     model.build(x, y, resp)
     x_scaler, y_scaler = model._scalers()

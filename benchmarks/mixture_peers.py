@@ -1,0 +1,608 @@
+"""Side-by-side cross-validation of probaff's push-effect models against standard peers.
+
+Every model is fitted on the same K folds (``KFold(shuffle=True, random_state=seed)``) of
+each data set, in the same run, and scored on the held-out fold by
+
+* NLPD per test point (nats): the per-output marginal NLPDs of `probaff.eval.metrics.nlpd`
+  summed over the outputs, averaged over test points; the joint ``-log p(y)`` of the full
+  predictive is recorded too (``nlpd_joint``; equal to NLPD for a single Gaussian);
+* RMSE of the predictive mean per output, and their mean after dividing each by the standard
+  deviation of that output over the whole data set (``srmse``);
+* coverage of the central 90 % predictive interval, averaged over the outputs;
+* wall-clock seconds of fit plus predict (one torch and one BLAS thread per task; each
+  process first fits every model once on a tiny problem, untimed, so that imports and other
+  one-time costs do not land on the first fold).
+
+Models (``MODELS``; each is ``fit_predict(X_train, Y_train, X_test, seed, *, n_experts,
+budget) -> Distribution`` with batch shape ``(N_test,)`` and event shape ``(E,)``):
+
+* ``single_gp``: one `GPExpert` (independent SE-ARD GPs per output, length-scale prior).
+* ``ccr``: cluster-classify-regress. ``[X, Y]`` are standardised jointly and clustered by a
+  ``GaussianMixture`` with M components and 10 restarts (full covariances when the training
+  fold has at least ``2 * M * (D + E)`` rows, diagonal ones otherwise); a multinomial
+  ``LogisticRegression`` (C = 1) on standardised X is the gate; each cluster gets one
+  scikit-learn ``GaussianProcessRegressor`` per output dimension (``ConstantKernel * RBF``
+  with one length scale per feature, ``+ WhiteKernel``, ``normalize_y=True``, 2 optimizer
+  restarts) on standardised X. The prediction mixes the clusters' Gaussian predictive
+  distributions (noise included) with the gate's probabilities.
+* ``clustered``: chapter 4's `ClusteredGPModel` with the SVM's calibrated probabilities as a
+  soft gate, clustering on effect columns (0, 1) (column 0 for one-output data).
+* ``em``: `MixtureOfGPExperts` fitted by `fit_em` with its defaults. When `fit_em` takes an
+  ``init`` argument, ``em_effects``, ``em_joint`` and ``em_grow`` run it with that
+  initialisation.
+* ``vi``: `VariationalMixtureOfGPExperts` (``min(32, N)`` inducing points) fitted by
+  `fit_svi`.
+
+Every mixture uses the data set's M (3 for all data sets below) so that the comparison is of
+methods, not of model sizes. Gates and experts see every feature column.
+
+Data sets (fixed data, seed 0; the CLI seed sets folds and fits only):
+
+* ``ch5``: 321 simulated two-object pushes, features f_o & f_c (21 columns), 6 effects
+  (dy, dz, dth of both objects); generated under ``OUT/data/`` on first use (about 15 s).
+* ``ch4``: 120 simulated single-object pushes near an obstacle, f_o & f_c (55 columns),
+  3 effects.
+* ``synthetic``: ``softmax_regimes(400, seed=0)``, three softmax-gated regimes that overlap
+  in output space (4 inputs, 2 outputs).
+* ``diabetes``: scikit-learn's diabetes data (442 patients, 10 standardised baseline
+  variables, disease progression after one year).
+* ``engel``: statsmodels' Engel data (235 Belgian households in 1857, food expenditure
+  against income), kept in its original units (Belgian francs) so that the spread of food
+  expenditure growing with income stays in the data; every model standardises internally.
+
+Results: ``OUT/tasks/`` holds one JSON file per (data set, model, fold), written as soon as
+that fit is scored, so an interrupted run resumes where it stopped; a fit that raises is
+stored with its error (delete its file to retry). ``OUT/peers.csv`` has one row per data
+set, model and fold, ``OUT/peers.md`` the mean and a 95 % t-interval over folds per data set
+(best NLPD in bold), and ``OUT/peers.png`` NLPD by model per data set.
+
+Usage::
+
+    python benchmarks/mixture_peers.py [--datasets ch5,synthetic] [--models em,ccr]
+        [--folds 5] [--seed 0] [--out results/mixture_peers] [--workers 0] [--smoke]
+
+``--smoke`` uses 60 rows per data set, 2 folds (unless ``--folds`` is given) and a few
+optimiser iterations; ``--workers K`` runs the fits on a local Dask cluster of K processes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import csv
+import functools
+import hashlib
+import inspect
+import io
+import json
+import math
+import sys
+import time
+import warnings
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+import torch
+from matplotlib.figure import Figure
+from scipy import stats
+from sklearn.model_selection import KFold
+from threadpoolctl import threadpool_limits
+from torch.distributions import Distribution, Independent, Normal
+
+from probaff._io import atomic_save_figure, atomic_write_text
+from probaff._threads import torch_threads
+from probaff.eval.metrics import interval_coverage, nlpd, rmse
+from probaff.eval.tasks import ResultStore, run_tasks
+from probaff.models import (
+    ClusteredGPModel,
+    GPExpert,
+    MixtureOfGPExperts,
+    VariationalMixtureOfGPExperts,
+    fit_em,
+    fit_svi,
+)
+from probaff.models.mixture import mixture_distribution
+
+SMOKE_ROWS = 60
+"""Rows per data set under ``--smoke``."""
+
+
+# ------------------------------------------------------------------------------ budgets
+@dataclass(frozen=True)
+class Budget:
+    """Optimiser effort shared by every model.
+
+    Attributes:
+        gp_iter: L-BFGS iterations per probaff GP expert fit.
+        em_iter: EM iterations.
+        svi_steps: SVI steps.
+        sk_restarts: Optimizer restarts of each scikit-learn GP.
+    """
+
+    gp_iter: int = 50
+    em_iter: int = 10
+    svi_steps: int = 1500
+    sk_restarts: int = 2
+
+
+FULL = Budget()
+SMOKE = Budget(gp_iter=5, em_iter=2, svi_steps=20, sk_restarts=0)
+
+
+# ------------------------------------------------------------------------------- models
+class FitPredict(Protocol):
+    """Fit on a training fold and return the predictive distribution at the test inputs."""
+
+    def __call__(self, X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray,
+                 seed: int, *, n_experts: int = 3, budget: Budget = FULL) -> Distribution: ...
+
+
+def single_gp(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int, *,
+              n_experts: int = 3, budget: Budget = FULL) -> Distribution:
+    """One probaff GP expert over all the data (`seed` and `n_experts` are unused)."""
+    gp = GPExpert(X_train.shape[1], Y_train.shape[1], max_iter=budget.gp_iter,
+                  lengthscale_prior=True).fit(X_train, Y_train)
+    return Independent(gp.predict(X_test), 1)
+
+
+def ccr(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int, *,
+        n_experts: int = 3, budget: Budget = FULL) -> Distribution:
+    """Cluster [X, Y] with a GMM, gate with logistic regression, one sklearn GP per cluster."""
+    from sklearn.gaussian_process import GaussianProcessRegressor
+    from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
+    from sklearn.linear_model import LogisticRegression
+    from sklearn.mixture import GaussianMixture
+    from sklearn.preprocessing import StandardScaler
+
+    n, d = X_train.shape
+    e = Y_train.shape[1]
+    joint = StandardScaler().fit_transform(np.hstack([X_train, Y_train]))
+    covariance = "full" if n >= 2 * n_experts * (d + e) else "diag"
+    gmm = GaussianMixture(n_experts, covariance_type=covariance, n_init=10,
+                          random_state=seed, reg_covar=1e-6)
+    labels = gmm.fit_predict(joint)
+    classes = np.unique(labels)
+    x_scaler = StandardScaler().fit(X_train)
+    xs, xt = x_scaler.transform(X_train), x_scaler.transform(X_test)
+    if len(classes) > 1:
+        gate = LogisticRegression(C=1.0, max_iter=1000).fit(xs, labels)
+        probs = gate.predict_proba(xt)  # columns in the order of `classes`
+    else:
+        probs = np.ones((len(X_test), 1))
+    loc = np.empty((len(X_test), len(classes), e))
+    scale = np.empty_like(loc)
+    for k, c in enumerate(classes):
+        rows = labels == c
+        for j in range(e):
+            kernel = (ConstantKernel(1.0) * RBF(np.ones(d), length_scale_bounds=(1e-3, 1e5))
+                      + WhiteKernel(0.1, noise_level_bounds=(1e-6, 1e1)))
+            gpr = GaussianProcessRegressor(kernel, normalize_y=True, random_state=seed,
+                                           n_restarts_optimizer=budget.sk_restarts)
+            gpr.fit(xs[rows], Y_train[rows, j])
+            mean, std = gpr.predict(xt, return_std=True)
+            loc[:, k, j], scale[:, k, j] = mean, np.maximum(std, 1e-9)
+    return mixture_distribution(torch.as_tensor(probs, dtype=torch.float64),
+                                Normal(torch.as_tensor(loc), torch.as_tensor(scale)))
+
+
+def clustered(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int, *,
+              n_experts: int = 3, budget: Budget = FULL) -> Distribution:
+    """Chapter 4's GMM-clustered GP experts with a soft (calibrated SVM) gate."""
+    dims = (0, 1) if Y_train.shape[1] > 1 else (0,)
+    model = ClusteredGPModel(n_experts, cluster_dims=dims, seed=seed, soft_gate=True,
+                             expert_kwargs={"lengthscale_prior": True,
+                                            "max_iter": budget.gp_iter})
+    return model.fit(X_train, Y_train).predict(X_test)
+
+
+def em(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int, *,
+       n_experts: int = 3, budget: Budget = FULL,
+       fit: Callable[..., Any] = fit_em) -> Distribution:
+    """probaff's mixture of GP experts fitted by EM (`fit` is `fit_em` or a partial of it)."""
+    model = MixtureOfGPExperts(n_experts, gp_max_iter=budget.gp_iter, lengthscale_prior=True)
+    fit(model, X_train, Y_train, seed=seed, max_iter=budget.em_iter)
+    return model.predict(X_test)
+
+
+def vi(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int, *,
+       n_experts: int = 3, budget: Budget = FULL) -> Distribution:
+    """probaff's mixture of sparse variational GP experts fitted by Pyro SVI."""
+    model = VariationalMixtureOfGPExperts(n_experts, n_inducing=min(32, len(X_train)))
+    fit_svi(model, X_train, Y_train, seed=seed, n_steps=budget.svi_steps)
+    return model.predict(X_test)
+
+
+EM_INITS = ("effects", "joint", "grow")
+"""Initialisations of `fit_em` benchmarked as ``em_<name>`` when `fit_em` accepts ``init``."""
+
+MODELS: dict[str, FitPredict] = {
+    "single_gp": single_gp,
+    "ccr": ccr,
+    "clustered": clustered,
+    "em": em,
+}
+if "init" in inspect.signature(fit_em).parameters:
+    for _init in EM_INITS:
+        MODELS[f"em_{_init}"] = functools.partial(em, fit=functools.partial(fit_em, init=_init))
+MODELS["vi"] = vi
+
+
+# ----------------------------------------------------------------------------- data sets
+@dataclass(frozen=True)
+class Dataset:
+    """A regression data set.
+
+    Attributes:
+        name: Short name (used in keys and tables).
+        X: Features, `(N, D)` float64.
+        Y: Targets, `(N, E)` float64.
+        outputs: Names of the E targets.
+        n_experts: M used by every mixture model on this data set.
+        about: One-line description.
+    """
+
+    name: str
+    X: np.ndarray
+    Y: np.ndarray
+    outputs: tuple[str, ...]
+    n_experts: int = 3
+    about: str = ""
+
+
+def _subsample(X: np.ndarray, Y: np.ndarray, rows: int | None) -> tuple[np.ndarray, np.ndarray]:
+    """At most `rows` rows, drawn without replacement with a fixed seed."""
+    X, Y = np.asarray(X, dtype=np.float64), np.asarray(Y, dtype=np.float64)
+    if Y.ndim == 1:
+        Y = Y[:, None]
+    if rows is None or rows >= len(X):
+        return X, Y
+    keep = np.sort(np.random.default_rng(0).choice(len(X), rows, replace=False))
+    return X[keep], Y[keep]
+
+
+def load_ch5(data_root: Path, rows: int | None, progress: bool) -> Dataset:
+    """Chapter 5 two-object pushes: f_o & f_c features, (dy, dz, dth) of both objects."""
+    from probaff.data.generation import GenerateConfig, generate
+    from probaff.features import chapter5_features
+
+    n = rows or 321
+    ds = generate(GenerateConfig("two_objects", n, seed=0), data_root / f"two_objects-n{n}",
+                  workers=0, resume=True, progress=progress)
+    X = chapter5_features(ds).select("f_o", "f_c")
+    Y = ds["effect"][:, :2].reshape(len(ds), 6)
+    return Dataset("ch5", *_subsample(X, Y, None),
+                   ("o1.dy", "o1.dz", "o1.dth", "o2.dy", "o2.dz", "o2.dth"),
+                   about=f"{n} simulated two-object pushes, f_o & f_c")
+
+
+def load_ch4(data_root: Path, rows: int | None, progress: bool) -> Dataset:
+    """Chapter 4 single-object pushes near an obstacle: f_o & f_c, (dy, dz, dth)."""
+    from probaff.data.generation import GenerateConfig, generate
+    from probaff.features import chapter4_features
+
+    n = rows or 120
+    ds = generate(GenerateConfig("near_obstacle", n, seed=0), data_root / f"near_obstacle-n{n}",
+                  workers=0, resume=True, progress=progress)
+    X = chapter4_features(ds).select("f_o", "f_c")
+    return Dataset("ch4", *_subsample(X, ds["effect"][:, 0], None), ("dy", "dz", "dth"),
+                   about=f"{n} simulated single-object pushes near an obstacle, f_o & f_c")
+
+
+def load_synthetic(data_root: Path, rows: int | None, progress: bool) -> Dataset:
+    """Three softmax-gated regimes overlapping in output space."""
+    from probaff.models.synthetic import softmax_regimes
+
+    x, y, _ = softmax_regimes(rows or 400, seed=0)
+    return Dataset("synthetic", x.numpy(), y.numpy(), ("y0", "y1"),
+                   about="softmax_regimes(seed=0): 3 gated regimes, 4 inputs")
+
+
+def load_diabetes(data_root: Path, rows: int | None, progress: bool) -> Dataset:
+    """scikit-learn's diabetes progression data (442 x 10)."""
+    from sklearn.datasets import load_diabetes as sk_diabetes
+
+    bunch = sk_diabetes()
+    return Dataset("diabetes", *_subsample(bunch.data, bunch.target, rows), ("progression",),
+                   about="sklearn diabetes: 10 baseline variables -> progression after 1 year")
+
+
+def load_engel(data_root: Path, rows: int | None, progress: bool) -> Dataset:
+    """statsmodels' Engel food-expenditure data (235 x 1), heteroscedastic, original units."""
+    from statsmodels.datasets import engel
+
+    frame = engel.load().data
+    return Dataset("engel", *_subsample(frame[["income"]].to_numpy(),
+                                        frame["foodexp"].to_numpy(), rows), ("foodexp",),
+                   about="statsmodels engel: food expenditure vs income, Belgian francs")
+
+
+Loader = Callable[[Path, int | None, bool], Dataset]
+
+DATASETS: dict[str, Loader] = {
+    "ch5": load_ch5,
+    "ch4": load_ch4,
+    "synthetic": load_synthetic,
+    "diabetes": load_diabetes,
+    "engel": load_engel,
+}
+
+
+# -------------------------------------------------------------------------------- tasks
+_WARMED: set[str] = set()
+
+
+def _warm_up(model: str) -> None:
+    """Run `model` once per process on a tiny problem so one-time costs are not timed."""
+    if model in _WARMED:
+        return
+    _WARMED.add(model)
+    rng = np.random.default_rng(0)
+    x = rng.uniform(-1, 1, (24, 2))
+    y = np.sin(3 * x[:, :1]) + 0.1 * rng.standard_normal((24, 1))
+    # A failure here is ignored: only the timing of the real fit is at stake.
+    with warnings.catch_warnings(), contextlib.suppress(Exception):
+        warnings.simplefilter("ignore")
+        MODELS[model](x[:16], y[:16], x[16:], 0, n_experts=2, budget=SMOKE)
+
+
+def fit_and_score(task: dict[str, Any]) -> dict[str, Any]:
+    """Fit one model on one training fold and score it on the held-out fold."""
+    X, Y = np.asarray(task["X"]), np.asarray(task["Y"])
+    train, test = np.asarray(task["train"]), np.asarray(task["test"])
+    outputs: list[str] = list(task["outputs"])
+    row: dict[str, Any] = {
+        "dataset": task["dataset"], "model": task["model"], "fold": int(task["fold"]),
+        "n_train": len(train), "n_test": len(test), "M": int(task["M"]),
+        "outputs": outputs, "seconds": None, "nlpd": None, "nlpd_joint": None, "srmse": None,
+        "coverage90": None, "rmse": None, "warnings": 0, "error": "",
+    }
+    fn = MODELS[task["model"]]
+    budget = Budget(**task["budget"])
+    with torch_threads(1), threadpool_limits(1), warnings.catch_warnings(record=True) as caught:
+        _warm_up(task["model"])
+        warnings.simplefilter("always")
+        start = time.perf_counter()
+        try:
+            pred = fn(X[train], Y[train], X[test], int(task["seed"]), n_experts=int(task["M"]),
+                      budget=budget)
+            seconds = time.perf_counter() - start
+            n_test, e = len(test), Y.shape[1]
+            if tuple(pred.batch_shape) != (n_test,) or tuple(pred.event_shape) != (e,):
+                raise ValueError(f"prediction has batch {tuple(pred.batch_shape)} and event "
+                                 f"{tuple(pred.event_shape)}, expected ({n_test},) and ({e},)")
+            y = torch.as_tensor(Y[test], dtype=torch.float64)
+            with torch.no_grad():
+                per_output_rmse = rmse(pred, y).numpy()
+                row.update(
+                    seconds=seconds,
+                    nlpd=float(nlpd(pred, y).sum()),
+                    nlpd_joint=float(-pred.log_prob(y).mean()),
+                    srmse=float(np.mean(per_output_rmse / np.asarray(task["y_std"]))),
+                    coverage90=float(interval_coverage(pred, y, 0.9).mean()),
+                    rmse=[float(v) for v in per_output_rmse],
+                )
+        except Exception as exc:  # a failed fit is a result of the benchmark too
+            row["error"] = f"{type(exc).__name__}: {exc}"[:500]
+    row["warnings"] = len(caught)
+    return row
+
+
+def _fingerprint(ds: Dataset, folds: int, seed: int, budget: Budget) -> str:
+    """Short hash of the settings that shape a task's result."""
+    settings = {"folds": folds, "seed": seed, "budget": asdict(budget), "M": ds.n_experts,
+                "shape": [list(ds.X.shape), list(ds.Y.shape)],
+                "data": hashlib.sha1(np.ascontiguousarray(ds.X).tobytes()
+                                     + np.ascontiguousarray(ds.Y).tobytes()).hexdigest()}
+    return hashlib.sha1(json.dumps(settings, sort_keys=True).encode()).hexdigest()[:8]
+
+
+def make_tasks(ds: Dataset, models: list[str], folds: int, seed: int,
+               budget: Budget) -> list[tuple[str, tuple[Any, ...]]]:
+    """One task per model and fold; every model gets the same folds."""
+    splits = list(KFold(folds, shuffle=True, random_state=seed).split(ds.X))
+    tag = _fingerprint(ds, folds, seed, budget)
+    y_std = ds.Y.std(axis=0)
+    tasks = []
+    for model in models:
+        for f, (train, test) in enumerate(splits):
+            task = {"dataset": ds.name, "model": model, "fold": f, "seed": seed,
+                    "M": ds.n_experts, "X": ds.X, "Y": ds.Y, "train": train, "test": test,
+                    "outputs": list(ds.outputs), "y_std": np.where(y_std > 0, y_std, 1.0),
+                    "budget": asdict(budget)}
+            tasks.append((f"{ds.name}.{model}.fold{f}.{tag}", (task,)))
+    return tasks
+
+
+# ------------------------------------------------------------------------------ reports
+def _csv(results: list[dict[str, Any]], datasets: list[Dataset]) -> str:
+    """One row per data set, model and fold; RMSE columns are ``rmse.<output>``."""
+    rmse_cols = list(dict.fromkeys(f"rmse.{o}" for ds in datasets for o in ds.outputs))
+    fields = ["dataset", "model", "fold", "n_train", "n_test", "M", "nlpd", "nlpd_joint",
+              "srmse", "coverage90", "seconds", *rmse_cols, "warnings", "error"]
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=fields, extrasaction="ignore", restval="")
+    writer.writeheader()
+    for r in results:
+        flat = {k: ("" if v is None else v) for k, v in r.items()}
+        for name, v in zip(r["outputs"], r["rmse"] or [], strict=False):
+            flat[f"rmse.{name}"] = v
+        writer.writerow(flat)
+    return buf.getvalue()
+
+
+def mean_ci(values: list[float]) -> tuple[float, float]:
+    """Mean and half-width of the 95 % Student-t interval (NaN for fewer than 2 values)."""
+    a = np.asarray(values, dtype=np.float64)
+    if a.size == 0:
+        return math.nan, math.nan
+    if a.size < 2:
+        return float(a.mean()), math.nan
+    half = stats.t.ppf(0.975, a.size - 1) * a.std(ddof=1) / math.sqrt(a.size)
+    return float(a.mean()), float(half)
+
+
+def summarise(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per (data set, model): folds scored, mean and 95 % t-interval of each metric."""
+    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in results:
+        groups.setdefault((r["dataset"], r["model"]), []).append(r)
+    rows = []
+    for (dataset, model), rs in groups.items():
+        ok = [r for r in rs if not r["error"]]
+        row: dict[str, Any] = {"dataset": dataset, "model": model, "folds": len(ok),
+                               "of": len(rs), "outputs": rs[0]["outputs"],
+                               "errors": sorted({r["error"] for r in rs if r["error"]})}
+        for metric in ("nlpd", "nlpd_joint", "srmse", "coverage90", "seconds"):
+            row[metric], row[f"{metric}_ci"] = mean_ci([r[metric] for r in ok])
+        row["rmse"] = (np.mean([r["rmse"] for r in ok], axis=0).tolist() if ok
+                       else [math.nan] * len(row["outputs"]))
+        rows.append(row)
+    return rows
+
+
+def _fmt(mean: float, half: float, digits: int) -> str:
+    if math.isnan(mean):
+        return "n/a"
+    return f"{mean:.{digits}f}" if math.isnan(half) else f"{mean:.{digits}f} ± {half:.{digits}f}"
+
+
+def _markdown(rows: list[dict[str, Any]], datasets: list[Dataset], folds: int, seed: int,
+              budget: Budget, smoke: bool) -> str:
+    """One table per data set, best mean NLPD in bold."""
+    lines = ["# Mixture models and their peers, side by side", "",
+             f"{folds}-fold cross-validation (seed {seed}), the same folds for every model; "
+             f"budget {asdict(budget)}{' (smoke run)' if smoke else ''}.",
+             "Cells: mean over folds ± half-width of the 95 % t-interval. NLPD: per test point, "
+             "per-output marginal NLPDs summed over outputs (nats); NLPD joint: "
+             "-log p(y) of the full predictive; SRMSE: mean over outputs of RMSE / std of the "
+             "output; cov90: coverage of the central 90 % interval; s: fit + predict seconds.",
+             ""]
+    for ds in datasets:
+        sub = [r for r in rows if r["dataset"] == ds.name]
+        if not sub:
+            continue
+        n, d = ds.X.shape
+        lines += [f"## {ds.name}", "",
+                  f"{ds.about}; N = {n}, D = {d}, E = {ds.Y.shape[1]}, M = {ds.n_experts}.", ""]
+        scored = [r["nlpd"] for r in sub if not math.isnan(r["nlpd"])]
+        best = min(scored) if scored else math.nan
+        head = ["model", "folds", "NLPD", "NLPD joint", "SRMSE", "cov90", "s",
+                *[f"RMSE {o}" for o in ds.outputs]]
+        lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        for r in sub:
+            nl = _fmt(r["nlpd"], r["nlpd_ci"], 3)
+            if r["nlpd"] == best:
+                nl = f"**{nl}**"
+            cells = [r["model"], f"{r['folds']}/{r['of']}", nl,
+                     _fmt(r["nlpd_joint"], r["nlpd_joint_ci"], 3),
+                     _fmt(r["srmse"], r["srmse_ci"], 3),
+                     _fmt(r["coverage90"], r["coverage90_ci"], 2),
+                     _fmt(r["seconds"], math.nan, 1),
+                     *[f"{v:.4g}" for v in r["rmse"]]]
+            lines.append("| " + " | ".join(cells) + " |")
+        errors = [f"- {r['model']}: {e}" for r in sub for e in r["errors"]]
+        lines += ["", *(["Failed fits:", "", *errors, ""] if errors else [])]
+    return "\n".join(lines)
+
+
+def plot(results: list[dict[str, Any]], rows: list[dict[str, Any]], datasets: list[Dataset],
+         path: Path) -> None:
+    """Per data set: NLPD of every fold (grey) and the mean with its 95 % t-interval."""
+    names = [ds.name for ds in datasets if any(r["dataset"] == ds.name for r in rows)]
+    cols = min(3, max(1, len(names)))
+    n_rows = max(1, math.ceil(len(names) / cols))
+    fig = Figure(figsize=(4.5 * cols, 0.6 + 2.6 * n_rows))
+    axes = fig.subplots(n_rows, cols, squeeze=False)
+    for ax, name in zip(axes.flat, names, strict=False):
+        sub = [r for r in rows if r["dataset"] == name]
+        for i, r in enumerate(sub):
+            folds = [x["nlpd"] for x in results if (x["dataset"], x["model"]) == (name, r["model"])
+                     and not x["error"]]
+            ax.plot(folds, [i] * len(folds), "o", color="0.7", ms=4, zorder=1)
+            half = 0.0 if math.isnan(r["nlpd_ci"]) else r["nlpd_ci"]
+            ax.errorbar([r["nlpd"]], [i], xerr=[[half], [half]], fmt="o", color="k",
+                        capsize=3, zorder=2)
+        ax.set_yticks(range(len(sub)), [r["model"] for r in sub])
+        ax.invert_yaxis()
+        ax.set_title(name)
+        ax.set_xlabel("held-out NLPD per point, nats (lower is better)")
+        ax.grid(axis="x", alpha=0.3)
+    for ax in list(axes.flat)[len(names):]:
+        ax.set_visible(False)
+    fig.tight_layout()
+    atomic_save_figure(fig, path, dpi=120)
+
+
+# ---------------------------------------------------------------------------------- CLI
+def _names(text: str | None, known: dict[str, Any], what: str) -> list[str]:
+    """Comma-separated names (all of `known` if None); ValueError names an unknown one."""
+    if text is None:
+        return list(known)
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    unknown = [n for n in names if n not in known]
+    if unknown or not names:
+        raise ValueError(f"unknown {what} {', '.join(map(repr, unknown)) or '(none given)'}; "
+                         f"choose from {', '.join(known)}")
+    return list(dict.fromkeys(names))
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """Command-line options."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--datasets", help=f"comma-separated, from {','.join(DATASETS)} (all)")
+    ap.add_argument("--models", help=f"comma-separated, from {','.join(MODELS)} (all)")
+    ap.add_argument("--folds", type=int, help="cross-validation folds (5; 2 with --smoke)")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the folds and the fits")
+    ap.add_argument("--out", default="results/mixture_peers", help="output folder")
+    ap.add_argument("--workers", type=int, default=0,
+                    help="0 fits in this process; K > 0 on a local Dask cluster of K processes")
+    ap.add_argument("--smoke", action="store_true",
+                    help=f"{SMOKE_ROWS} rows per data set, 2 folds, a few iterations")
+    ap.add_argument("--no-progress", action="store_true", help="hide progress bars")
+    return ap.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run (or resume) the comparison and write the CSV, Markdown and PNG; return the status."""
+    args = parse_args(argv)
+    try:
+        dataset_names = _names(args.datasets, DATASETS, "data set")
+        model_names = _names(args.models, MODELS, "model")
+        folds = args.folds if args.folds is not None else (2 if args.smoke else 5)
+        if folds < 2:
+            raise ValueError(f"--folds must be at least 2, got {folds}")
+        if args.workers < 0:
+            raise ValueError(f"--workers must be >= 0, got {args.workers}")
+    except ValueError as exc:
+        print(f"mixture_peers: {exc}", file=sys.stderr)
+        return 2
+    budget = SMOKE if args.smoke else FULL
+    rows_cap = SMOKE_ROWS if args.smoke else None
+    out = Path(args.out)
+    progress = not args.no_progress
+
+    datasets = [DATASETS[name](out / "data", rows_cap, progress) for name in dataset_names]
+    tasks = []
+    for ds in datasets:
+        if len(ds.X) < folds:
+            print(f"mixture_peers: {ds.name} has {len(ds.X)} rows, fewer than {folds} folds",
+                  file=sys.stderr)
+            return 2
+        tasks += make_tasks(ds, model_names, folds, args.seed, budget)
+    results = run_tasks(fit_and_score, tasks, ResultStore(out / "tasks"),
+                        workers=args.workers or 0, progress=progress, desc="mixture peers")
+
+    rows = summarise(results)
+    atomic_write_text(out / "peers.csv", _csv(results, datasets))
+    atomic_write_text(out / "peers.md",
+                      _markdown(rows, datasets, folds, args.seed, budget, args.smoke))
+    plot(results, rows, datasets, out / "peers.png")
+    print(f"wrote {out / 'peers.csv'}, {out / 'peers.md'} and {out / 'peers.png'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,160 @@
+"""Starting responsibilities for EM and SVI, and the split of one expert into two.
+
+Named initialisations (`INITIALIZATIONS`):
+
+* ``"effects"``: the thesis's start, a Gaussian mixture fitted to the standardised effects.
+* ``"joint"``: a Gaussian mixture on standardised [gate features, effects]. Wide gate
+  features are first reduced by PCA to the components that explain 90 % of their variance
+  (at most `MAX_GATE_COMPONENTS`), and the gate block is scaled so that it weighs as much as
+  the effect block. Regimes that overlap in effect space but are decided by the gate's
+  inputs are separated by this start and not by ``"effects"``.
+* ``"grow"``: fit `M` experts from the `M - 1` solution by splitting one expert
+  (`split_responsibilities`); `probaff.models.em.fit_em` runs it.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import torch
+from sklearn.decomposition import PCA
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.mixture import GaussianMixture
+from torch import Tensor
+
+from probaff._checks import check_count
+from probaff.errors import InputError
+
+__all__ = [
+    "INITIALIZATIONS",
+    "MAX_GATE_COMPONENTS",
+    "check_initialization",
+    "initial_responsibilities",
+    "split_responsibilities",
+]
+
+INITIALIZATIONS = ("effects", "joint", "grow")
+"""Names of the initialisation strategies."""
+
+MAX_GATE_COMPONENTS = 8
+"""Most principal components of the gate features that the ``"joint"`` start keeps."""
+
+
+def check_initialization(init: str, *, allow_auto: bool = True) -> str:
+    """Return `init` if it names an initialisation, else raise `InputError`.
+
+    Args:
+        init: A name from `INITIALIZATIONS`, or ``"auto"`` (restarts across all of them).
+        allow_auto: Accept ``"auto"``.
+    """
+    known = (("auto",) if allow_auto else ()) + INITIALIZATIONS
+    if init not in known:
+        raise InputError(f"unknown initialisation {init!r}; use one of {list(known)}.")
+    return init
+
+
+def _standardise(a: np.ndarray) -> np.ndarray:
+    std = a.std(axis=0)
+    return (a - a.mean(axis=0)) / np.where(std > 1e-12, std, 1.0)
+
+
+def _gate_block(x_gate: np.ndarray, seed: int) -> np.ndarray:
+    """Standardised gate features, PCA-reduced when wide, `(N, K)`."""
+    z = _standardise(x_gate)
+    if z.shape[1] > MAX_GATE_COMPONENTS:
+        pca = PCA(n_components=min(MAX_GATE_COMPONENTS, *z.shape), random_state=seed).fit(z)
+        keep = int(np.searchsorted(np.cumsum(pca.explained_variance_ratio_), 0.9) + 1)
+        z = _standardise(pca.transform(z)[:, : max(1, min(keep, MAX_GATE_COMPONENTS))])
+    return z
+
+
+def _gmm_responsibilities(z: np.ndarray, n_components: int, *, n_init: int, seed: int,
+                          weights: np.ndarray | None = None) -> Tensor:
+    """Responsibilities `(N, K)` of a full-covariance Gaussian mixture fitted to `z`.
+
+    With `weights`, the mixture is fitted to the rows whose weight is at least half the
+    largest, then evaluated on every row.
+    """
+    fit_rows = z if weights is None else z[weights >= 0.5 * weights.max()]
+    if len(fit_rows) < n_components:
+        fit_rows = z
+    gmm = GaussianMixture(n_components=n_components, covariance_type="full", n_init=n_init,
+                          random_state=seed, reg_covar=1e-4, max_iter=200)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        gmm.fit(fit_rows)
+    return torch.as_tensor(gmm.predict_proba(z), dtype=torch.float64)
+
+
+def initial_responsibilities(init: str, x_gate: Tensor, Y: Tensor, n_experts: int, *,
+                             n_init: int = 5, seed: int = 0) -> Tensor:
+    """Responsibilities of a cold start (``"effects"`` or ``"joint"``).
+
+    Args:
+        init: ``"effects"`` or ``"joint"``.
+        x_gate: The gate's features, `(N, D_g)`.
+        Y: Effects, `(N, E)`.
+        n_experts: Number of experts `M`.
+        n_init: Restarts of the Gaussian mixture (the best is kept).
+        seed: Random seed of the Gaussian mixture and the PCA.
+
+    Returns:
+        Rows summing to 1, `(N, M)`.
+
+    Raises:
+        InputError: For an unknown `init` (``"grow"`` is not a cold start).
+    """
+    n_experts = check_count("n_experts", n_experts)
+    n_init = check_count("n_init", n_init)
+    if init not in ("effects", "joint"):
+        raise InputError(f"initial_responsibilities takes 'effects' or 'joint', got {init!r}.")
+    n = Y.shape[0]
+    if n_experts == 1:
+        return torch.ones(n, 1, dtype=torch.float64)
+    z = _standardise(Y.numpy())
+    if init == "joint":
+        g = _gate_block(x_gate.numpy(), seed)
+        z = np.concatenate([g * np.sqrt(z.shape[1] / g.shape[1]), z], axis=1)
+    return _gmm_responsibilities(z, n_experts, n_init=n_init, seed=seed)
+
+
+def split_responsibilities(resp: Tensor, expert: int, x_gate: Tensor, residuals: Tensor, *,
+                           into: int | None = None, seed: int = 0, n_init: int = 3) -> Tensor:
+    """Split one expert's responsibilities between it and a new (or an emptied) expert.
+
+    The expert's samples are divided by a two-component Gaussian mixture on their
+    standardised gate features (PCA-reduced when wide) and their standardised residuals
+    under that expert, so the two halves differ where the gate can see it or where one
+    function does not fit both. Sample `i` then gives `resp[i, expert] * q_i0` to the old
+    expert and `resp[i, expert] * q_i1` to the new one; the other experts keep theirs.
+
+    Args:
+        resp: Responsibilities, `(N, M)`.
+        expert: Index of the expert to split.
+        x_gate: The gate's features, `(N, D_g)`.
+        residuals: Each sample's residual under that expert (target minus its
+            leave-one-out mean), `(N, E)`.
+        into: Column that receives the second half (its current responsibilities are
+            dropped); ``None`` appends a new column.
+        seed: Seed of the Gaussian mixture.
+        n_init: Restarts of the Gaussian mixture.
+
+    Returns:
+        Responsibilities, `(N, M + 1)`, or `(N, M)` with `into`.
+    """
+    w = resp[:, expert].numpy()
+    z = np.concatenate([_gate_block(x_gate.numpy(), seed), _standardise(residuals.numpy())],
+                       axis=1)
+    q = _gmm_responsibilities(z, 2, n_init=n_init, seed=seed, weights=w)
+    if into is None:
+        out = torch.cat([resp, torch.zeros(resp.shape[0], 1, dtype=resp.dtype)], dim=1)
+        into = out.shape[1] - 1
+    else:
+        out = resp.clone()
+        out[:, into] = 0.0
+        out = out / out.sum(1, keepdim=True).clamp_min(torch.finfo(out.dtype).tiny)
+    share = out[:, expert].clone()
+    out[:, expert] = share * q[:, 0]
+    out[:, into] = share * q[:, 1]
+    return out
