@@ -29,7 +29,7 @@ def test_svi_matches_em_on_held_out_nlpd():
     rng_state = torch.get_rng_state()
     store_keys = set(pyro.get_param_store().keys())
     vi = VariationalMixtureOfGPExperts(3, n_inducing=16)
-    history = fit_svi(vi, x, y, n_steps=300, batch_size=64, lr=0.05)
+    history = fit_svi(vi, x, y, n_steps=300, batch_size=150, lr=0.01)
     assert isinstance(history, SVIHistory) and len(history.loss) == 300
     assert all(math.isfinite(v) for v in history.loss)
     assert sum(history.loss[-30:]) < sum(history.loss[:30])
@@ -42,7 +42,7 @@ def test_svi_matches_em_on_held_out_nlpd():
         name: -float(model.predict(xt).log_prob(yt).mean())
         for name, model in (("vi", vi), ("em", em), ("single", single))
     }
-    assert abs(nlpd["vi"] - nlpd["em"]) < 0.5, nlpd
+    assert abs(nlpd["vi"] - nlpd["em"]) < 0.1, nlpd  # nats per point
     assert nlpd["vi"] < nlpd["single"] - 0.75, nlpd
 
     dist = vi.predict(xt[:5])
@@ -101,7 +101,7 @@ def test_svi_loss_has_no_spikes():
     # produced losses down to -1e126 per sample within these 30 steps.
     x, y, _ = regime_features(10_000, 15, 6, seed=0)
     vi = VariationalMixtureOfGPExperts(3, gate_features=[0, 1, 2], n_inducing=64)
-    loss = fit_svi(vi, x, y, n_steps=30, batch_size=256, seed=0).loss
+    loss = fit_svi(vi, x, y, n_steps=30, batch_size=256, seed=0, init="effects").loss
     assert len(loss) == 30 and all(math.isfinite(v) for v in loss)
     # KL >= 0 and the gate penalty >= 0, so -ELBO / N is at least minus the largest
     # Gaussian log-density, which the noise floor of 1e-6 (standardised units) caps.

@@ -27,7 +27,7 @@ from pyro.ops.indexing import Vindex
 from torch import Tensor
 from torch.distributions import MixtureSameFamily, Normal
 
-from probaff._checks import check_positive
+from probaff._checks import check_count, check_positive, check_probability
 from probaff.errors import NotFittedError
 from probaff.models._scaling import Standardizer
 from probaff.models._tensors import as_matrix
@@ -37,10 +37,16 @@ from probaff.models.columns import (
     check_mixture_args,
     resolve_features,
 )
+from probaff.models.em import fit_em
 from probaff.models.gate import SoftmaxGate
-from probaff.models.initialization import initial_responsibilities
+from probaff.models.initialization import check_initialization, initial_responsibilities
 from probaff.models.kernels import ard_se_kernel
-from probaff.models.mixture import mixture_distribution, training_data
+from probaff.models.mixture import (
+    MixtureOfGPExperts,
+    gated_probs,
+    mixture_distribution,
+    training_data,
+)
 
 __all__ = ["SVGPExpert", "SVIHistory", "VariationalMixtureOfGPExperts", "fit_svi"]
 
@@ -162,7 +168,8 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
         gate_features: Gate columns: ``None`` (all), group name(s) or column indices.
         expert_features: Expert columns, shared by every expert.
         n_inducing: Inducing points per expert (at most `N`).
-        gate_l2: L2 penalty of the gate's weights (per sample, as in `SoftmaxGate`).
+        gate_l2: L2 penalty of the gate's weights (per sample, as in `SoftmaxGate`), or
+            ``"cv"`` to choose it by cross-validation when the gate is initialised.
     """
 
     def __init__(
@@ -173,17 +180,17 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
         gate_features: FeatureSpec = None,
         expert_features: FeatureSpec = None,
         n_inducing: int = 32,
-        gate_l2: float = 1e-3,
+        gate_l2: float | str = 1e-3,
     ) -> None:
         super().__init__()
         self.n_experts = check_mixture_args(n_experts, groups, gate_features, expert_features,
                                             gate_l2)
-        check_positive("n_inducing", n_inducing)
+        check_count("n_inducing", n_inducing)
         self.groups = dict(groups or {})
         self.gate_features = gate_features
         self.expert_features = expert_features
         self.n_inducing = int(n_inducing)
-        self.gate_l2 = float(gate_l2)
+        self.gate_l2: float | str = gate_l2 if isinstance(gate_l2, str) else float(gate_l2)
         self.n_features: int | None = None
         self.gate_columns: list[int] = []
         self.expert_columns: list[int] = []
@@ -195,17 +202,22 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
         self.fitted = False
 
     # ----------------------------------------------------------------- setup
-    def build(self, x: Tensor, y: Tensor, resp: Tensor) -> None:
+    def build(self, x: Tensor, y: Tensor, resp: Tensor,
+              exact: MixtureOfGPExperts | None = None) -> None:
         """Create gate, experts and noise, initialised from responsibilities.
 
         The gate is fitted to `resp`; expert `j` places its inducing points on the
         samples it is most responsible for, its constant mean at their weighted effect
-        mean, and its noise at a tenth of their weighted effect variance.
+        mean, and its noise at a tenth of their weighted effect variance. With `exact`, a
+        fitted exact mixture with the same experts and expert columns, every expert instead
+        starts from exact expert `j`: its hyperparameters (converted to this model's
+        standardisation), and q(u) centred on its predictive mean at the inducing points.
 
         Args:
             x: Features, `(N, D)`.
             y: Effects, `(N, E)`.
             resp: Initial responsibilities, `(N, M)`.
+            exact: A fitted `MixtureOfGPExperts` to start the experts from.
         """
         n, d = x.shape
         e = y.shape[1]
@@ -227,12 +239,35 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
             expert = SVGPExpert(z[top].expand(e, k, z.shape[1]).clone()).double()
             w = r / r.sum().clamp_min(1e-12)
             mean = w @ t
-            expert.mean_module.constant.data.copy_(mean)
-            expert.initialize_variational(t[top].T - mean[:, None])
-            noise.append((0.1 * (w @ (t - mean).square())).clamp_min(1e-4))
+            if exact is None:
+                expert.mean_module.constant.data.copy_(mean)
+                expert.initialize_variational(t[top].T - mean[:, None])
+                noise.append((0.1 * (w @ (t - mean).square())).clamp_min(1e-4))
+            else:
+                noise.append(self._start_from(expert, exact.experts[j], x[top]))
             experts.append(expert)
         self.experts = torch.nn.ModuleList(experts)
         self.raw_noise = torch.nn.Parameter(torch.stack(noise).log())
+
+    def _start_from(self, expert: SVGPExpert, source: Any, x_top: Tensor) -> Tensor:
+        """Copy an exact expert into `expert`; return its noise in standardised units `(E,)`."""
+        x_scaler, y_scaler = self._scalers()
+        x_ratio = source.x_scaler.std / x_scaler.std[None, :]  # (1, D) per input
+        y_ratio = (source.y_scaler.std / y_scaler.std).square()  # (E,)
+        kernel = expert.covar_module
+        e, d = source.n_outputs, source.n_features
+        with torch.no_grad():
+            lengthscale = (source.lengthscales * x_ratio).clamp(1e-3 * 1.01, 1e4 * 0.99)
+            kernel.base_kernel.lengthscale = lengthscale.reshape(e, 1, d)
+            outputscale = source.gp.covar_module.outputscale.detach() * y_ratio
+            kernel.outputscale = outputscale.clamp(1e-4 * 1.01, 1e4 * 0.99)
+            constant = source.gp.mean_module.constant.detach()
+            mean = (constant * source.y_scaler.std + source.y_scaler.mean - y_scaler.mean)
+            mean = mean / y_scaler.std
+            expert.mean_module.constant.data.copy_(mean)
+            values = y_scaler(source.predict(x_top, include_noise=False).loc).T
+            expert.initialize_variational(values - mean[:, None])
+        return (source.noise / y_scaler.std.square()).clamp_min(1e-6)
 
     @property
     def noise(self) -> Tensor:
@@ -275,7 +310,7 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
         pyro.module("mixture", self)
         gate = self._built_gate()
         n = x_g.shape[0]
-        pyro.factor("gate.l2", -0.5 * self.gate_l2 * n * gate.weight.square().sum())
+        pyro.factor("gate.l2", -0.5 * gate.l2_ * n * gate.weight.square().sum())
         for j, expert in enumerate(self.experts):
             pyro.factor(f"expert{j}.kl", -expert.kl_divergence().sum())  # type: ignore[operator]
         with pyro.plate("data", n, subsample=idx):
@@ -326,9 +361,36 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
                 scales.append(var.sqrt() * y_scaler.std)
         return Normal(torch.stack(locs, dim=1), torch.stack(scales, dim=1))
 
-    def predict(self, X: Any) -> MixtureSameFamily:
-        """Predictive mixture per sample: batch shape `(N,)`, event shape `(E,)`."""
-        return mixture_distribution(self.gate_probs(X), self.expert_predictions(X))
+    def predict(self, X: Any, *, gating: str = "soft") -> MixtureSameFamily:
+        """Predictive mixture per sample: batch shape `(N,)`, event shape `(E,)`.
+
+        Args:
+            X: Features, `(N, D)`.
+            gating: ``"soft"`` (gate-weighted mixture) or ``"hard"`` (most probable expert).
+        """
+        return mixture_distribution(gated_probs(self.gate_probs(X), gating),
+                                    self.expert_predictions(X))
+
+
+def _start(model: VariationalMixtureOfGPExperts, x: Tensor, y: Tensor, init: str | Tensor, *,
+           n_init: int, seed: int, init_rows: int
+           ) -> tuple[Tensor, MixtureOfGPExperts | None]:
+    """Starting responsibilities `(N, M)` of `fit_svi`, and the exact mixture behind them."""
+    m = model.n_experts
+    if isinstance(init, Tensor):
+        resp = as_matrix("init responsibilities", init, n_rows=x.shape[0], n_cols=m)
+        check_probability("init responsibilities", resp)
+        return resp / resp.sum(1, keepdim=True).clamp_min(1e-300), None
+    check_initialization(init)
+    gate_cols = resolve_features("gate_features", model.gate_features, model.groups, x.shape[1])
+    if init in ("effects", "joint"):
+        return initial_responsibilities(init, x[:, gate_cols], y, m, n_init=n_init,
+                                        seed=seed), None
+    rows = torch.randperm(x.shape[0], generator=torch.Generator().manual_seed(seed))[:init_rows]
+    exact = MixtureOfGPExperts(m, groups=model.groups, gate_features=model.gate_features,
+                               expert_features=model.expert_features, lengthscale_prior=True)
+    fit_em(exact, x[rows], y[rows], init=init, n_init=n_init, seed=seed)
+    return torch.softmax(exact.log_joint(x, y), dim=1), exact
 
 
 def fit_svi(
@@ -341,13 +403,22 @@ def fit_svi(
     lr: float = 0.02,
     n_init: int = 5,
     seed: int = 0,
+    init: str | Tensor = "auto",
+    init_rows: int = 400,
 ) -> SVIHistory:
     """Fit a variational mixture of GP experts by minibatch SVI.
 
-    The model is initialised from the responsibilities of a Gaussian mixture in effect
-    space (as EM is), then trained with `pyro.infer.SVI` on `TraceEnum_ELBO`, which sums
-    out every sample's expert assignment; Adam with step size `lr`. Parameters live in a
-    private Pyro parameter-store scope, and the global random state is left untouched.
+    The model is initialised from responsibilities (`init`), then trained with
+    `pyro.infer.SVI` on `TraceEnum_ELBO`, which sums out every sample's expert assignment;
+    Adam with step size `lr`. Parameters live in a private Pyro parameter-store scope, and
+    the global random state is left untouched.
+
+    Initialisations are those of `probaff.models.fit_em`: ``"effects"`` and ``"joint"``
+    take the responsibilities of that Gaussian mixture; ``"grow"`` and ``"auto"`` fit an
+    exact mixture by EM with that `init` on at most `init_rows` rows (a seeded random
+    subset) and start from its responsibilities on every row and from its experts (their
+    hyperparameters, and q(u) on their predictive means); a tensor `(N, M)` gives the
+    responsibilities directly.
 
     Args:
         model: The mixture to fit (rebuilt for the data).
@@ -358,20 +429,26 @@ def fit_svi(
         lr: Adam step size.
         n_init: Restarts of the initial Gaussian mixture.
         seed: Seed of the initialisation and the minibatches.
+        init: ``"auto"`` (default), ``"grow"``, ``"effects"``, ``"joint"``, or
+            responsibilities `(N, M)`.
+        init_rows: Rows of the exact EM fit behind ``"grow"`` and ``"auto"``.
 
     Returns:
         The per-step losses.
 
     Raises:
-        InputError: For NaN/inf, empty or mismatched inputs, or more experts than samples.
+        InputError: For NaN/inf, empty or mismatched inputs, more experts than samples, an
+            unknown `init`, or a non-integer count.
     """
-    check_positive("n_steps", n_steps)
-    check_positive("batch_size", batch_size)
+    check_count("n_steps", n_steps)
+    check_count("batch_size", batch_size)
     check_positive("lr", lr)
+    n_init = check_count("n_init", n_init)
+    init_rows = check_count("init_rows", init_rows)
     x, y = training_data(X, Y, model.n_experts)
-    resp = initial_responsibilities("effects", x, y, model.n_experts, n_init=n_init, seed=seed)
+    resp, exact = _start(model, x, y, init, n_init=n_init, seed=seed, init_rows=init_rows)
     model.fitted = False
-    model.build(x, y, resp)
+    model.build(x, y, resp, exact)
     x_scaler, y_scaler = model._scalers()
     x_g = x[:, model.gate_columns]
     x_e = x_scaler(x[:, model.expert_columns])
