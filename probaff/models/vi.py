@@ -28,7 +28,7 @@ from torch import Tensor
 from torch.distributions import MixtureSameFamily, Normal
 
 from probaff._checks import check_count, check_positive, check_probability
-from probaff.errors import NotFittedError
+from probaff.errors import InputError, NotFittedError
 from probaff.models._scaling import Standardizer
 from probaff.models._tensors import as_matrix
 from probaff.models.columns import (
@@ -244,7 +244,8 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
                 expert.initialize_variational(t[top].T - mean[:, None])
                 noise.append((0.1 * (w @ (t - mean).square())).clamp_min(1e-4))
             else:
-                noise.append(self._start_from(expert, exact.experts[j], x[top]))
+                noise.append(self._start_from(expert, exact.experts[j],
+                                              x[top][:, self.expert_columns]))
             experts.append(expert)
         self.experts = torch.nn.ModuleList(experts)
         self.raw_noise = torch.nn.Parameter(torch.stack(noise).log())
@@ -372,11 +373,19 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
                                     self.expert_predictions(X))
 
 
-def _start(model: VariationalMixtureOfGPExperts, x: Tensor, y: Tensor, init: str | Tensor, *,
+def _start(model: VariationalMixtureOfGPExperts, x: Tensor, y: Tensor,
+           init: str | Tensor | MixtureOfGPExperts, *,
            n_init: int, seed: int, init_rows: int
            ) -> tuple[Tensor, MixtureOfGPExperts | None]:
     """Starting responsibilities `(N, M)` of `fit_svi`, and the exact mixture behind them."""
     m = model.n_experts
+    if isinstance(init, MixtureOfGPExperts):
+        if init.n_experts != m or not init.is_fitted:
+            raise InputError(
+                f"init must be a fitted MixtureOfGPExperts with {m} experts; fit it with "
+                "probaff.models.fit_em first."
+            )
+        return torch.softmax(init.log_joint(x, y), dim=1), init
     if isinstance(init, Tensor):
         resp = as_matrix("init responsibilities", init, n_rows=x.shape[0], n_cols=m)
         check_probability("init responsibilities", resp)
@@ -403,7 +412,7 @@ def fit_svi(
     lr: float = 0.02,
     n_init: int = 5,
     seed: int = 0,
-    init: str | Tensor = "auto",
+    init: str | Tensor | MixtureOfGPExperts = "auto",
     init_rows: int = 400,
 ) -> SVIHistory:
     """Fit a variational mixture of GP experts by minibatch SVI.
@@ -417,8 +426,9 @@ def fit_svi(
     take the responsibilities of that Gaussian mixture; ``"grow"`` and ``"auto"`` fit an
     exact mixture by EM with that `init` on at most `init_rows` rows (a seeded random
     subset) and start from its responsibilities on every row and from its experts (their
-    hyperparameters, and q(u) on their predictive means); a tensor `(N, M)` gives the
-    responsibilities directly.
+    hyperparameters, and q(u) on their predictive means); a fitted `MixtureOfGPExperts`
+    with the same experts and expert columns is such a start already made; a tensor
+    `(N, M)` gives the responsibilities directly.
 
     Args:
         model: The mixture to fit (rebuilt for the data).
@@ -429,8 +439,8 @@ def fit_svi(
         lr: Adam step size.
         n_init: Restarts of the initial Gaussian mixture.
         seed: Seed of the initialisation and the minibatches.
-        init: ``"auto"`` (default), ``"grow"``, ``"effects"``, ``"joint"``, or
-            responsibilities `(N, M)`.
+        init: ``"auto"`` (default), ``"grow"``, ``"effects"``, ``"joint"``, a fitted
+            `MixtureOfGPExperts`, or responsibilities `(N, M)`.
         init_rows: Rows of the exact EM fit behind ``"grow"`` and ``"auto"``.
 
     Returns:
