@@ -38,7 +38,8 @@ methods, not of model sizes. Gates and experts see every feature column.
 
 Data sets (fixed data, seed 0; the CLI seed sets folds and fits only):
 
-* ``ch5``: 321 simulated two-object pushes, features f_o & f_c (21 columns), 6 effects
+* ``ch5``: 321 simulated two-object pushes (poses observed with `PoseNoise()`, whose
+  effect noise is every GP model's noise floor), features f_o & f_c (21 columns), 6 effects
   (dy, dz, dth of both objects); generated under ``OUT/data/`` on first use (about 15 s).
 * ``ch4``: 120 simulated single-object pushes near an obstacle, f_o & f_c (55 columns),
   3 effects.
@@ -137,19 +138,22 @@ class FitPredict(Protocol):
     """Fit on a training fold and return the predictive distribution at the test inputs."""
 
     def __call__(self, X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray,
-                 seed: int, *, n_experts: int = 3, budget: Budget = FULL) -> Distribution: ...
+                 seed: int, *, n_experts: int = 3, budget: Budget = FULL,
+              noise_floor: list[float] | None = None) -> Distribution: ...
 
 
 def single_gp(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int, *,
-              n_experts: int = 3, budget: Budget = FULL) -> Distribution:
+              n_experts: int = 3, budget: Budget = FULL,
+              noise_floor: list[float] | None = None) -> Distribution:
     """One probaff GP expert over all the data (`seed` and `n_experts` are unused)."""
     gp = GPExpert(X_train.shape[1], Y_train.shape[1], max_iter=budget.gp_iter,
-                  lengthscale_prior=True).fit(X_train, Y_train)
+                  lengthscale_prior=True, noise_floor=noise_floor).fit(X_train, Y_train)
     return Independent(gp.predict(X_test), 1)
 
 
 def ccr(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int, *,
-        n_experts: int = 3, budget: Budget = FULL) -> Distribution:
+        n_experts: int = 3, budget: Budget = FULL,
+        noise_floor: list[float] | None = None) -> Distribution:
     """Cluster [X, Y] with a GMM, gate with logistic regression, one sklearn GP per cluster."""
     from sklearn.gaussian_process import GaussianProcessRegressor
     from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
@@ -189,26 +193,30 @@ def ccr(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int,
 
 
 def clustered(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int, *,
-              n_experts: int = 3, budget: Budget = FULL) -> Distribution:
+              n_experts: int = 3, budget: Budget = FULL,
+        noise_floor: list[float] | None = None) -> Distribution:
     """Chapter 4's GMM-clustered GP experts with a soft (calibrated SVM) gate."""
     dims = (0, 1) if Y_train.shape[1] > 1 else (0,)
     model = ClusteredGPModel(n_experts, cluster_dims=dims, seed=seed, soft_gate=True,
                              expert_kwargs={"lengthscale_prior": True,
-                                            "max_iter": budget.gp_iter})
+                                            "max_iter": budget.gp_iter,
+                                            "noise_floor": noise_floor})
     return model.fit(X_train, Y_train).predict(X_test)
 
 
 def em(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int, *,
-       n_experts: int = 3, budget: Budget = FULL,
+       n_experts: int = 3, budget: Budget = FULL, noise_floor: list[float] | None = None,
        fit: Callable[..., Any] = fit_em) -> Distribution:
     """probaff's mixture of GP experts fitted by EM (`fit` is `fit_em` or a partial of it)."""
-    model = MixtureOfGPExperts(n_experts, gp_max_iter=budget.gp_iter, lengthscale_prior=True)
+    model = MixtureOfGPExperts(n_experts, gp_max_iter=budget.gp_iter, lengthscale_prior=True,
+                               noise_floor="auto" if noise_floor is None else noise_floor)
     fit(model, X_train, Y_train, seed=seed, max_iter=budget.em_iter)
     return model.predict(X_test)
 
 
 def vi(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int, *,
-       n_experts: int = 3, budget: Budget = FULL) -> Distribution:
+       n_experts: int = 3, budget: Budget = FULL,
+        noise_floor: list[float] | None = None) -> Distribution:
     """probaff's mixture of sparse variational GP experts fitted by Pyro SVI."""
     model = VariationalMixtureOfGPExperts(n_experts, n_inducing=min(32, len(X_train)))
     fit_svi(model, X_train, Y_train, seed=seed, n_steps=budget.svi_steps)
@@ -241,6 +249,8 @@ class Dataset:
         Y: Targets, `(N, E)` float64.
         outputs: Names of the E targets.
         n_experts: M used by every mixture model on this data set.
+        noise_floor: Known measurement-noise standard deviation per output (the GP models'
+            noise floor), or ``None``.
         about: One-line description.
     """
 
@@ -250,6 +260,7 @@ class Dataset:
     outputs: tuple[str, ...]
     n_experts: int = 3
     about: str = ""
+    noise_floor: list[float] | None = None
 
 
 def _subsample(X: np.ndarray, Y: np.ndarray, rows: int | None) -> tuple[np.ndarray, np.ndarray]:
@@ -266,29 +277,35 @@ def _subsample(X: np.ndarray, Y: np.ndarray, rows: int | None) -> tuple[np.ndarr
 def load_ch5(data_root: Path, rows: int | None, progress: bool) -> Dataset:
     """Chapter 5 two-object pushes: f_o & f_c features, (dy, dz, dth) of both objects."""
     from probaff.data.generation import GenerateConfig, generate
+    from probaff.data.noise import PoseNoise
     from probaff.features import chapter5_features
 
     n = rows or 321
-    ds = generate(GenerateConfig("two_objects", n, seed=0), data_root / f"two_objects-n{n}",
+    ds = generate(GenerateConfig("two_objects", n, seed=0, pose_noise=PoseNoise()),
+                  data_root / f"two_objects-noisy-n{n}",
                   workers=0, resume=True, progress=progress)
     X = chapter5_features(ds).select("f_o", "f_c")
     Y = ds["effect"][:, :2].reshape(len(ds), 6)
     return Dataset("ch5", *_subsample(X, Y, None),
                    ("o1.dy", "o1.dz", "o1.dth", "o2.dy", "o2.dz", "o2.dth"),
-                   about=f"{n} simulated two-object pushes, f_o & f_c")
+                   about=f"{n} simulated two-object pushes, f_o & f_c, poses observed with "
+                   "PoseNoise()", noise_floor=PoseNoise().effect_std(2))
 
 
 def load_ch4(data_root: Path, rows: int | None, progress: bool) -> Dataset:
     """Chapter 4 single-object pushes near an obstacle: f_o & f_c, (dy, dz, dth)."""
     from probaff.data.generation import GenerateConfig, generate
+    from probaff.data.noise import PoseNoise
     from probaff.features import chapter4_features
 
     n = rows or 120
-    ds = generate(GenerateConfig("near_obstacle", n, seed=0), data_root / f"near_obstacle-n{n}",
+    ds = generate(GenerateConfig("near_obstacle", n, seed=0, pose_noise=PoseNoise()),
+                  data_root / f"near_obstacle-noisy-n{n}",
                   workers=0, resume=True, progress=progress)
     X = chapter4_features(ds).select("f_o", "f_c")
     return Dataset("ch4", *_subsample(X, ds["effect"][:, 0], None), ("dy", "dz", "dth"),
-                   about=f"{n} simulated single-object pushes near an obstacle, f_o & f_c")
+                   about=f"{n} simulated single-object pushes near an obstacle, f_o & f_c, "
+                   "poses observed with PoseNoise()", noise_floor=PoseNoise().effect_std(1))
 
 
 def load_synthetic(data_root: Path, rows: int | None, progress: bool) -> Dataset:
@@ -367,7 +384,7 @@ def fit_and_score(task: dict[str, Any]) -> dict[str, Any]:
         start = time.perf_counter()
         try:
             pred = fn(X[train], Y[train], X[test], int(task["seed"]), n_experts=int(task["M"]),
-                      budget=budget)
+                      budget=budget, noise_floor=task["noise_floor"])
             seconds = time.perf_counter() - start
             n_test, e = len(test), Y.shape[1]
             if tuple(pred.batch_shape) != (n_test,) or tuple(pred.event_shape) != (e,):
@@ -409,7 +426,8 @@ def make_tasks(ds: Dataset, models: list[str], folds: int, seed: int,
     for model in models:
         for f, (train, test) in enumerate(splits):
             task = {"dataset": ds.name, "model": model, "fold": f, "seed": seed,
-                    "M": ds.n_experts, "X": ds.X, "Y": ds.Y, "train": train, "test": test,
+                    "M": ds.n_experts, "noise_floor": ds.noise_floor,
+                    "X": ds.X, "Y": ds.Y, "train": train, "test": test,
                     "outputs": list(ds.outputs), "y_std": np.where(y_std > 0, y_std, 1.0),
                     "budget": asdict(budget)}
             tasks.append((f"{ds.name}.{model}.fold{f}.{tag}", (task,)))

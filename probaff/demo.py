@@ -1,8 +1,10 @@
 """`probaff demo`: the main job on a small embedded default.
 
-It generates a small two-object push dataset (chapter 5's scene), prints its summary, draws a
-few pushes with the arm's reachable region, fits a mixture of GP experts by EM next to a
-single GP, printing their held-out RMSE and NLPD, and finally explores a small warehouse map,
+It generates a small two-object push dataset (chapter 5's scene, poses observed with a depth
+camera's noise), prints its summary, draws a few pushes with the arm's reachable region, fits
+a mixture of GP experts by EM next to a single GP, printing their held-out RMSE, NLPD and 90 %
+interval coverage and drawing both models' predictive density of o2's motion for a push where
+the mixture sees two outcomes (o2 hit or not), and finally explores a small warehouse map,
 pushes a few boxes chosen by information gain on the affordance MRF, and prints the map's
 entropy before and after.
 """
@@ -17,12 +19,16 @@ from typing import Any
 
 import numpy as np
 import torch
+from torch.distributions import Normal
 
+from probaff._checks import check_count
 from probaff._threads import torch_threads
 from probaff.data.generation import GenerateConfig, generate
+from probaff.data.noise import PoseNoise
 from probaff.data.schema import PushDataset
 from probaff.data.summary import summarize
-from probaff.eval.metrics import nlpd, rmse
+from probaff.eval.metrics import interval_coverage, nlpd, rmse
+from probaff.eval.model_figures import plot_predictive_density
 from probaff.eval.push_figures import plot_pushes
 from probaff.features import chapter5_features
 from probaff.models import MixtureOfGPExperts, fit_em
@@ -61,9 +67,13 @@ def run(config: DemoConfig) -> dict[str, Any]:
     Returns:
         ``{"summary": ..., "dataset": path, "figure": path}``.
     """
+    check_count("n", config.n)
+    check_count("seed", config.seed, minimum=0)
+    check_count("workers", config.workers, minimum=0)
     out = Path(config.out)
     ds_path = out / "two_objects"
-    gen = GenerateConfig(scene="two_objects", n=config.n, seed=config.seed, shard_size=16)
+    gen = GenerateConfig(scene="two_objects", n=config.n, seed=config.seed, shard_size=16,
+                         pose_noise=PoseNoise())
     ds = generate(gen, ds_path, workers=config.workers, resume=ds_path.exists(),
                   progress=config.progress)
     summary = summarize(ds)
@@ -74,7 +84,7 @@ def run(config: DemoConfig) -> dict[str, Any]:
                                                resolution=0.04, n_yaws=2)
     figure = out / "demo_pushes.png"
     plot_pushes(ds, list(range(min(6, len(ds)))), figure, reachable=reach)
-    models = _compare_models(ds, config.seed)
+    models = _compare_models(ds, config.seed, out)
     print(f"dataset: {os.fspath(ds_path)}")
     print(f"figure:  {os.fspath(figure)}")
     print("affordance map:")
@@ -83,8 +93,14 @@ def run(config: DemoConfig) -> dict[str, Any]:
             "models": models, "affordance_map": affordance}
 
 
-def _compare_models(ds: PushDataset, seed: int) -> dict[str, dict[str, float]]:
-    """Held-out RMSE and NLPD of a 3-expert EM mixture and of a single GP (M = 1)."""
+def _compare_models(ds: PushDataset, seed: int, out: Path) -> dict[str, dict[str, float]]:
+    """Held-out scores of a 3-expert EM mixture and of a single GP, and o2's density figure.
+
+    Both models see the same pushes, features (gate: f_x; experts: f_o & f_c) and noise
+    floor (that of the dataset's pose noise). The figure shows, for the held-out push where
+    the mixture's prediction of o2's displacement along the push is most clearly bimodal
+    (o2 hit or not hit), both models' predictive densities and what was observed.
+    """
     features = chapter5_features(ds)
     X = features.values
     Y = ds["effect"][:, :2].reshape(len(ds), 6)
@@ -92,20 +108,52 @@ def _compare_models(ds: PushDataset, seed: int) -> dict[str, dict[str, float]]:
     test = rng.permutation(len(ds))[: len(ds) // 3]
     train = np.setdiff1d(np.arange(len(ds)), test)
     y = torch.as_tensor(Y[test])
-    scores = {}
+    floor = PoseNoise().effect_std(2) if ds.has_pose_noise else "auto"
+    scores: dict[str, dict[str, float]] = {}
+    preds = {}
     with torch_threads(1):
         for name, m in (("single GP", 1), ("mixture M=3", 3)):
             model = MixtureOfGPExperts(m, groups=features.groups, gate_features=("f_x",),
-                                       expert_features=("f_o", "f_c"), lengthscale_prior=True)
-            fit_em(model, X[train], Y[train], max_iter=5, seed=seed)
-            pred = model.predict(X[test])
-            scores[name] = {"rmse_mean": float(rmse(pred, y).mean()),
-                            "rmse_o1_dz_cm": float(100 * rmse(pred, y)[1]),
-                            "rmse_o2_dz_cm": float(100 * rmse(pred, y)[4]),
-                            "nlpd": float(nlpd(pred, y).sum())}
-    print(f"held-out pushes: {len(test)} (trained on {len(train)})")
-    print(f"{'model':14s} {'o1 dz RMSE':>11s} {'o2 dz RMSE':>11s} {'NLPD (6 dims)':>14s}")
+                                       expert_features=("f_o", "f_c"), lengthscale_prior=True,
+                                       noise_floor=floor)
+            fit_em(model, X[train], Y[train], seed=seed)
+            pred = preds[name] = model.predict(X[test])
+            err = rmse(pred, y)
+            scores[name] = {"rmse_o1_dz_cm": float(100 * err[1]),
+                            "rmse_o2_dz_cm": float(100 * err[4]),
+                            "nlpd": float(nlpd(pred, y).sum()),
+                            "coverage90": float(interval_coverage(pred, y, 0.9).mean())}
+    print(f"held-out pushes: {len(test)} (trained on {len(train)}); "
+          f"pose noise: {'on' if ds.has_pose_noise else 'off'}")
+    print(f"{'model':14s} {'o1 dz RMSE':>11s} {'o2 dz RMSE':>11s} {'NLPD (6 dims)':>14s} "
+          f"{'90% coverage':>13s}")
     for name, s in scores.items():
         print(f"{name:14s} {s['rmse_o1_dz_cm']:8.2f} cm {s['rmse_o2_dz_cm']:8.2f} cm "
-              f"{s['nlpd']:14.2f}")
+              f"{s['nlpd']:14.2f} {s['coverage90']:13.2f}")
+    figure = _plot_o2_density(preds, Y[test], out / "demo_o2_density.png")
+    print(f"o2 density figure: {os.fspath(figure)}")
     return scores
+
+
+def _plot_o2_density(preds: dict[str, Any], Y: np.ndarray, path: Path) -> Path:
+    """Plot o2's dz density at the held-out push where the mixture is most bimodal."""
+    mixture = preds["mixture M=3"]
+    probs = mixture.mixture_distribution.probs  # (N, M)
+    loc = mixture.component_distribution.base_dist.loc[..., 4]  # (N, M), o2 dz
+    scale = mixture.component_distribution.base_dist.scale[..., 4]
+    spread = (loc.max(1).values - loc.min(1).values) / scale.min(1).values
+    weight = 1.0 - probs.max(1).values  # mass away from the most probable expert
+    i = int(torch.argmax(spread * weight))
+    lo = float(torch.min(loc[i] - 4 * scale[i]).clamp_max(Y[i, 4] - 0.01))
+    hi = float(torch.max(loc[i] + 4 * scale[i]).clamp_min(Y[i, 4] + 0.01))
+    grid = torch.linspace(lo, hi, 400, dtype=torch.float64)
+    densities = {}
+    for name, pred in preds.items():
+        p = pred.mixture_distribution.probs[i]
+        comp = pred.component_distribution.base_dist
+        d = Normal(comp.loc[i, :, 4], comp.scale[i, :, 4])
+        densities[name] = (p[None, :] * d.log_prob(grid[:, None]).exp()).sum(1).numpy()
+    plot_predictive_density(100 * grid.numpy(), {k: v / 100 for k, v in densities.items()},
+                            100 * float(Y[i, 4]), path, xlabel="o2 dz_p (cm)",
+                            title="o2 along the push, one held-out push: hit or not hit")
+    return path

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from probaff._checks import check_positive
+from probaff._checks import check_count, check_positive
 from probaff.errors import InputError
 from probaff.sim.geometry import push_frame_effect
 
@@ -49,6 +49,23 @@ class PoseNoise:
                 raise InputError(f"pose noise {name} must be a finite number >= 0, got {value!r}.")
             check_positive(f"pose noise {name}", value, allow_zero=True)
             object.__setattr__(self, name, float(value))
+
+    def effect_std(self, n_objects: int = 1) -> list[float]:
+        """Noise standard deviation of an observed effect, per effect dimension.
+
+        An effect is the difference of two independent measurements, so each component has
+        sqrt(2) times the pose noise: ``(dy_p, dz_p, dth_p)`` per object, objects stacked
+        in order. This is the noise floor a push model of such data should use.
+
+        Args:
+            n_objects: Objects whose effects are stacked.
+
+        Returns:
+            Standard deviations `(3 * n_objects,)`, metres and radians.
+        """
+        position = math.sqrt(2.0) * self.position_std
+        return [position, position, math.sqrt(2.0) * self.yaw_std] * check_count(
+            "n_objects", n_objects)
 
     def to_dict(self) -> dict[str, float]:
         """The parameters as a manifest stores them: ``position_std`` (m), ``yaw_std`` (rad)."""

@@ -14,7 +14,12 @@ from matplotlib.figure import Figure
 
 from probaff._io import atomic_save_figure
 
-__all__ = ["plot_effect_clusters", "plot_metric_vs_experts", "plot_relevances"]
+__all__ = [
+    "plot_effect_clusters",
+    "plot_metric_vs_experts",
+    "plot_predictive_density",
+    "plot_relevances",
+]
 
 _STYLES = {"em": "-", "vi": "--", "clustered": ":"}
 
@@ -111,3 +116,31 @@ def plot_relevances(lengthscales: Sequence[Sequence[Sequence[float]]],
     fig.suptitle("ARD relevance 1/length scale, mean over effect dimensions", fontsize=10)
     fig.tight_layout()
     atomic_save_figure(fig, path, dpi=120)
+
+
+def plot_predictive_density(grid: np.ndarray, densities: dict[str, np.ndarray],
+                            observed: float, path: str | os.PathLike[str], *, xlabel: str,
+                            title: str = "") -> None:
+    """Predictive densities of one effect dimension of one push, with the observed value.
+
+    Args:
+        grid: Effect values, `(G,)`.
+        densities: Model name to its density on `grid`, each `(G,)`.
+        observed: The effect that was observed.
+        path: PNG file to write.
+        xlabel: Axis label (with units).
+        title: Figure title.
+    """
+    fig = Figure(figsize=(5.5, 3.4))
+    ax = fig.subplots()
+    for i, (name, dens) in enumerate(densities.items()):
+        ax.plot(grid, dens, color=f"C{i}", lw=1.8, label=name)
+        ax.fill_between(grid, dens, color=f"C{i}", alpha=0.12)
+    ax.axvline(observed, color="k", ls="--", lw=1.2, label="observed")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("predictive density")
+    ax.legend(frameon=False, fontsize=8)
+    if title:
+        ax.set_title(title, fontsize=10)
+    fig.tight_layout()
+    atomic_save_figure(fig, path)

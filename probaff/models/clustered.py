@@ -20,6 +20,7 @@ from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 from torch.distributions import Categorical, Independent, MixtureSameFamily
 
+from probaff._checks import check_count
 from probaff.errors import InputError, NotFittedError
 from probaff.models._tensors import as_matrix
 from probaff.models.gp_expert import GPExpert
@@ -43,9 +44,9 @@ class ClusteredGPModel:
     def __init__(self, n_clusters: int, *, cluster_dims: tuple[int, ...] = (0, 1),
                  seed: int = 0, n_init: int = 5, svm_c: float = 1.0, soft_gate: bool = False,
                  expert_kwargs: dict[str, Any] | None = None) -> None:
-        if isinstance(n_clusters, bool) or not isinstance(n_clusters, int) or n_clusters < 1:
-            raise InputError(f"n_clusters must be a positive integer, got {n_clusters!r}.")
-        self.n_clusters = n_clusters
+        self.n_clusters = check_count("n_clusters", n_clusters)
+        check_count("n_init", n_init)
+        check_count("seed", seed, minimum=0)
         self.cluster_dims = tuple(cluster_dims)
         self.seed = seed
         self.n_init = n_init

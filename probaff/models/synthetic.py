@@ -9,7 +9,8 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from probaff._checks import check_count, check_positive
+from probaff._checks import check_count
+from probaff.errors import InputError
 
 __all__ = ["piecewise_1d", "regime_features", "softmax_regimes"]
 
@@ -29,7 +30,7 @@ def piecewise_1d(n: int, *, seed: int = 0) -> tuple[Tensor, Tensor, Tensor]:
     Returns:
         Features `(n, 1)`, outputs `(n, 2)` and regime labels `(n,)` (long).
     """
-    check_positive("n", n)
+    n = check_count("n", n)
     g = torch.Generator().manual_seed(seed)
     x = torch.rand(n, 1, generator=g, dtype=torch.float64) * 6 - 3
     labels = torch.bucketize(x[:, 0], torch.tensor([-1.0, 1.0], dtype=torch.float64))
@@ -63,10 +64,11 @@ def regime_features(n: int, d: int, e: int, *, seed: int = 0) -> tuple[Tensor, T
     Returns:
         Features `(n, d)`, outputs `(n, e)` and regime labels `(n,)` (long).
     """
-    check_positive("n", n)
-    check_positive("e", e)
+    n = check_count("n", n)
+    e = check_count("e", e)
+    d = check_count("d", d)
     if d < 15:
-        raise ValueError(f"regime_features needs d >= 15 columns, got {d}.")
+        raise InputError(f"regime_features needs d >= 15 columns, got {d}.")
     g = torch.Generator().manual_seed(seed)
     x = torch.randn(n, d, generator=g, dtype=torch.float64)
     labels = torch.bucketize(x[:, 0] + 0.5 * x[:, 1], torch.tensor([-0.5, 0.5]).double())

@@ -180,23 +180,13 @@ def _fingerprint(config: PushModelStudyConfig, exp: str) -> str:
 
 
 def effect_noise_floor(pose_noise: bool, n_objects: int) -> list[float] | str:
-    """The experts' noise floor for effects observed with (or without) pose noise.
-
-    An effect is the difference of two independently measured poses, so its noise has
-    sqrt(2) times the pose noise's standard deviation: per object `(dy, dz, dth)`.
+    """The experts' noise floor: `PoseNoise().effect_std`, or ``"auto"`` for exact poses.
 
     Args:
         pose_noise: Whether the dataset observes poses with `PoseNoise()`.
         n_objects: Objects whose effects are stacked in the effect vector.
-
-    Returns:
-        Standard deviations `(3 * n_objects,)`, or ``"auto"`` without pose noise.
     """
-    if not pose_noise:
-        return "auto"
-    noise = PoseNoise()
-    per_object = [math.sqrt(2.0) * noise.position_std] * 2 + [math.sqrt(2.0) * noise.yaw_std]
-    return per_object * int(n_objects)
+    return PoseNoise().effect_std(n_objects) if pose_noise else "auto"
 
 
 def _scores(pred: Any, y: torch.Tensor) -> dict[str, list[float]]:
