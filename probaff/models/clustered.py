@@ -108,6 +108,7 @@ class ClusteredGPModel:
             return torch.ones(len(x), 1, dtype=torch.float64)
         if self.soft_gate:
             return torch.as_tensor(self._svm.predict_proba(x), dtype=torch.float64)
+        assert self._classes is not None
         pick = np.searchsorted(self._classes, self._svm.predict(x))
         return torch.nn.functional.one_hot(torch.as_tensor(pick), k).double()
 

@@ -67,8 +67,10 @@ def check_mixture_args(n_experts: int, groups: FeatureGroups | None, gate_featur
     n_experts = check_count("n_experts", n_experts)
     check_feature_spec("gate_features", gate_features, groups)
     check_feature_spec("expert_features", expert_features, groups)
-    if gate_l2 != "cv":
+    if not isinstance(gate_l2, str):
         check_positive("gate_l2", gate_l2, allow_zero=True)
+    elif gate_l2 != "cv":
+        raise InputError(f"gate_l2 must be a number >= 0 or 'cv', got {gate_l2!r}.")
     return n_experts
 
 

@@ -149,6 +149,7 @@ class GPExpert(torch.nn.Module):
     """
 
     jitter: Tensor
+    noise_floor: Tensor
 
     def __init__(
         self,

@@ -34,7 +34,7 @@ def _plain(spec: FeatureSpec) -> str | list[str] | list[int] | None:
     """A copy of a feature selection made only of builtins (for saving)."""
     if spec is None or isinstance(spec, str):
         return spec
-    return [s if isinstance(s, str) else int(s) for s in spec]  # type: ignore[misc]
+    return [s if isinstance(s, str) else int(s) for s in spec]  # type: ignore[misc,return-value]
 
 
 def training_data(X: Any, Y: Any, n_experts: int) -> tuple[Tensor, Tensor]:
@@ -433,4 +433,4 @@ class MixtureOfGPExperts(torch.nn.Module):
             One `(E, D_e)` tensor per expert, columns ordered as `expert_columns`.
         """
         self.check_fitted()
-        return [e.lengthscales for e in self.experts]  # type: ignore[attr-defined]
+        return [e.lengthscales for e in self.experts]  # type: ignore[attr-defined,misc]

@@ -157,8 +157,8 @@ class PushModelStudyConfig:
             check_count(name, getattr(self, name))
         check_count("ch4_pushes", self.ch4_pushes, minimum=0)
         check_count("seed", self.seed, minimum=0)
-        for m in (*self.ch5_experts, *self.ch4_experts):
-            check_count("number of experts", m)
+        for size in (*self.ch5_experts, *self.ch4_experts):
+            check_count("number of experts", size)
         for folds in (self.ch5_folds, self.ch4_folds):
             if folds < 2:
                 raise InputError(f"cross-validation needs at least 2 folds, got {folds}.")
@@ -255,6 +255,7 @@ def _fit_clustered(task: dict[str, Any]) -> dict[str, Any]:
             "noise_floor": None if isinstance(floor, str) else floor})
         model.fit(X[train][:, cols], Y[train])
         pred = model.predict(X[test][:, cols])
+    assert model.labels_ is not None
     row = {"experiment": task["experiment"], "features": task["features"],
            "method": "clustered", "M": m, "fold": int(task["fold"]),
            "seconds": time.perf_counter() - start,
@@ -382,11 +383,12 @@ def _findings(rows: list[dict[str, Any]], method: str = "em") -> list[str]:
     feats = sorted({r["features"] for r in rows if r["method"] == method})
     ms = sorted({r["M"] for r in rows if r["method"] == method})
     for feat in feats:
-        changes = {m: _relative(rows, (feat, method, m), (feat, method, 1), CH5_EFFECTS)
-                   for m in ms if m != 1}
-        changes = {m: v for m, v in changes.items() if v is not None}
-        nl = {m: _lookup(rows, feat, method, m, "nlpd.total") for m in ms}
-        nl = {m: v for m, v in nl.items() if v is not None}
+        changes: dict[int, float] = {
+            m: v for m in ms if m != 1
+            if (v := _relative(rows, (feat, method, m), (feat, method, 1), CH5_EFFECTS))
+            is not None}
+        nl: dict[int, float] = {m: v for m in ms
+                                if (v := _lookup(rows, feat, method, m, "nlpd.total")) is not None}
         if changes and nl:
             txt = ", ".join(f"M={m}: {v:+.1f}%" for m, v in changes.items())
             best_nl = min(nl, key=lambda m: nl[m])
