@@ -25,3 +25,11 @@ def test_ci_runs_the_readme_test_command():
     cmd = re.findall(r"```bash\n(.*?)\n```", text, re.S)[1].strip()
     ci = (README.parent / ".ci" / "run").read_text()
     assert cmd in ci.splitlines()
+
+
+def test_push_model_example(capsys):
+    from probaff._threads import torch_threads
+
+    with torch_threads(1):
+        exec(compile(_block("Push models"), "README.md", "exec"), {})
+    assert capsys.readouterr().out.split()[0] in ("grow", "grow-copy", "joint", "effects")
