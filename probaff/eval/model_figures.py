@@ -21,7 +21,7 @@ __all__ = [
     "plot_relevances",
 ]
 
-_STYLES = {"em": "-", "vi": "--", "clustered": ":"}
+_STYLES = {"em": "-", "em-hard": "-.", "vi": "--", "clustered": ":"}
 
 
 def plot_metric_vs_experts(rows: Sequence[dict[str, Any]], effects: Sequence[str], metric: str,
