@@ -200,9 +200,7 @@ class _Run:
             self.model.fit_gate(self.x, self.resp, reuse_choice=it > 1)
             iters = s.warm_iters if (self.warm or it > 1) else s.first_iters
             self.model.fit_experts(self.x, self.y, weights, max_iter=iters)
-            log_joint = self.model.loo_log_joint(self.x, self.y)
-            self.log_lik = log_joint - self.model.gate.log_proba(  # type: ignore[union-attr]
-                self.x[:, self.model.gate_columns])
+            log_joint, self.log_lik = _loo_terms(self.model, self.x, self.y)
             total = float(torch.logsumexp(log_joint, dim=1).sum())
             self.history.objective.append(total)
             logger.info("EM (%s) iteration %d: objective %.6g", self.init, it, total)
@@ -279,16 +277,31 @@ def _fresh(template: MixtureOfGPExperts, n_experts: int, x: Tensor, y: Tensor
     return model
 
 
-def _split_target(model: MixtureOfGPExperts, x: Tensor, y: Tensor, min_size: float) -> int:
+def _loo_terms(model: MixtureOfGPExperts, x: Tensor, y: Tensor) -> tuple[Tensor, Tensor]:
+    """Leave-one-out log joint densities `(N, M)` and their experts' part `(N, M)`."""
+    log_lik = model.loo_log_lik(x, y)
+    log_gate = model.gate.log_proba(x[:, model.gate_columns])  # type: ignore[union-attr]
+    return log_gate + log_lik, log_lik
+
+
+def _fit_matrix(resp: Tensor, log_lik: Tensor) -> Tensor:
+    """Entry `(i, j)`: mean log density expert `j` gives to expert `i`'s samples, `(M, M)`.
+
+    Samples count by their responsibilities `resp` `(N, M)`; the diagonal is how well each
+    expert explains its own samples.
+    """
+    mass = resp.sum(0).clamp_min(1e-12)
+    return (resp.T @ log_lik) / mass[:, None]
+
+
+def _split_target(resp: Tensor, log_lik: Tensor, min_size: float) -> int:
     """The expert that explains its samples worst (lowest mean leave-one-out log density)."""
-    log_joint = model.loo_log_joint(x, y)
-    resp = torch.softmax(log_joint, dim=1)
-    log_lik = log_joint - model.gate.log_proba(x[:, model.gate_columns])  # type: ignore[union-attr]
     mass = resp.sum(0)
     ok = [j for j in range(resp.shape[1]) if float(mass[j]) >= 2 * max(min_size, 1)]
     if not ok:
         return int(mass.argmax())
-    return min(ok, key=lambda j: float((resp[:, j] * log_lik[:, j]).sum() / mass[j]))
+    own = _fit_matrix(resp, log_lik).diagonal()
+    return min(ok, key=lambda j: float(own[j]))
 
 
 def _residuals(model: MixtureOfGPExperts, expert: int, x: Tensor, y: Tensor) -> Tensor:
@@ -316,11 +329,10 @@ def _split_merge(model: MixtureOfGPExperts, history: EMHistory, x: Tensor, y: Te
         return model, history
     n = x.shape[0]
     for r in range(rounds):
-        log_joint = model.loo_log_joint(x, y)
+        log_joint, log_lik = _loo_terms(model, x, y)
         resp = torch.softmax(log_joint, dim=1)
-        log_lik = log_joint - model.gate.log_proba(x[:, model.gate_columns])  # type: ignore[union-attr]
-        mass = resp.sum(0).clamp_min(1e-12)
-        cross = (resp.T @ log_lik) / mass[:, None]  # (i, j): expert j on i's samples
+        mass = resp.sum(0)
+        cross = _fit_matrix(resp, log_lik)
         own = cross.diagonal()
         pairs = sorted(
             ((float(own[i] - cross[i, j] + own[j] - cross[j, i]), i, j)
@@ -362,9 +374,9 @@ def _grow(prev: MixtureOfGPExperts, x: Tensor, y: Tensor, settings: _Settings, s
           ) -> tuple[_Run, int]:
     """Start an EM run for `M` experts by splitting one expert of the `M - 1` solution."""
     m = prev.n_experts + 1
-    target = _split_target(prev, x, y, settings.min_size)
-    log_joint = prev.loo_log_joint(x, y)
+    log_joint, log_lik = _loo_terms(prev, x, y)
     resp = torch.softmax(log_joint, dim=1)
+    target = _split_target(resp, log_lik, settings.min_size)
     split = split_responsibilities(resp, target, x[:, prev.gate_columns],
                                    _residuals(prev, target, x, y), seed=seed)
     model = _fresh(prev, m, x, y)

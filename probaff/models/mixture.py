@@ -398,6 +398,19 @@ class MixtureOfGPExperts(torch.nn.Module):
     def loo_log_joint(self, X: Tensor, Y: Tensor) -> Tensor:
         """Like `log_joint` on the training set, with leave-one-out expert densities.
 
+        Args:
+            X: The training features, `(N, D)`.
+            Y: The training effects, `(N, E)`.
+
+        Returns:
+            Log joint densities `log p(m = j | f_i) + log p_j(e_i | f_i, D_-i)`, `(N, M)`.
+        """
+        log_gate = self._built_gate().log_proba(X[:, self.gate_columns])
+        return log_gate + self.loo_log_lik(X, Y)
+
+    def loo_log_lik(self, X: Tensor, Y: Tensor) -> Tensor:
+        """Every expert's leave-one-out log density of every training sample.
+
         Expert `j`'s density of a sample it was trained on is its leave-one-out predictive
         density (`GPExpert.loo_predict`): the sample's own target is not used to predict it.
         A sample that expert `j` holds no weight of is scored by its ordinary predictive
@@ -411,12 +424,11 @@ class MixtureOfGPExperts(torch.nn.Module):
             Y: The training effects, `(N, E)`.
 
         Returns:
-            Log joint densities, `(N, M)`.
+            `log p_j(e_i | f_i, D_-i)`, `(N, M)`.
         """
         self.check_fitted()
         if self.train_weights is None or self.train_weights.shape[0] != X.shape[0]:
-            raise InputError("loo_log_joint needs the training set the mixture was fitted on.")
-        log_gate = self._built_gate().log_proba(X[:, self.gate_columns])
+            raise InputError("loo_log_lik needs the training set the mixture was fitted on.")
         pred = self.expert_predictions(X)
         loc, scale = pred.loc.clone(), pred.scale.clone()
         for j, expert in enumerate(self.experts):
@@ -424,7 +436,7 @@ class MixtureOfGPExperts(torch.nn.Module):
             loo = expert.loo_predict()  # type: ignore[operator]
             loc[held, j] = loo.loc
             scale[held, j] = loo.scale
-        return log_gate + Normal(loc, scale).log_prob(Y[:, None, :]).sum(-1)
+        return Normal(loc, scale).log_prob(Y[:, None, :]).sum(-1)
 
     def lengthscales(self) -> list[Tensor]:
         """ARD length scales of every expert (standardised units; short means relevant).
