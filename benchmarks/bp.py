@@ -32,8 +32,10 @@ import numpy as np
 import torch
 
 from probaff.maps import (
+    DEFAULT_COUPLING,
     GRID_BYTES_PER_CELL,
     AffordanceGraph,
+    BPOptions,
     affordance_marginals,
     exact_marginals,
     grid_belief_propagation,
@@ -42,7 +44,7 @@ from probaff.maps import (
     single_variable_evidence,
 )
 
-COUPLING = 0.4
+COUPLING = DEFAULT_COUPLING
 GIB = 1024**3
 
 
@@ -122,10 +124,12 @@ def bench_grid(n: int) -> None:
     print(f"(a) BP iteration time, {n}x{n} Ising grid, J={COUPLING}, B=1, float32")
 
     def grid(iters: int) -> object:
-        return grid_belief_propagation(unary, COUPLING, tol=0.0, max_iterations=iters)
+        opts = BPOptions(tol=0.0, max_iterations=iters)
+        return grid_belief_propagation(unary, COUPLING, options=opts)
 
     def generic(iters: int) -> object:
-        return loopy_belief_propagation(flat_unary, edges, pairwise, tol=0.0, max_iterations=iters)
+        opts = BPOptions(tol=0.0, max_iterations=iters)
+        return loopy_belief_propagation(flat_unary, edges, pairwise, options=opts)
 
     threads = torch.get_num_threads()
     fast = per_iteration_ms(grid, 1, 21, repeats=4)
@@ -250,7 +254,7 @@ def memory_probe(n: int) -> None:
     grid_belief_propagation(torch.zeros(2, 2, 2), COUPLING)  # warm-up: lazy allocations
     base = current_rss()
     unary = grid_unary(n)
-    result = grid_belief_propagation(unary, COUPLING, tol=0.0, max_iterations=3)
+    result = grid_belief_propagation(unary, COUPLING, options=BPOptions(tol=0.0, max_iterations=3))
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     print(base, peak, result.iterations)
 

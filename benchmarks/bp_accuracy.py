@@ -15,7 +15,9 @@ import numpy as np
 import torch
 
 from probaff.maps import (
+    DEFAULT_COUPLING,
     AffordanceGraph,
+    BPOptions,
     affordance_marginals,
     exact_marginals,
     single_variable_evidence,
@@ -30,22 +32,28 @@ def main() -> None:
     a = ap.parse_args()
     spec = load_warehouse()
     rng = np.random.default_rng(0)
-    for sym in (None, 0.4):
+    exact_bp = BPOptions(tol=1e-12, dtype=torch.float64)
+    for sym in (None, DEFAULT_COUPLING):
         worst_bp, worst_auto, cycles = [], [], 0
         for _ in range(a.maps):
             m = generate_map(spec, rng)
-            g = AffordanceGraph(m.occupancy, rng.uniform(0.05, 0.95, (*m.shape, 4)), 0.4, sym)
+            unary = rng.uniform(0.05, 0.95, (*m.shape, 4))
+            g = AffordanceGraph(m.occupancy, unary, DEFAULT_COUPLING, sym)
             cycles += int(g.num_edges - g.num_variables + len(g.components) > 0)
             ev = single_variable_evidence(g.num_variables, range(g.num_variables))
             exact = exact_marginals(g, ev)
-            bp = affordance_marginals(g, ev, method="bp", dtype=torch.float64, tol=1e-12)
-            auto = affordance_marginals(g, ev, method="auto", dtype=torch.float64)
+            bp = affordance_marginals(g, ev, method="bp", options=exact_bp)
+            auto = affordance_marginals(
+                g, ev, method="auto", options=BPOptions(dtype=torch.float64)
+            )
             worst_bp.append(float((bp.marginals - exact).abs().max()))
             worst_auto.append(float((auto.marginals - exact).abs().max()))
         wb, wa = np.array(worst_bp), np.array(worst_auto)
         print(f"symmetry coupling {sym}: {a.maps} maps, {cycles} with cycles")
-        print(f"  loopy BP vs gtsam: worst {wb.max():.2e}, median {np.median(wb):.2e}, "
-              f"maps within 1e-3: {(wb <= 1e-3).sum()}/{a.maps}")
+        print(
+            f"  loopy BP vs gtsam: worst {wb.max():.2e}, median {np.median(wb):.2e}, "
+            f"maps within 1e-3: {(wb <= 1e-3).sum()}/{a.maps}"
+        )
         print(f"  method='auto' vs gtsam: worst {wa.max():.2e}")
 
 

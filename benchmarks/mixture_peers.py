@@ -137,23 +137,50 @@ SMOKE = Budget(gp_iter=5, em_iter=2, svi_steps=20, sk_restarts=0)
 class FitPredict(Protocol):
     """Fit on a training fold and return the predictive distribution at the test inputs."""
 
-    def __call__(self, X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray,
-                 seed: int, *, n_experts: int = 3, budget: Budget = FULL,
-              noise_floor: list[float] | None = None) -> Distribution: ...
+    def __call__(
+        self,
+        X_train: np.ndarray,
+        Y_train: np.ndarray,
+        X_test: np.ndarray,
+        seed: int,
+        *,
+        n_experts: int = 3,
+        budget: Budget = FULL,
+        noise_floor: list[float] | None = None,
+    ) -> Distribution: ...
 
 
-def single_gp(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int, *,
-              n_experts: int = 3, budget: Budget = FULL,
-              noise_floor: list[float] | None = None) -> Distribution:
+def single_gp(
+    X_train: np.ndarray,
+    Y_train: np.ndarray,
+    X_test: np.ndarray,
+    seed: int,
+    *,
+    n_experts: int = 3,
+    budget: Budget = FULL,
+    noise_floor: list[float] | None = None,
+) -> Distribution:
     """One probaff GP expert over all the data (`seed` and `n_experts` are unused)."""
-    gp = GPExpert(X_train.shape[1], Y_train.shape[1], max_iter=budget.gp_iter,
-                  lengthscale_prior=True, noise_floor=noise_floor).fit(X_train, Y_train)
+    gp = GPExpert(
+        X_train.shape[1],
+        Y_train.shape[1],
+        max_iter=budget.gp_iter,
+        lengthscale_prior=True,
+        noise_floor=noise_floor,
+    ).fit(X_train, Y_train)
     return Independent(gp.predict(X_test), 1)
 
 
-def ccr(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int, *,
-        n_experts: int = 3, budget: Budget = FULL,
-        noise_floor: list[float] | None = None) -> Distribution:
+def ccr(
+    X_train: np.ndarray,
+    Y_train: np.ndarray,
+    X_test: np.ndarray,
+    seed: int,
+    *,
+    n_experts: int = 3,
+    budget: Budget = FULL,
+    noise_floor: list[float] | None = None,
+) -> Distribution:
     """Cluster [X, Y] with a GMM, gate with logistic regression, one sklearn GP per cluster."""
     from sklearn.gaussian_process import GaussianProcessRegressor
     from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
@@ -165,8 +192,9 @@ def ccr(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int,
     e = Y_train.shape[1]
     joint = StandardScaler().fit_transform(np.hstack([X_train, Y_train]))
     covariance = "full" if n >= 2 * n_experts * (d + e) else "diag"
-    gmm = GaussianMixture(n_experts, covariance_type=covariance, n_init=10,
-                          random_state=seed, reg_covar=1e-6)
+    gmm = GaussianMixture(
+        n_experts, covariance_type=covariance, n_init=10, random_state=seed, reg_covar=1e-6
+    )
     labels = gmm.fit_predict(joint)
     classes = np.unique(labels)
     x_scaler = StandardScaler().fit(X_train)
@@ -181,42 +209,79 @@ def ccr(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int,
     for k, c in enumerate(classes):
         rows = labels == c
         for j in range(e):
-            kernel = (ConstantKernel(1.0) * RBF(np.ones(d), length_scale_bounds=(1e-3, 1e5))
-                      + WhiteKernel(0.1, noise_level_bounds=(1e-6, 1e1)))
-            gpr = GaussianProcessRegressor(kernel, normalize_y=True, random_state=seed,
-                                           n_restarts_optimizer=budget.sk_restarts)
+            kernel = ConstantKernel(1.0) * RBF(
+                np.ones(d), length_scale_bounds=(1e-3, 1e5)
+            ) + WhiteKernel(0.1, noise_level_bounds=(1e-6, 1e1))
+            gpr = GaussianProcessRegressor(
+                kernel, normalize_y=True, random_state=seed, n_restarts_optimizer=budget.sk_restarts
+            )
             gpr.fit(xs[rows], Y_train[rows, j])
             mean, std = gpr.predict(xt, return_std=True)
             loc[:, k, j], scale[:, k, j] = mean, np.maximum(std, 1e-9)
-    return mixture_distribution(torch.as_tensor(probs, dtype=torch.float64),
-                                Normal(torch.as_tensor(loc), torch.as_tensor(scale)))
+    return mixture_distribution(
+        torch.as_tensor(probs, dtype=torch.float64),
+        Normal(torch.as_tensor(loc), torch.as_tensor(scale)),
+    )
 
 
-def clustered(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int, *,
-              n_experts: int = 3, budget: Budget = FULL,
-        noise_floor: list[float] | None = None) -> Distribution:
+def clustered(
+    X_train: np.ndarray,
+    Y_train: np.ndarray,
+    X_test: np.ndarray,
+    seed: int,
+    *,
+    n_experts: int = 3,
+    budget: Budget = FULL,
+    noise_floor: list[float] | None = None,
+) -> Distribution:
     """Chapter 4's GMM-clustered GP experts with a soft (calibrated SVM) gate."""
     dims = (0, 1) if Y_train.shape[1] > 1 else (0,)
-    model = ClusteredGPModel(n_experts, cluster_dims=dims, seed=seed, soft_gate=True,
-                             expert_kwargs={"lengthscale_prior": True,
-                                            "max_iter": budget.gp_iter,
-                                            "noise_floor": noise_floor})
+    model = ClusteredGPModel(
+        n_experts,
+        cluster_dims=dims,
+        seed=seed,
+        soft_gate=True,
+        expert_kwargs={
+            "lengthscale_prior": True,
+            "max_iter": budget.gp_iter,
+            "noise_floor": noise_floor,
+        },
+    )
     return model.fit(X_train, Y_train).predict(X_test)
 
 
-def em(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int, *,
-       n_experts: int = 3, budget: Budget = FULL, noise_floor: list[float] | None = None,
-       fit: Callable[..., Any] = fit_em) -> Distribution:
+def em(
+    X_train: np.ndarray,
+    Y_train: np.ndarray,
+    X_test: np.ndarray,
+    seed: int,
+    *,
+    n_experts: int = 3,
+    budget: Budget = FULL,
+    noise_floor: list[float] | None = None,
+    fit: Callable[..., Any] = fit_em,
+) -> Distribution:
     """probaff's mixture of GP experts fitted by EM (`fit` is `fit_em` or a partial of it)."""
-    model = MixtureOfGPExperts(n_experts, gp_max_iter=budget.gp_iter, lengthscale_prior=True,
-                               noise_floor="auto" if noise_floor is None else noise_floor)
+    model = MixtureOfGPExperts(
+        n_experts,
+        gp_max_iter=budget.gp_iter,
+        lengthscale_prior=True,
+        noise_floor="auto" if noise_floor is None else noise_floor,
+    )
     fit(model, X_train, Y_train, seed=seed, max_iter=budget.em_iter)
     return model.predict(X_test)
 
 
-def vi(X_train: np.ndarray, Y_train: np.ndarray, X_test: np.ndarray, seed: int, *,
-       n_experts: int = 3, budget: Budget = FULL,
-        noise_floor: list[float] | None = None) -> Distribution:
+def vi(
+    X_train: np.ndarray,
+    Y_train: np.ndarray,
+    X_test: np.ndarray,
+    seed: int,
+    *,
+    n_experts: int = 3,
+    budget: Budget = FULL,
+    noise_floor: list[float] | None = None,
+) -> Distribution:
     """probaff's mixture of sparse variational GP experts fitted by Pyro SVI."""
     model = VariationalMixtureOfGPExperts(n_experts, n_inducing=min(32, len(X_train)))
     fit_svi(model, X_train, Y_train, seed=seed, n_steps=budget.svi_steps)
@@ -281,15 +346,22 @@ def load_ch5(data_root: Path, rows: int | None, progress: bool) -> Dataset:
     from probaff.features import chapter5_features
 
     n = rows or 321
-    ds = generate(GenerateConfig("two_objects", n, seed=0, pose_noise=PoseNoise()),
-                  data_root / f"two_objects-noisy-n{n}",
-                  workers=0, resume=True, progress=progress)
+    ds = generate(
+        GenerateConfig("two_objects", n, seed=0, pose_noise=PoseNoise()),
+        data_root / f"two_objects-noisy-n{n}",
+        workers=0,
+        resume=True,
+        progress=progress,
+    )
     X = chapter5_features(ds).select("f_o", "f_c")
     Y = ds["effect"][:, :2].reshape(len(ds), 6)
-    return Dataset("ch5", *_subsample(X, Y, None),
-                   ("o1.dy", "o1.dz", "o1.dth", "o2.dy", "o2.dz", "o2.dth"),
-                   about=f"{n} simulated two-object pushes, f_o & f_c, poses observed with "
-                   "PoseNoise()", noise_floor=PoseNoise().effect_std(2))
+    return Dataset(
+        "ch5",
+        *_subsample(X, Y, None),
+        ("o1.dy", "o1.dz", "o1.dth", "o2.dy", "o2.dz", "o2.dth"),
+        about=f"{n} simulated two-object pushes, f_o & f_c, poses observed with PoseNoise()",
+        noise_floor=PoseNoise().effect_std(2),
+    )
 
 
 def load_ch4(data_root: Path, rows: int | None, progress: bool) -> Dataset:
@@ -299,13 +371,22 @@ def load_ch4(data_root: Path, rows: int | None, progress: bool) -> Dataset:
     from probaff.features import chapter4_features
 
     n = rows or 120
-    ds = generate(GenerateConfig("near_obstacle", n, seed=0, pose_noise=PoseNoise()),
-                  data_root / f"near_obstacle-noisy-n{n}",
-                  workers=0, resume=True, progress=progress)
+    ds = generate(
+        GenerateConfig("near_obstacle", n, seed=0, pose_noise=PoseNoise()),
+        data_root / f"near_obstacle-noisy-n{n}",
+        workers=0,
+        resume=True,
+        progress=progress,
+    )
     X = chapter4_features(ds).select("f_o", "f_c")
-    return Dataset("ch4", *_subsample(X, ds["effect"][:, 0], None), ("dy", "dz", "dth"),
-                   about=f"{n} simulated single-object pushes near an obstacle, f_o & f_c, "
-                   "poses observed with PoseNoise()", noise_floor=PoseNoise().effect_std(1))
+    return Dataset(
+        "ch4",
+        *_subsample(X, ds["effect"][:, 0], None),
+        ("dy", "dz", "dth"),
+        about=f"{n} simulated single-object pushes near an obstacle, f_o & f_c, "
+        "poses observed with PoseNoise()",
+        noise_floor=PoseNoise().effect_std(1),
+    )
 
 
 def load_synthetic(data_root: Path, rows: int | None, progress: bool) -> Dataset:
@@ -313,8 +394,13 @@ def load_synthetic(data_root: Path, rows: int | None, progress: bool) -> Dataset
     from probaff.models.synthetic import softmax_regimes
 
     x, y, _ = softmax_regimes(rows or 400, seed=0)
-    return Dataset("synthetic", x.numpy(), y.numpy(), ("y0", "y1"),
-                   about="softmax_regimes(seed=0): 3 gated regimes, 4 inputs")
+    return Dataset(
+        "synthetic",
+        x.numpy(),
+        y.numpy(),
+        ("y0", "y1"),
+        about="softmax_regimes(seed=0): 3 gated regimes, 4 inputs",
+    )
 
 
 def load_diabetes(data_root: Path, rows: int | None, progress: bool) -> Dataset:
@@ -322,8 +408,12 @@ def load_diabetes(data_root: Path, rows: int | None, progress: bool) -> Dataset:
     from sklearn.datasets import load_diabetes as sk_diabetes
 
     bunch = sk_diabetes()
-    return Dataset("diabetes", *_subsample(bunch.data, bunch.target, rows), ("progression",),
-                   about="sklearn diabetes: 10 baseline variables -> progression after 1 year")
+    return Dataset(
+        "diabetes",
+        *_subsample(bunch.data, bunch.target, rows),
+        ("progression",),
+        about="sklearn diabetes: 10 baseline variables -> progression after 1 year",
+    )
 
 
 def load_engel(data_root: Path, rows: int | None, progress: bool) -> Dataset:
@@ -331,9 +421,12 @@ def load_engel(data_root: Path, rows: int | None, progress: bool) -> Dataset:
     from statsmodels.datasets import engel
 
     frame = engel.load().data
-    return Dataset("engel", *_subsample(frame[["income"]].to_numpy(),
-                                        frame["foodexp"].to_numpy(), rows), ("foodexp",),
-                   about="statsmodels engel: food expenditure vs income, Belgian francs")
+    return Dataset(
+        "engel",
+        *_subsample(frame[["income"]].to_numpy(), frame["foodexp"].to_numpy(), rows),
+        ("foodexp",),
+        about="statsmodels engel: food expenditure vs income, Belgian francs",
+    )
 
 
 Loader = Callable[[Path, int | None, bool], Dataset]
@@ -371,10 +464,21 @@ def fit_and_score(task: dict[str, Any]) -> dict[str, Any]:
     train, test = np.asarray(task["train"]), np.asarray(task["test"])
     outputs: list[str] = list(task["outputs"])
     row: dict[str, Any] = {
-        "dataset": task["dataset"], "model": task["model"], "fold": int(task["fold"]),
-        "n_train": len(train), "n_test": len(test), "M": int(task["M"]),
-        "outputs": outputs, "seconds": None, "nlpd": None, "nlpd_joint": None, "srmse": None,
-        "coverage90": None, "rmse": None, "warnings": 0, "error": "",
+        "dataset": task["dataset"],
+        "model": task["model"],
+        "fold": int(task["fold"]),
+        "n_train": len(train),
+        "n_test": len(test),
+        "M": int(task["M"]),
+        "outputs": outputs,
+        "seconds": None,
+        "nlpd": None,
+        "nlpd_joint": None,
+        "srmse": None,
+        "coverage90": None,
+        "rmse": None,
+        "warnings": 0,
+        "error": "",
     }
     fn = MODELS[task["model"]]
     budget = Budget(**task["budget"])
@@ -383,13 +487,22 @@ def fit_and_score(task: dict[str, Any]) -> dict[str, Any]:
         warnings.simplefilter("always")
         start = time.perf_counter()
         try:
-            pred = fn(X[train], Y[train], X[test], int(task["seed"]), n_experts=int(task["M"]),
-                      budget=budget, noise_floor=task["noise_floor"])
+            pred = fn(
+                X[train],
+                Y[train],
+                X[test],
+                int(task["seed"]),
+                n_experts=int(task["M"]),
+                budget=budget,
+                noise_floor=task["noise_floor"],
+            )
             seconds = time.perf_counter() - start
             n_test, e = len(test), Y.shape[1]
             if tuple(pred.batch_shape) != (n_test,) or tuple(pred.event_shape) != (e,):
-                raise ValueError(f"prediction has batch {tuple(pred.batch_shape)} and event "
-                                 f"{tuple(pred.event_shape)}, expected ({n_test},) and ({e},)")
+                raise ValueError(
+                    f"prediction has batch {tuple(pred.batch_shape)} and event "
+                    f"{tuple(pred.event_shape)}, expected ({n_test},) and ({e},)"
+                )
             y = torch.as_tensor(Y[test], dtype=torch.float64)
             with torch.no_grad():
                 per_output_rmse = rmse(pred, y).numpy()
@@ -409,15 +522,22 @@ def fit_and_score(task: dict[str, Any]) -> dict[str, Any]:
 
 def _fingerprint(ds: Dataset, folds: int, seed: int, budget: Budget) -> str:
     """Short hash of the settings that shape a task's result."""
-    settings = {"folds": folds, "seed": seed, "budget": asdict(budget), "M": ds.n_experts,
-                "shape": [list(ds.X.shape), list(ds.Y.shape)],
-                "data": hashlib.sha1(np.ascontiguousarray(ds.X).tobytes()
-                                     + np.ascontiguousarray(ds.Y).tobytes()).hexdigest()}
+    settings = {
+        "folds": folds,
+        "seed": seed,
+        "budget": asdict(budget),
+        "M": ds.n_experts,
+        "shape": [list(ds.X.shape), list(ds.Y.shape)],
+        "data": hashlib.sha1(
+            np.ascontiguousarray(ds.X).tobytes() + np.ascontiguousarray(ds.Y).tobytes()
+        ).hexdigest(),
+    }
     return hashlib.sha1(json.dumps(settings, sort_keys=True).encode()).hexdigest()[:8]
 
 
-def make_tasks(ds: Dataset, models: list[str], folds: int, seed: int,
-               budget: Budget) -> list[tuple[str, tuple[Any, ...]]]:
+def make_tasks(
+    ds: Dataset, models: list[str], folds: int, seed: int, budget: Budget
+) -> list[tuple[str, tuple[Any, ...]]]:
     """One task per model and fold; every model gets the same folds."""
     splits = list(KFold(folds, shuffle=True, random_state=seed).split(ds.X))
     tag = _fingerprint(ds, folds, seed, budget)
@@ -425,11 +545,21 @@ def make_tasks(ds: Dataset, models: list[str], folds: int, seed: int,
     tasks = []
     for model in models:
         for f, (train, test) in enumerate(splits):
-            task = {"dataset": ds.name, "model": model, "fold": f, "seed": seed,
-                    "M": ds.n_experts, "noise_floor": ds.noise_floor,
-                    "X": ds.X, "Y": ds.Y, "train": train, "test": test,
-                    "outputs": list(ds.outputs), "y_std": np.where(y_std > 0, y_std, 1.0),
-                    "budget": asdict(budget)}
+            task = {
+                "dataset": ds.name,
+                "model": model,
+                "fold": f,
+                "seed": seed,
+                "M": ds.n_experts,
+                "noise_floor": ds.noise_floor,
+                "X": ds.X,
+                "Y": ds.Y,
+                "train": train,
+                "test": test,
+                "outputs": list(ds.outputs),
+                "y_std": np.where(y_std > 0, y_std, 1.0),
+                "budget": asdict(budget),
+            }
             tasks.append((f"{ds.name}.{model}.fold{f}.{tag}", (task,)))
     return tasks
 
@@ -438,8 +568,22 @@ def make_tasks(ds: Dataset, models: list[str], folds: int, seed: int,
 def _csv(results: list[dict[str, Any]], datasets: list[Dataset]) -> str:
     """One row per data set, model and fold; RMSE columns are ``rmse.<output>``."""
     rmse_cols = list(dict.fromkeys(f"rmse.{o}" for ds in datasets for o in ds.outputs))
-    fields = ["dataset", "model", "fold", "n_train", "n_test", "M", "nlpd", "nlpd_joint",
-              "srmse", "coverage90", "seconds", *rmse_cols, "warnings", "error"]
+    fields = [
+        "dataset",
+        "model",
+        "fold",
+        "n_train",
+        "n_test",
+        "M",
+        "nlpd",
+        "nlpd_joint",
+        "srmse",
+        "coverage90",
+        "seconds",
+        *rmse_cols,
+        "warnings",
+        "error",
+    ]
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=fields, extrasaction="ignore", restval="")
     writer.writeheader()
@@ -470,13 +614,21 @@ def summarise(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
     rows = []
     for (dataset, model), rs in groups.items():
         ok = [r for r in rs if not r["error"]]
-        row: dict[str, Any] = {"dataset": dataset, "model": model, "folds": len(ok),
-                               "of": len(rs), "outputs": rs[0]["outputs"],
-                               "errors": sorted({r["error"] for r in rs if r["error"]})}
+        row: dict[str, Any] = {
+            "dataset": dataset,
+            "model": model,
+            "folds": len(ok),
+            "of": len(rs),
+            "outputs": rs[0]["outputs"],
+            "errors": sorted({r["error"] for r in rs if r["error"]}),
+        }
         for metric in ("nlpd", "nlpd_joint", "srmse", "coverage90", "seconds"):
             row[metric], row[f"{metric}_ci"] = mean_ci([r[metric] for r in ok])
-        row["rmse"] = (np.mean([r["rmse"] for r in ok], axis=0).tolist() if ok
-                       else [math.nan] * len(row["outputs"]))
+        row["rmse"] = (
+            np.mean([r["rmse"] for r in ok], axis=0).tolist()
+            if ok
+            else [math.nan] * len(row["outputs"])
+        )
         rows.append(row)
     return rows
 
@@ -487,47 +639,73 @@ def _fmt(mean: float, half: float, digits: int) -> str:
     return f"{mean:.{digits}f}" if math.isnan(half) else f"{mean:.{digits}f} ± {half:.{digits}f}"
 
 
-def _markdown(rows: list[dict[str, Any]], datasets: list[Dataset], folds: int, seed: int,
-              budget: Budget, smoke: bool) -> str:
+def _markdown(
+    rows: list[dict[str, Any]],
+    datasets: list[Dataset],
+    folds: int,
+    seed: int,
+    budget: Budget,
+    smoke: bool,
+) -> str:
     """One table per data set, best mean NLPD in bold."""
-    lines = ["# Mixture models and their peers, side by side", "",
-             f"{folds}-fold cross-validation (seed {seed}), the same folds for every model; "
-             f"budget {asdict(budget)}{' (smoke run)' if smoke else ''}.",
-             "Cells: mean over folds ± half-width of the 95 % t-interval. NLPD: per test point, "
-             "per-output marginal NLPDs summed over outputs (nats); NLPD joint: "
-             "-log p(y) of the full predictive; SRMSE: mean over outputs of RMSE / std of the "
-             "output; cov90: coverage of the central 90 % interval; s: fit + predict seconds.",
-             ""]
+    lines = [
+        "# Mixture models and their peers, side by side",
+        "",
+        f"{folds}-fold cross-validation (seed {seed}), the same folds for every model; "
+        f"budget {asdict(budget)}{' (smoke run)' if smoke else ''}.",
+        "Cells: mean over folds ± half-width of the 95 % t-interval. NLPD: per test point, "
+        "per-output marginal NLPDs summed over outputs (nats); NLPD joint: "
+        "-log p(y) of the full predictive; SRMSE: mean over outputs of RMSE / std of the "
+        "output; cov90: coverage of the central 90 % interval; s: fit + predict seconds.",
+        "",
+    ]
     for ds in datasets:
         sub = [r for r in rows if r["dataset"] == ds.name]
         if not sub:
             continue
         n, d = ds.X.shape
-        lines += [f"## {ds.name}", "",
-                  f"{ds.about}; N = {n}, D = {d}, E = {ds.Y.shape[1]}, M = {ds.n_experts}.", ""]
+        lines += [
+            f"## {ds.name}",
+            "",
+            f"{ds.about}; N = {n}, D = {d}, E = {ds.Y.shape[1]}, M = {ds.n_experts}.",
+            "",
+        ]
         scored = [r["nlpd"] for r in sub if not math.isnan(r["nlpd"])]
         best = min(scored) if scored else math.nan
-        head = ["model", "folds", "NLPD", "NLPD joint", "SRMSE", "cov90", "s",
-                *[f"RMSE {o}" for o in ds.outputs]]
+        head = [
+            "model",
+            "folds",
+            "NLPD",
+            "NLPD joint",
+            "SRMSE",
+            "cov90",
+            "s",
+            *[f"RMSE {o}" for o in ds.outputs],
+        ]
         lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         for r in sub:
             nl = _fmt(r["nlpd"], r["nlpd_ci"], 3)
             if r["nlpd"] == best:
                 nl = f"**{nl}**"
-            cells = [r["model"], f"{r['folds']}/{r['of']}", nl,
-                     _fmt(r["nlpd_joint"], r["nlpd_joint_ci"], 3),
-                     _fmt(r["srmse"], r["srmse_ci"], 3),
-                     _fmt(r["coverage90"], r["coverage90_ci"], 2),
-                     _fmt(r["seconds"], math.nan, 1),
-                     *[f"{v:.4g}" for v in r["rmse"]]]
+            cells = [
+                r["model"],
+                f"{r['folds']}/{r['of']}",
+                nl,
+                _fmt(r["nlpd_joint"], r["nlpd_joint_ci"], 3),
+                _fmt(r["srmse"], r["srmse_ci"], 3),
+                _fmt(r["coverage90"], r["coverage90_ci"], 2),
+                _fmt(r["seconds"], math.nan, 1),
+                *[f"{v:.4g}" for v in r["rmse"]],
+            ]
             lines.append("| " + " | ".join(cells) + " |")
         errors = [f"- {r['model']}: {e}" for r in sub for e in r["errors"]]
         lines += ["", *(["Failed fits:", "", *errors, ""] if errors else [])]
     return "\n".join(lines)
 
 
-def plot(results: list[dict[str, Any]], rows: list[dict[str, Any]], datasets: list[Dataset],
-         path: Path) -> None:
+def plot(
+    results: list[dict[str, Any]], rows: list[dict[str, Any]], datasets: list[Dataset], path: Path
+) -> None:
     """Per data set: NLPD of every fold (grey) and the mean with its 95 % t-interval."""
     names = [ds.name for ds in datasets if any(r["dataset"] == ds.name for r in rows)]
     cols = min(3, max(1, len(names)))
@@ -537,18 +715,22 @@ def plot(results: list[dict[str, Any]], rows: list[dict[str, Any]], datasets: li
     for ax, name in zip(axes.flat, names, strict=False):
         sub = [r for r in rows if r["dataset"] == name]
         for i, r in enumerate(sub):
-            folds = [x["nlpd"] for x in results if (x["dataset"], x["model"]) == (name, r["model"])
-                     and not x["error"]]
+            folds = [
+                x["nlpd"]
+                for x in results
+                if (x["dataset"], x["model"]) == (name, r["model"]) and not x["error"]
+            ]
             ax.plot(folds, [i] * len(folds), "o", color="0.7", ms=4, zorder=1)
             half = 0.0 if math.isnan(r["nlpd_ci"]) else r["nlpd_ci"]
-            ax.errorbar([r["nlpd"]], [i], xerr=[[half], [half]], fmt="o", color="k",
-                        capsize=3, zorder=2)
+            ax.errorbar(
+                [r["nlpd"]], [i], xerr=[[half], [half]], fmt="o", color="k", capsize=3, zorder=2
+            )
         ax.set_yticks(range(len(sub)), [r["model"] for r in sub])
         ax.invert_yaxis()
         ax.set_title(name)
         ax.set_xlabel("held-out NLPD per point, nats (lower is better)")
         ax.grid(axis="x", alpha=0.3)
-    for ax in list(axes.flat)[len(names):]:
+    for ax in list(axes.flat)[len(names) :]:
         ax.set_visible(False)
     fig.tight_layout()
     atomic_save_figure(fig, path, dpi=120)
@@ -562,8 +744,10 @@ def _names(text: str | None, known: dict[str, Any], what: str) -> list[str]:
     names = [t.strip() for t in text.split(",") if t.strip()]
     unknown = [n for n in names if n not in known]
     if unknown or not names:
-        raise ValueError(f"unknown {what} {', '.join(map(repr, unknown)) or '(none given)'}; "
-                         f"choose from {', '.join(known)}")
+        raise ValueError(
+            f"unknown {what} {', '.join(map(repr, unknown)) or '(none given)'}; "
+            f"choose from {', '.join(known)}"
+        )
     return list(dict.fromkeys(names))
 
 
@@ -575,10 +759,17 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--folds", type=int, help="cross-validation folds (5; 2 with --smoke)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the folds and the fits")
     ap.add_argument("--out", default="results/mixture_peers", help="output folder")
-    ap.add_argument("--workers", type=int, default=0,
-                    help="0 fits in this process; K > 0 on a local Dask cluster of K processes")
-    ap.add_argument("--smoke", action="store_true",
-                    help=f"{SMOKE_ROWS} rows per data set, 2 folds, a few iterations")
+    ap.add_argument(
+        "--workers",
+        type=int,
+        default=0,
+        help="0 fits in this process; K > 0 on a local Dask cluster of K processes",
+    )
+    ap.add_argument(
+        "--smoke",
+        action="store_true",
+        help=f"{SMOKE_ROWS} rows per data set, 2 folds, a few iterations",
+    )
     ap.add_argument("--no-progress", action="store_true", help="hide progress bars")
     return ap.parse_args(argv)
 
@@ -606,17 +797,26 @@ def main(argv: list[str] | None = None) -> int:
     tasks = []
     for ds in datasets:
         if len(ds.X) < folds:
-            print(f"mixture_peers: {ds.name} has {len(ds.X)} rows, fewer than {folds} folds",
-                  file=sys.stderr)
+            print(
+                f"mixture_peers: {ds.name} has {len(ds.X)} rows, fewer than {folds} folds",
+                file=sys.stderr,
+            )
             return 2
         tasks += make_tasks(ds, model_names, folds, args.seed, budget)
-    results = run_tasks(fit_and_score, tasks, ResultStore(out / "tasks"),
-                        workers=args.workers or 0, progress=progress, desc="mixture peers")
+    results = run_tasks(
+        fit_and_score,
+        tasks,
+        ResultStore(out / "tasks"),
+        workers=args.workers or 0,
+        progress=progress,
+        desc="mixture peers",
+    )
 
     rows = summarise(results)
     atomic_write_text(out / "peers.csv", _csv(results, datasets))
-    atomic_write_text(out / "peers.md",
-                      _markdown(rows, datasets, folds, args.seed, budget, args.smoke))
+    atomic_write_text(
+        out / "peers.md", _markdown(rows, datasets, folds, args.seed, budget, args.smoke)
+    )
     plot(results, rows, datasets, out / "peers.png")
     print(f"wrote {out / 'peers.csv'}, {out / 'peers.md'} and {out / 'peers.png'}")
     return 0

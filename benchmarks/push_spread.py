@@ -27,9 +27,11 @@ def main() -> None:
     sim = PushSimulator(args.scene)
     spec = sim.scene
     rng = np.random.default_rng(0)
-    print(f"scene {args.scene}: friction scale ground {spec.ground_friction_scale}, contact "
-          f"{spec.contact_friction_scale}, mass {spec.mass_scale}, support-load variation "
-          f"{spec.support_load_variation}")
+    print(
+        f"scene {args.scene}: friction scale ground {spec.ground_friction_scale}, contact "
+        f"{spec.contact_friction_scale}, mass {spec.mass_scale}, support-load variation "
+        f"{spec.support_load_variation}"
+    )
     print(f"{'push':>4s} {'object':14s} {'mean dz_p (cm)':>15s} {'sd (cm)':>8s} {'sd/mean %':>10s}")
     spreads = []
     for p, base in enumerate(sim.run(args.pushes, rng)):
@@ -46,18 +48,27 @@ def main() -> None:
                 contact_friction=nominal_c * rng.uniform(*spec.contact_friction_scale, size=k),
                 mass=nominal_m * rng.uniform(*spec.mass_scale, size=k),
                 support_weights=tuple(
-                    (lambda w: w / w.mean())(rng.uniform(1 - spec.support_load_variation,
-                                                         1 + spec.support_load_variation,
-                                                         size=len(sw)))
-                    for sw in base.scene.support_weights),
+                    (lambda w: w / w.mean())(
+                        rng.uniform(
+                            1 - spec.support_load_variation,
+                            1 + spec.support_load_variation,
+                            size=len(sw),
+                        )
+                    )
+                    for sw in base.scene.support_weights
+                ),
             )
             dz.append(simulate_push(sim.world, scene, path[0]).effect[0, 1])
         dz = np.array(dz)
         spreads.append(100 * dz.std() / abs(dz.mean()))
-        print(f"{p:4d} {base.scene.objects[0].name:14s} {100 * dz.mean():15.2f} "
-              f"{100 * dz.std():8.3f} {spreads[-1]:10.2f}")
-    print(f"median spread over {len(spreads)} pushes: {np.median(spreads):.2f} % of the mean "
-          "(real repeated pushes: 5-12 %)")
+        print(
+            f"{p:4d} {base.scene.objects[0].name:14s} {100 * dz.mean():15.2f} "
+            f"{100 * dz.std():8.3f} {spreads[-1]:10.2f}"
+        )
+    print(
+        f"median spread over {len(spreads)} pushes: {np.median(spreads):.2f} % of the mean "
+        "(real repeated pushes: 5-12 %)"
+    )
 
 
 if __name__ == "__main__":

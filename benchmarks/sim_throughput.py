@@ -29,8 +29,9 @@ def physics_only(scene: str, n: int) -> float:
             scenes.append(s)
     t = time.perf_counter()
     for s in scenes:
-        simulate_push(sim.world, s, straight_path(sim.world, s.push_origin, s.push_yaw,
-                                                  s.push_distance))
+        simulate_push(
+            sim.world, s, straight_path(sim.world, s.push_origin, s.push_yaw, s.push_distance)
+        )
     return n / (time.perf_counter() - t)
 
 
@@ -46,10 +47,15 @@ def serial(scene: str, n: int) -> float:
 def dask(scene: str, n: int, workers: int = 2) -> float:
     from dask.distributed import Client, LocalCluster, wait
 
-    cfg = GenerateConfig(scene=scene, n=n, seed=0, shard_size=max(1, n // (4 * workers)),
-                         cloud_points=64)
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster, Client(cluster) as client:
+    cfg = GenerateConfig(
+        scene=scene, n=n, seed=0, shard_size=max(1, n // (4 * workers)), cloud_points=64
+    )
+    with (
+        LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
+        Client(cluster) as client,
+    ):
         warm = GenerateConfig(scene=scene, n=2 * workers, seed=1, shard_size=2, cloud_points=8)
         wait(client.map(make_shard, [warm] * workers, range(workers), pure=False))
         t = time.perf_counter()
@@ -75,8 +81,10 @@ def main() -> None:
     print(f"{'dask 2 workers, IK incl.':28s} {dsk:9.1f} {dsk / 2:9.1f}")
     print(f"ratio serial / physics only: {ser / ref:.2f}")
     print(f"ratio dask per core / serial: {dsk / 2 / ser:.2f}")
-    print(f"target >= 100 pushes/s/core: serial {'met' if ser >= 100 else 'missed'}, "
-          f"dask {'met' if dsk / 2 >= 100 else 'missed'}")
+    print(
+        f"target >= 100 pushes/s/core: serial {'met' if ser >= 100 else 'missed'}, "
+        f"dask {'met' if dsk / 2 >= 100 else 'missed'}"
+    )
 
 
 if __name__ == "__main__":

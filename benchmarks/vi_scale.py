@@ -32,7 +32,7 @@ def main() -> None:
     ap.add_argument("--em-n", type=int, default=2000)
     a = ap.parse_args()
     x, y, _ = regime_features(a.n + a.test, a.d, a.e, seed=0)
-    xtr, ytr, xte, yte = x[: a.n], y[: a.n], x[a.n:], y[a.n:]
+    xtr, ytr, xte, yte = x[: a.n], y[: a.n], x[a.n :], y[a.n :]
     gate = [0, 1, 2]
     with torch_threads(a.threads):
         start = time.perf_counter()
@@ -50,13 +50,19 @@ def main() -> None:
         em_nlpd, em_rmse = float(nlpd(pred, yte).sum()), rmse(pred, yte).mean().item()
     losses = np.asarray(hist.loss)
     print(f"N={a.n}, D={a.d}, E={a.e}, M=3, {a.threads} threads")
-    print(f"VI  {a.steps} SVI steps on {a.n} rows: {vi_s:7.1f} s  held-out NLPD {vi_nlpd:7.2f}  "
-          f"mean RMSE {vi_rmse:.3f}  (target <= 600 s)")
-    print(f"EM  exact GPs on {a.em_n} rows:      {em_s:7.1f} s  held-out NLPD {em_nlpd:7.2f}  "
-          f"mean RMSE {em_rmse:.3f}")
+    print(
+        f"VI  {a.steps} SVI steps on {a.n} rows: {vi_s:7.1f} s  held-out NLPD {vi_nlpd:7.2f}  "
+        f"mean RMSE {vi_rmse:.3f}  (target <= 600 s)"
+    )
+    print(
+        f"EM  exact GPs on {a.em_n} rows:      {em_s:7.1f} s  held-out NLPD {em_nlpd:7.2f}  "
+        f"mean RMSE {em_rmse:.3f}"
+    )
     if losses.size:
-        print(f"negative ELBO per sample: first {losses[0]:.1f}, last {losses[-1]:.1f}, "
-              f"min {losses.min():.4g}, max {losses.max():.4g}")
+        print(
+            f"negative ELBO per sample: first {losses[0]:.1f}, last {losses[-1]:.1f}, "
+            f"min {losses.min():.4g}, max {losses.max():.4g}"
+        )
 
 
 if __name__ == "__main__":

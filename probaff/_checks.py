@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -14,6 +16,7 @@ from probaff.errors import InputError
 __all__ = [
     "check_count",
     "check_finite",
+    "check_output_dir",
     "check_positive",
     "check_probability",
     "check_shape",
@@ -117,3 +120,46 @@ def check_probability(name: str, x: Any) -> None:
         raise InputError(
             f"{name} must lie in [0, 1]; got values in [{arr.min():.4g}, {arr.max():.4g}]."
         )
+
+
+def check_output_dir(name: str, path: Any) -> Path:
+    """Return `path` as a `Path`, or raise `InputError` unless it is, or can become, a folder.
+
+    Catches, before any work starts, an output path that is a regular file, lies under one
+    (``/etc/passwd/x``), or lies in a folder that cannot be written; the folder itself is not
+    created.
+
+    Args:
+        name: The argument's name, as the user wrote it (e.g. ``"--out"``).
+        path: The output folder.
+
+    Returns:
+        `path` as a `Path`.
+    """
+    try:
+        p = Path(os.fspath(path))
+    except TypeError:
+        raise InputError(f"{name} must be a folder path, got {path!r}.") from None
+    if str(p) == "":
+        raise InputError(f"{name} is empty; give the output folder's path.")
+    if p.exists():
+        if not p.is_dir():
+            raise InputError(
+                f"{name} {p} is a file, not a folder; choose a folder path for the output."
+            )
+        existing = p
+    else:
+        existing = next(
+            (a for a in p.absolute().parents if a.exists() or a.is_symlink()), Path(p.anchor or ".")
+        )
+        if not existing.is_dir():
+            raise InputError(
+                f"{name} {p} lies under {existing}, which is a file, not a folder; choose an "
+                "output path whose parents are folders (or do not exist yet)."
+            )
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(
+            f"{name} {p}: the folder {existing} is not writable; choose an output path you "
+            "may write to."
+        )
+    return p

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import contextlib
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Hashable, Iterator, Mapping, Sequence
 from typing import Any
+
+from tqdm.auto import tqdm
 
 from probaff._checks import check_count
 from probaff.errors import InputError
 
-__all__ = ["check_workers", "dask_client"]
+__all__ = ["check_workers", "dask_client", "run_batch"]
 
 
 def check_workers(workers: int | None) -> int | None:
@@ -49,6 +51,80 @@ def dask_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
             yield client
         return
     n = workers or os.cpu_count() or 1
-    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster, Client(cluster) as client:
+    with (
+        LocalCluster(
+            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
+        Client(cluster) as client,
+    ):
         yield client
+
+
+def run_batch(
+    fn: Callable[..., Any],
+    todo: Sequence[tuple[Hashable, tuple[Any, ...]]],
+    on_result: Callable[[Hashable, Any], None],
+    *,
+    workers: int | None = 0,
+    scheduler: str | None = None,
+    shared: Mapping[str, Any] | None = None,
+    progress: bool = True,
+    total: int | None = None,
+    done: int = 0,
+    size: Callable[[Hashable], int] | None = None,
+    unit: str = "task",
+    desc: str = "tasks",
+) -> None:
+    """Run ``fn(*args, **shared)`` for every ``(key, args)`` of `todo`, serially or on Dask.
+
+    The one batch loop of probaff: dataset generation and study tasks both use it. Each
+    result is handed to ``on_result(key, result)`` in this process as soon as it lands (in
+    completion order on Dask), so the caller can save it atomically; a crash loses only the
+    work in flight, and the caller resumes by leaving finished keys out of `todo`.
+
+    Args:
+        fn: A module-level function (Dask workers import it).
+        todo: ``(key, args)`` pairs, in the order they should start.
+        on_result: Called with each key and its result.
+        workers: 0 runs in this process; K > 0 or ``None`` (one per core) starts a local
+            cluster of single-threaded worker processes.
+        scheduler: Address of an existing Dask scheduler; overrides `workers`.
+        shared: Keyword arguments that every call receives. On Dask they are scattered to
+            the workers once (large arrays travel once, not with every task).
+        progress: Show a tqdm bar.
+        total: Size of the whole batch for the bar (default: the number of tasks in `todo`
+            plus `done`).
+        done: Size already finished before this call (the bar's start).
+        size: Size of one task for the bar (default: 1 each).
+        unit: Unit of the bar.
+        desc: Label of the bar.
+    """
+    workers = check_workers(workers)
+    shared = dict(shared or {})
+    weigh = size or (lambda key: 1)
+    bar = tqdm(
+        total=total if total is not None else done + sum(weigh(k) for k, _ in todo),
+        initial=done,
+        unit=unit,
+        desc=desc,
+        disable=not progress,
+    )
+    try:
+        if todo and workers == 0 and not scheduler:
+            for key, args in todo:
+                on_result(key, fn(*args, **shared))
+                bar.update(weigh(key))
+        elif todo:
+            from dask.distributed import as_completed
+
+            with dask_client(workers, scheduler) as client:
+                # A one-element list: Dask would scatter a dict's values one by one.
+                remote = {k: client.scatter([v], broadcast=True)[0] for k, v in shared.items()}
+                futures = [client.submit(fn, *args, **remote, pure=False) for _, args in todo]
+                by_future = {f.key: key for f, (key, _) in zip(futures, todo, strict=True)}
+                for fut in as_completed(futures):
+                    key = by_future[fut.key]
+                    on_result(key, fut.result())
+                    bar.update(weigh(key))
+    finally:
+        bar.close()

@@ -7,6 +7,7 @@ import json
 import sys
 from collections.abc import Sequence
 
+from probaff._cli_errors import report_error
 from probaff.errors import ProbaffError
 
 __all__ = ["build_parser", "main"]
@@ -22,15 +23,23 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--n", type=int, required=True, help="number of pushes")
     g.add_argument("--seed", type=int, default=0)
     g.add_argument("--out", required=True, help="dataset folder to create")
-    g.add_argument("--workers", type=int, default=None,
-                   help="local Dask workers (default: one per core; 0 = run in this process)")
+    g.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="local Dask workers (default: one per core; 0 = run in this process)",
+    )
     g.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
     g.add_argument("--shard-size", type=int, default=64)
     g.add_argument("--no-trajectories", action="store_true", help="do not store trajectories")
-    g.add_argument("--pose-noise", metavar="POS_M,YAW_DEG", default=None,
-                   help="record object poses with Gaussian measurement noise of these standard "
-                        "deviations (metres, degrees), e.g. 0.003,1; exact values are kept in "
-                        "the true_* arrays (default: exact poses)")
+    g.add_argument(
+        "--pose-noise",
+        metavar="POS_M,YAW_DEG",
+        default=None,
+        help="record object poses with Gaussian measurement noise of these standard "
+        "deviations (metres, degrees), e.g. 0.003,1; exact values are kept in "
+        "the true_* arrays (default: exact poses)",
+    )
     g.add_argument("--resume", action="store_true", help="finish an interrupted dataset")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -49,15 +58,29 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _dispatch(args: argparse.Namespace) -> None:
     if args.command == "generate":
+        from probaff._checks import check_output_dir
+
+        check_output_dir("--out", args.out)  # before the simulator is loaded
         from probaff.data.generation import GenerateConfig, generate
         from probaff.data.noise import parse_pose_noise
 
         noise = None if args.pose_noise is None else parse_pose_noise(args.pose_noise)
-        cfg = GenerateConfig(scene=args.scene, n=args.n, seed=args.seed,
-                             shard_size=args.shard_size, trajectories=not args.no_trajectories,
-                             pose_noise=noise)
-        ds = generate(cfg, args.out, workers=args.workers, scheduler=args.scheduler,
-                      resume=args.resume, progress=not args.quiet)
+        cfg = GenerateConfig(
+            scene=args.scene,
+            n=args.n,
+            seed=args.seed,
+            shard_size=args.shard_size,
+            trajectories=not args.no_trajectories,
+            pose_noise=noise,
+        )
+        ds = generate(
+            cfg,
+            args.out,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            resume=args.resume,
+            progress=not args.quiet,
+        )
         print(f"wrote {len(ds)} pushes to {args.out}")
     elif args.command == "describe":
         from probaff.data.store import load_dataset
@@ -70,6 +93,9 @@ def _dispatch(args: argparse.Namespace) -> None:
         for name in list_scenes():
             print(f"{name:16s} {load_scene(name).description}")
     elif args.command == "demo":
+        from probaff._checks import check_output_dir
+
+        check_output_dir("--out", args.out)
         from probaff.demo import DemoConfig, run
 
         run(DemoConfig(out=args.out, n=args.n, seed=args.seed, workers=args.workers))
@@ -85,8 +111,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         _dispatch(args)
     except ProbaffError as exc:
-        print(f"probaff {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return report_error(f"probaff {args.command}", exc)
     return 0
 
 

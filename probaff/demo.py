@@ -72,16 +72,19 @@ def run(config: DemoConfig) -> dict[str, Any]:
     check_count("workers", config.workers, minimum=0)
     out = Path(config.out)
     ds_path = out / "two_objects"
-    gen = GenerateConfig(scene="two_objects", n=config.n, seed=config.seed, shard_size=16,
-                         pose_noise=PoseNoise())
-    ds = generate(gen, ds_path, workers=config.workers, resume=ds_path.exists(),
-                  progress=config.progress)
+    gen = GenerateConfig(
+        scene="two_objects", n=config.n, seed=config.seed, shard_size=16, pose_noise=PoseNoise()
+    )
+    ds = generate(
+        gen, ds_path, workers=config.workers, resume=ds_path.exists(), progress=config.progress
+    )
     summary = summarize(ds)
     print(json.dumps(summary, indent=1))
     world = load_tabletop()
     tx, ty = world.table_size
-    reach = load_arm(world.arm).reachable_mask((-tx / 2, tx / 2), (-ty / 2, ty / 2),
-                                               resolution=0.04, n_yaws=2)
+    reach = load_arm(world.arm).reachable_mask(
+        (-tx / 2, tx / 2), (-ty / 2, ty / 2), resolution=0.04, n_yaws=2
+    )
     figure = out / "demo_pushes.png"
     plot_pushes(ds, list(range(min(6, len(ds)))), figure, reachable=reach)
     models = _compare_models(ds, config.seed, out)
@@ -89,8 +92,13 @@ def run(config: DemoConfig) -> dict[str, Any]:
     print(f"figure:  {os.fspath(figure)}")
     print("affordance map:")
     affordance = affordance_demo(out / "affordance_map", seed=config.seed, steps=3)
-    return {"summary": summary, "dataset": os.fspath(ds_path), "figure": os.fspath(figure),
-            "models": models, "affordance_map": affordance}
+    return {
+        "summary": summary,
+        "dataset": os.fspath(ds_path),
+        "figure": os.fspath(figure),
+        "models": models,
+        "affordance_map": affordance,
+    }
 
 
 def _compare_models(ds: PushDataset, seed: int, out: Path) -> dict[str, dict[str, float]]:
@@ -113,23 +121,36 @@ def _compare_models(ds: PushDataset, seed: int, out: Path) -> dict[str, dict[str
     preds = {}
     with torch_threads(1):
         for name, m in (("single GP", 1), ("mixture M=3", 3)):
-            model = MixtureOfGPExperts(m, groups=features.groups, gate_features=("f_x",),
-                                       expert_features=("f_o", "f_c"), lengthscale_prior=True,
-                                       noise_floor=floor)
+            model = MixtureOfGPExperts(
+                m,
+                groups=features.groups,
+                gate_features=("f_x",),
+                expert_features=("f_o", "f_c"),
+                lengthscale_prior=True,
+                noise_floor=floor,
+            )
             fit_em(model, X[train], Y[train], seed=seed)
             pred = preds[name] = model.predict(X[test])
             err = rmse(pred, y)
-            scores[name] = {"rmse_o1_dz_cm": float(100 * err[1]),
-                            "rmse_o2_dz_cm": float(100 * err[4]),
-                            "nlpd": float(nlpd(pred, y).sum()),
-                            "coverage90": float(interval_coverage(pred, y, 0.9).mean())}
-    print(f"held-out pushes: {len(test)} (trained on {len(train)}); "
-          f"pose noise: {'on' if ds.has_pose_noise else 'off'}")
-    print(f"{'model':14s} {'o1 dz RMSE':>11s} {'o2 dz RMSE':>11s} {'NLPD (6 dims)':>14s} "
-          f"{'90% coverage':>13s}")
+            scores[name] = {
+                "rmse_o1_dz_cm": float(100 * err[1]),
+                "rmse_o2_dz_cm": float(100 * err[4]),
+                "nlpd": float(nlpd(pred, y).sum()),
+                "coverage90": float(interval_coverage(pred, y, 0.9).mean()),
+            }
+    print(
+        f"held-out pushes: {len(test)} (trained on {len(train)}); "
+        f"pose noise: {'on' if ds.has_pose_noise else 'off'}"
+    )
+    print(
+        f"{'model':14s} {'o1 dz RMSE':>11s} {'o2 dz RMSE':>11s} {'NLPD (6 dims)':>14s} "
+        f"{'90% coverage':>13s}"
+    )
     for name, s in scores.items():
-        print(f"{name:14s} {s['rmse_o1_dz_cm']:8.2f} cm {s['rmse_o2_dz_cm']:8.2f} cm "
-              f"{s['nlpd']:14.2f} {s['coverage90']:13.2f}")
+        print(
+            f"{name:14s} {s['rmse_o1_dz_cm']:8.2f} cm {s['rmse_o2_dz_cm']:8.2f} cm "
+            f"{s['nlpd']:14.2f} {s['coverage90']:13.2f}"
+        )
     figure = _plot_o2_density(preds, Y[test], out / "demo_o2_density.png")
     print(f"o2 density figure: {os.fspath(figure)}")
     return scores
@@ -153,7 +174,12 @@ def _plot_o2_density(preds: dict[str, Any], Y: np.ndarray, path: Path) -> Path:
         comp = pred.component_distribution.base_dist
         d = Normal(comp.loc[i, :, 4], comp.scale[i, :, 4])
         densities[name] = (p[None, :] * d.log_prob(grid[:, None]).exp()).sum(1).numpy()
-    plot_predictive_density(100 * grid.numpy(), {k: v / 100 for k, v in densities.items()},
-                            100 * float(Y[i, 4]), path, xlabel="o2 dz_p (cm)",
-                            title="o2 along the push, one held-out push: hit or not hit")
+    plot_predictive_density(
+        100 * grid.numpy(),
+        {k: v / 100 for k, v in densities.items()},
+        100 * float(Y[i, 4]),
+        path,
+        xlabel="o2 dz_p (cm)",
+        title="o2 along the push, one held-out push: hit or not hit",
+    )
     return path

@@ -1,10 +1,6 @@
-import os
-
 import numpy as np
 import pytest
 import torch
-
-os.environ.setdefault("CI_SMOKE", "1")
 
 
 @pytest.fixture(autouse=True)

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "benchmarks/mixture_peers.py"
 
@@ -24,15 +26,24 @@ def peers():
 
 def test_smoke_run_writes_rows_tables_and_figure(peers, tmp_path):
     models = ["single_gp", "ccr", "em"]
-    argv = ["--smoke", "--datasets", "synthetic,diabetes", "--models", ",".join(models),
-            "--out", str(tmp_path), "--no-progress"]
+    argv = [
+        "--smoke",
+        "--datasets",
+        "synthetic,diabetes",
+        "--models",
+        ",".join(models),
+        "--out",
+        str(tmp_path),
+        "--no-progress",
+    ]
     assert peers.main(argv) == 0
 
     with open(tmp_path / "peers.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
     keys = {(r["dataset"], r["model"], r["fold"]) for r in rows}
-    assert keys == {(d, m, str(f)) for d in ("synthetic", "diabetes") for m in models
-                    for f in (0, 1)}
+    assert keys == {
+        (d, m, str(f)) for d in ("synthetic", "diabetes") for m in models for f in (0, 1)
+    }
     assert len(rows) == len(keys)
     for r in rows:
         assert r["error"] == "", r["error"]

@@ -9,8 +9,27 @@ from probaff.cli import main
 
 def test_generate_and_describe(tmp_path, capsys):
     out = tmp_path / "ds"
-    assert main(["generate", "--scene", "near_obstacle", "--n", "6", "--seed", "2", "--out",
-                 str(out), "--workers", "0", "--shard-size", "4", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "generate",
+                "--scene",
+                "near_obstacle",
+                "--n",
+                "6",
+                "--seed",
+                "2",
+                "--out",
+                str(out),
+                "--workers",
+                "0",
+                "--shard-size",
+                "4",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     capsys.readouterr()
     assert main(["describe", str(out)]) == 0
     summary = json.loads(capsys.readouterr().out)
@@ -25,35 +44,85 @@ def test_existing_output_needs_resume(tmp_path, capsys):
     out = tmp_path / "ds"
     out.mkdir()
     (out / "something").write_text("x")
-    code = main(["generate", "--scene", "two_objects", "--n", "2", "--out", str(out),
-                 "--workers", "0", "--quiet"])
+    code = main(
+        [
+            "generate",
+            "--scene",
+            "two_objects",
+            "--n",
+            "2",
+            "--out",
+            str(out),
+            "--workers",
+            "0",
+            "--quiet",
+        ]
+    )
     assert code == 2
     assert "--resume" in capsys.readouterr().err
 
 
 def test_unknown_scene_and_corrupt_dataset(tmp_path, capsys):
-    assert main(["generate", "--scene", "garage", "--n", "2", "--out", str(tmp_path / "a"),
-                 "--workers", "0", "--quiet"]) == 2
+    assert (
+        main(
+            [
+                "generate",
+                "--scene",
+                "garage",
+                "--n",
+                "2",
+                "--out",
+                str(tmp_path / "a"),
+                "--workers",
+                "0",
+                "--quiet",
+            ]
+        )
+        == 2
+    )
     assert "unknown scene 'garage'" in capsys.readouterr().err
     assert main(["describe", str(tmp_path)]) == 2
     assert "not a probaff dataset" in capsys.readouterr().err
 
 
 def test_negative_count(tmp_path, capsys):
-    assert main(["generate", "--scene", "two_objects", "--n", "-3", "--out",
-                 str(tmp_path / "a"), "--workers", "0", "--quiet"]) == 2
+    assert (
+        main(
+            [
+                "generate",
+                "--scene",
+                "two_objects",
+                "--n",
+                "-3",
+                "--out",
+                str(tmp_path / "a"),
+                "--workers",
+                "0",
+                "--quiet",
+            ]
+        )
+        == 2
+    )
     assert "n must be a positive integer" in capsys.readouterr().err
 
 
 def test_demo_smoke(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "probaff.cli", "demo", "--out",
-                           str(tmp_path), "--n", "8"], capture_output=True, text=True, check=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "probaff.cli", "demo", "--out", str(tmp_path), "--n", "8"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     assert "figure:" in proc.stdout
     png = tmp_path / "demo_pushes.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # a second run resumes the finished dataset instead of failing
-    subprocess.run([sys.executable, "-m", "probaff.cli", "demo", "--out", str(tmp_path),
-                    "--n", "8"], capture_output=True, text=True, check=True)
+    subprocess.run(
+        [sys.executable, "-m", "probaff.cli", "demo", "--out", str(tmp_path), "--n", "8"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
 
 
 def test_scenes_listing(capsys):

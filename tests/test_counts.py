@@ -18,7 +18,6 @@ from probaff.eval.selection import select_n_experts
 from probaff.features.cells import cell_features
 from probaff.features.ch4 import chapter4_features
 from probaff.maps.bp import loopy_belief_propagation
-from probaff.maps.classifier import AffordanceClassifier, collect_voxels, evaluate
 from probaff.maps.components import component_labels
 from probaff.maps.evidence import make_evidence, single_variable_evidence
 from probaff.maps.exact import component_widths, elimination_width, exact_marginals
@@ -26,6 +25,7 @@ from probaff.maps.graph import AffordanceGraph
 from probaff.maps.grid_bp import grid_belief_propagation
 from probaff.maps.inference import affordance_marginals
 from probaff.perception.occupancy import OccupancyGrid
+from probaff.planning.classifier import AffordanceClassifier, collect_voxels, evaluate
 from probaff.sim.arm import load_arm
 from probaff.sim.config import load_catalogue, load_tabletop, load_warehouse, worlds_dir
 from probaff.sim.geometry import friction_points
@@ -52,13 +52,13 @@ def _threads(v):
 
 
 def _bp(v):
-    loopy_belief_propagation(torch.zeros(2, 2), torch.tensor([[0, 1]]), torch.zeros(1, 2, 2),
-                             max_iterations=v)
+    loopy_belief_propagation(
+        torch.zeros(2, 2), torch.tensor([[0, 1]]), torch.zeros(1, 2, 2), max_iterations=v
+    )
 
 
 def _coverage(v):
-    interval_coverage(Normal(torch.zeros(4, 1), torch.ones(4, 1)), torch.zeros(4, 1),
-                      iterations=v)
+    interval_coverage(Normal(torch.zeros(4, 1), torch.ones(4, 1)), torch.zeros(4, 1), iterations=v)
 
 
 def _select(**kw):
@@ -85,19 +85,22 @@ ENTRY_POINTS = {
     "evaluate.n_maps": lambda v: evaluate(n_maps=v),
     "evaluate.folds": lambda v: evaluate(folds=v),
     "evaluate.seed": lambda v: evaluate(seed=v),
-    "cell_features.n_layers": lambda v: cell_features(np.zeros((0, 3)), OccupancyGrid((2, 2)),
-                                                      n_layers=v),
-    "cell_features.min_points": lambda v: cell_features(np.zeros((0, 3)),
-                                                        OccupancyGrid((2, 2)), min_points=v),
+    "cell_features.n_layers": lambda v: cell_features(
+        np.zeros((0, 3)), OccupancyGrid((2, 2)), n_layers=v
+    ),
+    "cell_features.min_points": lambda v: cell_features(
+        np.zeros((0, 3)), OccupancyGrid((2, 2)), min_points=v
+    ),
     "chapter4_features.chunk": lambda v: chapter4_features(None, chunk=v),
     "OccupancyGrid.shape": lambda v: OccupancyGrid((v, 3)),
     "loopy_belief_propagation.max_iterations": _bp,
     "grid_belief_propagation.max_iterations": lambda v: grid_belief_propagation(
-        torch.zeros(2, 2, 2), 0.4, max_iterations=v),
-    "affordance_marginals.max_iterations": lambda v: affordance_marginals(GRAPH,
-                                                                          max_iterations=v),
+        torch.zeros(2, 2, 2), 0.4, max_iterations=v
+    ),
+    "affordance_marginals.max_iterations": lambda v: affordance_marginals(GRAPH, max_iterations=v),
     "affordance_marginals.max_exact_width": lambda v: affordance_marginals(
-        GRAPH, max_exact_width=v),
+        GRAPH, max_exact_width=v
+    ),
     "exact_marginals.max_width": lambda v: exact_marginals(GRAPH, max_width=v),
     "component_widths.limit": lambda v: component_widths(GRAPH, limit=v),
     "elimination_width.num_variables": lambda v: elimination_width(v, np.zeros((0, 2))),
@@ -110,18 +113,22 @@ ENTRY_POINTS = {
     "select_n_experts.candidates": lambda v: _select(candidates=(v,)),
     "friction_points.n": lambda v: friction_points(BOOK, v),
     "SceneInstance.nominal.friction_grid": lambda v: SceneInstance.nominal(
-        [BOOK], np.zeros(3), np.zeros(2), 0.0, 0.1, friction_grid=v),
-    "object_cloud.n_points": lambda v: object_cloud(BOOK, np.zeros(3), v, 0.0,
-                                                    np.random.default_rng(0)),
-    "scan_scene.n_points": lambda v: scan_scene((BOOK,), np.zeros((1, 3)), (1.0, 0.8),
-                                                np.random.default_rng(0), n_points=v),
+        [BOOK], np.zeros(3), np.zeros(2), 0.0, 0.1, friction_grid=v
+    ),
+    "object_cloud.n_points": lambda v: object_cloud(
+        BOOK, np.zeros(3), v, 0.0, np.random.default_rng(0)
+    ),
+    "scan_scene.n_points": lambda v: scan_scene(
+        (BOOK,), np.zeros((1, 3)), (1.0, 0.8), np.random.default_rng(0), n_points=v
+    ),
     "Arm.reachable_mask.n_yaws": lambda v: load_arm(load_tabletop().arm).reachable_mask(
-        (0.0, 0.1), (0.0, 0.1), n_yaws=v),
+        (0.0, 0.1), (0.0, 0.1), n_yaws=v
+    ),
     "generate_map.shape": lambda v: generate_map(SPEC, np.random.default_rng(0), shape=(v, 4)),
-    "generate_map.n_boxes": lambda v: generate_map(SPEC, np.random.default_rng(0),
-                                                   n_boxes=(v, 2)),
+    "generate_map.n_boxes": lambda v: generate_map(SPEC, np.random.default_rng(0), n_boxes=(v, 2)),
     "push_box.neighbourhood": lambda v: push_box(
-        SPEC, WarehouseMap.from_boxes((3, 3), [(1, 1)]), (1, 1), 0, neighbourhood=v),
+        SPEC, WarehouseMap.from_boxes((3, 3), [(1, 1)]), (1, 1), 0, neighbourhood=v
+    ),
     "AffordanceMapConfig.n_maps": lambda v: AffordanceMapConfig(n_maps=v).validate(),
     "AffordanceMapConfig.train_maps": lambda v: AffordanceMapConfig(train_maps=v).validate(),
     "AffordanceMapConfig.max_steps": lambda v: AffordanceMapConfig(max_steps=v).validate(),
@@ -160,8 +167,12 @@ def test_simulator_push_count(simulator, value):
 
 @pytest.mark.parametrize("value", [np.int64(2), 2.0])
 def test_integral_counts_of_other_types_are_accepted(value, tmp_path):
-    ds = generate(dataclasses.replace(CFG, n=value, shard_size=value), tmp_path / "ds",
-                  workers=0, progress=False)
+    ds = generate(
+        dataclasses.replace(CFG, n=value, shard_size=value),
+        tmp_path / "ds",
+        workers=0,
+        progress=False,
+    )
     assert len(ds) == 2
     assert type(ds.meta["n"]) is int and type(ds.meta["shard_size"]) is int
     assert check_workers(np.int64(3)) == 3 and check_workers(None) is None
@@ -170,13 +181,16 @@ def test_integral_counts_of_other_types_are_accepted(value, tmp_path):
     assert cfg.fingerprint() == AffordanceMapConfig(n_maps=2, max_steps=3).fingerprint()
 
 
-@pytest.mark.parametrize("loader,file,section,key,value", [
-    (load_tabletop, "tabletop.yaml", "physics", "substeps", 2.5),
-    (load_tabletop, "tabletop.yaml", "physics", "friction_grid", True),
-    (load_warehouse, "warehouse.yaml", "sensor", "azimuths", -1),
-    (load_warehouse, "warehouse.yaml", None, "grid", [7.5, 7]),
-    (load_warehouse, "warehouse.yaml", None, "boxes", [0.5, 3]),
-])
+@pytest.mark.parametrize(
+    "loader,file,section,key,value",
+    [
+        (load_tabletop, "tabletop.yaml", "physics", "substeps", 2.5),
+        (load_tabletop, "tabletop.yaml", "physics", "friction_grid", True),
+        (load_warehouse, "warehouse.yaml", "sensor", "azimuths", -1),
+        (load_warehouse, "warehouse.yaml", None, "grid", [7.5, 7]),
+        (load_warehouse, "warehouse.yaml", None, "boxes", [0.5, 3]),
+    ],
+)
 def test_world_file_counts(tmp_path, loader, file, section, key, value):
     raw = yaml.safe_load((worlds_dir() / file).read_text())
     (raw[section] if section else raw)[key] = value

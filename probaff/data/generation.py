@@ -12,15 +12,15 @@ from __future__ import annotations
 
 import hashlib
 import os
+from collections.abc import Hashable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
-from tqdm.auto import tqdm
 
-from probaff._checks import check_count, check_positive
-from probaff._dask import check_workers, dask_client
+from probaff._checks import check_count, check_output_dir, check_positive
+from probaff._dask import check_workers, run_batch
 from probaff._threads import torch_threads
 from probaff.data.noise import PoseNoise, observe_poses
 from probaff.data.schema import PushDataset, schema_version_for
@@ -100,9 +100,14 @@ class GenerateConfig:
         return min(self.shard_size, self.n - index * self.shard_size)
 
 
-def samples_to_arrays(samples: list[PushSample], object_names: list[str], rng: np.random.Generator,
-                      cloud_points: int, cloud_noise: float, trajectories: bool
-                      ) -> dict[str, np.ndarray]:
+def samples_to_arrays(
+    samples: list[PushSample],
+    object_names: list[str],
+    rng: np.random.Generator,
+    cloud_points: int,
+    cloud_noise: float,
+    trajectories: bool,
+) -> dict[str, np.ndarray]:
     """Stack simulated pushes into schema arrays, sensing each scene's clouds.
 
     Args:
@@ -117,8 +122,14 @@ def samples_to_arrays(samples: list[PushSample], object_names: list[str], rng: n
         Arrays named and typed as `probaff.data.schema` documents.
     """
     index = {n: i for i, n in enumerate(object_names)}
-    clouds = [[object_cloud(o, p, cloud_points, cloud_noise, rng)
-               for o, p in zip(s.scene.objects, s.scene.poses, strict=True)] for s in samples]
+    clouds = [
+        [
+            object_cloud(o, p, cloud_points, cloud_noise, rng)
+            for o, p in zip(s.scene.objects, s.scene.poses, strict=True)
+        ]
+        for s in samples
+    ]
+
     def scene(field: str) -> np.ndarray:
         return np.array([getattr(s.scene, field) for s in samples])
 
@@ -126,19 +137,35 @@ def samples_to_arrays(samples: list[PushSample], object_names: list[str], rng: n
         return np.array([getattr(s.outcome, field) for s in samples])
 
     out = {
-        "object_ids": np.array([[index[o.name] for o in s.scene.objects] for s in samples],
-                               dtype=np.int16),
+        "object_ids": np.array(
+            [[index[o.name] for o in s.scene.objects] for s in samples], dtype=np.int16
+        ),
         "q_waypoints": np.array([s.q_waypoints for s in samples]),
         "support_weights": _pad([s.scene.support_weights for s in samples]),
         "walls": scene("walls").reshape(len(samples), -1, 4),
         "cloud_points": np.array([[c[0] for c in cs] for cs in clouds], dtype=np.float32),
         "cloud_normals": np.array([[c[1] for c in cs] for cs in clouds], dtype=np.float32),
     }
-    for field in ("push_origin", "push_yaw", "push_distance", "mass", "ground_friction",
-                  "contact_friction"):
+    for field in (
+        "push_origin",
+        "push_yaw",
+        "push_distance",
+        "mass",
+        "ground_friction",
+        "contact_friction",
+    ):
         out[field] = scene(field)
-    for field in ("state_before", "state_after", "effect", "hand_contact", "object_contact",
-                  "wall_contact", "fell_off", "hand_lag", "max_penetration"):
+    for field in (
+        "state_before",
+        "state_after",
+        "effect",
+        "hand_contact",
+        "object_contact",
+        "wall_contact",
+        "fell_off",
+        "hand_lag",
+        "max_penetration",
+    ):
         out[field] = outcome(field)
     if trajectories:
         out["traj_time"] = outcome("traj_time")
@@ -174,15 +201,22 @@ def make_shard(config: GenerateConfig, index: int) -> dict[str, np.ndarray]:
     with torch_threads(1):
         sim = PushSimulator(config.scene)
         samples = list(sim.run(config.shard_rows(index), sim_rng))
-    arrays = samples_to_arrays(samples, sorted(load_catalogue()), sense_rng, config.cloud_points,
-                               config.cloud_noise, config.trajectories)
+    arrays = samples_to_arrays(
+        samples,
+        sorted(load_catalogue()),
+        sense_rng,
+        config.cloud_points,
+        config.cloud_noise,
+        config.trajectories,
+    )
     if config.pose_noise is not None:
         arrays = add_pose_noise(arrays, config.pose_noise, noise_rng)
     return arrays
 
 
-def add_pose_noise(arrays: dict[str, np.ndarray], noise: PoseNoise, rng: np.random.Generator
-                   ) -> dict[str, np.ndarray]:
+def add_pose_noise(
+    arrays: dict[str, np.ndarray], noise: PoseNoise, rng: np.random.Generator
+) -> dict[str, np.ndarray]:
     """Turn exact recorded poses into noisy observations, keeping the exact ones.
 
     Args:
@@ -196,8 +230,9 @@ def add_pose_noise(arrays: dict[str, np.ndarray], noise: PoseNoise, rng: np.rand
         ``true_effect``; ``state_before`` and ``state_after`` replaced by noisy measurements
         and ``effect`` by the pushing-frame difference between them. Other arrays are shared.
     """
-    before, after, effect = observe_poses(noise, arrays["state_before"], arrays["state_after"],
-                                          arrays["push_yaw"], rng)
+    before, after, effect = observe_poses(
+        noise, arrays["state_before"], arrays["state_after"], arrays["push_yaw"], rng
+    )
     return {
         **arrays,
         "true_state_before": arrays["state_before"],
@@ -222,8 +257,7 @@ def _describe_noise(plan: dict[str, Any]) -> str:
     noise = plan.get("pose_noise")
     if noise is None:
         return "no pose noise"
-    return (f"pose noise position_std={noise['position_std']} m, "
-            f"yaw_std={noise['yaw_std']} rad")
+    return f"pose noise position_std={noise['position_std']} m, yaw_std={noise['yaw_std']} rad"
 
 
 def _prepare(out: Path, config: GenerateConfig, resume: bool) -> dict[str, Any]:
@@ -267,7 +301,13 @@ def _prepare(out: Path, config: GenerateConfig, resume: bool) -> dict[str, Any]:
         },
         "shards": {},
     }
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DatasetError(
+            f"cannot create the dataset folder {out} ({exc.strerror or exc}); choose an output "
+            "path (--out) in a folder you may write to."
+        ) from exc
     write_manifest(out, manifest)
     return manifest
 
@@ -296,9 +336,15 @@ def _adopt_orphans(out: Path, config: GenerateConfig, manifest: dict[str, Any]) 
     write_manifest(out, manifest)
 
 
-def generate(config: GenerateConfig, out: str | os.PathLike[str], *, workers: int | None = 0,
-             scheduler: str | None = None, resume: bool = False, progress: bool = True
-             ) -> PushDataset:
+def generate(
+    config: GenerateConfig,
+    out: str | os.PathLike[str],
+    *,
+    workers: int | None = 0,
+    scheduler: str | None = None,
+    resume: bool = False,
+    progress: bool = True,
+) -> PushDataset:
     """Generate (or finish) a push dataset on disk and return it.
 
     Args:
@@ -314,38 +360,36 @@ def generate(config: GenerateConfig, out: str | os.PathLike[str], *, workers: in
         The complete dataset, loaded from disk.
 
     Raises:
-        DatasetError: If `out` exists without `resume`, or belongs to another config (another
-            pose noise included).
-        InputError: For a bad config or `workers`.
+        DatasetError: If `out` exists without `resume`, belongs to another config (another
+            pose noise included), or cannot be written.
+        InputError: For a bad config or `workers`, or an `out` that is a file, lies under a
+            file or in a folder that is not writable.
         ConfigError: For an unknown scene or object.
     """
     config = config.validate()
     workers = check_workers(workers)
-    out = Path(out)
+    out = check_output_dir("out", out)
     manifest = _prepare(out, config, resume)
     _adopt_orphans(out, config, manifest)
     todo = [i for i in range(config.n_shards) if f"{i:05d}" not in manifest["shards"]]
-    bar = tqdm(total=config.n, initial=config.n - sum(config.shard_rows(i) for i in todo),
-               unit="push", desc=f"generate {config.scene}", disable=not progress)
 
-    def store(i: int, arrays: dict[str, np.ndarray]) -> None:
+    def store(i: Hashable, arrays: dict[str, np.ndarray]) -> None:
+        i = cast(int, i)
         digest = write_shard(out, i, arrays)
         manifest["shards"][f"{i:05d}"] = {"rows": config.shard_rows(i), "sha256": digest}
         write_manifest(out, manifest)
-        bar.update(config.shard_rows(i))
 
-    try:
-        if todo and (workers == 0 and not scheduler):
-            for i in todo:
-                store(i, make_shard(config, i))
-        elif todo:
-            from dask.distributed import as_completed
-
-            with dask_client(workers, scheduler) as client:
-                futures = client.map(make_shard, [config] * len(todo), todo, pure=False)
-                index = {f.key: i for f, i in zip(futures, todo, strict=True)}
-                for fut in as_completed(futures):
-                    store(index[fut.key], fut.result())
-    finally:
-        bar.close()
+    run_batch(
+        make_shard,
+        [(i, (config, i)) for i in todo],
+        store,
+        workers=workers,
+        scheduler=scheduler,
+        progress=progress,
+        total=config.n,
+        done=config.n - sum(config.shard_rows(i) for i in todo),
+        size=lambda i: config.shard_rows(cast(int, i)),
+        unit="push",
+        desc=f"generate {config.scene}",
+    )
     return load_dataset(out)

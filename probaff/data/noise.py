@@ -65,7 +65,8 @@ class PoseNoise:
         """
         position = math.sqrt(2.0) * self.position_std
         return [position, position, math.sqrt(2.0) * self.yaw_std] * check_count(
-            "n_objects", n_objects)
+            "n_objects", n_objects
+        )
 
     def to_dict(self) -> dict[str, float]:
         """The parameters as a manifest stores them: ``position_std`` (m), ``yaw_std`` (rad)."""
@@ -106,8 +107,13 @@ def parse_pose_noise(text: str) -> PoseNoise:
     return PoseNoise(position_std=position, yaw_std=math.radians(yaw_deg))
 
 
-def observe_poses(noise: PoseNoise, before: np.ndarray, after: np.ndarray, push_yaw: np.ndarray,
-                  rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def observe_poses(
+    noise: PoseNoise,
+    before: np.ndarray,
+    after: np.ndarray,
+    push_yaw: np.ndarray,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Measure the poses before and after N pushes with independent noise, and their effects.
 
     The draws take one ``(N, 2, K, 3)`` block of standard normals from `rng`, so the result
@@ -130,6 +136,10 @@ def observe_poses(noise: PoseNoise, before: np.ndarray, after: np.ndarray, push_
     scale = np.array([noise.position_std, noise.position_std, noise.yaw_std])
     eps = rng.standard_normal((len(before), 2, *before.shape[1:])) * scale
     obs_before, obs_after = before + eps[:, 0], after + eps[:, 1]
-    effect = np.array([push_frame_effect(b, a, float(y))
-                       for b, a, y in zip(obs_before, obs_after, push_yaw, strict=True)])
+    effect = np.array(
+        [
+            push_frame_effect(b, a, float(y))
+            for b, a, y in zip(obs_before, obs_after, push_yaw, strict=True)
+        ]
+    )
     return obs_before, obs_after, effect.reshape(before.shape)

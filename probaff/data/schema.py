@@ -170,9 +170,11 @@ class PushDataset:
         for name in (n for n in GROUND_TRUTH_ARRAYS if n in self.arrays):
             observed = self.arrays[name.removeprefix("true_")]
             if self.arrays[name].shape != observed.shape:
-                raise DatasetError(f"array {name!r} has shape {self.arrays[name].shape}, "
-                                   f"expected that of {name.removeprefix('true_')!r}, "
-                                   f"{observed.shape}.")
+                raise DatasetError(
+                    f"array {name!r} has shape {self.arrays[name].shape}, "
+                    f"expected that of {name.removeprefix('true_')!r}, "
+                    f"{observed.shape}."
+                )
         ids = self.arrays["object_ids"]
         if ids.size and (ids.min() < 0 or ids.max() >= len(self.object_names)):
             raise DatasetError("object_ids index outside object_names.")
@@ -220,5 +222,8 @@ class PushDataset:
         if any(p.object_names != names for p in parts):
             raise DatasetError("datasets with different object vocabularies cannot be joined.")
         keys = parts[0].arrays.keys()
-        return PushDataset({k: np.concatenate([p.arrays[k] for p in parts]) for k in keys},
-                           list(names), dict(parts[0].meta))
+        return PushDataset(
+            {k: np.concatenate([p.arrays[k] for p in parts]) for k in keys},
+            list(names),
+            dict(parts[0].meta),
+        )

@@ -81,10 +81,30 @@ def write_shard(root: Path, index: int, arrays: dict[str, np.ndarray]) -> str:
 
     Returns:
         The SHA-256 hex digest of the written file.
+
+    Raises:
+        DatasetError: If the file cannot be written.
     """
     data = _npz_bytes(arrays)
-    atomic_write_bytes(shard_path(root, index), data)
+    _write(shard_path(root, index), data)
     return hashlib.sha256(data).hexdigest()
+
+
+def _write(path: Path, data: bytes) -> None:
+    """`atomic_write_bytes`, reporting a failure as a `DatasetError` that names the path.
+
+    Raises:
+        DatasetError: For a file in the way, a full disk or a missing permission.
+    """
+    try:
+        atomic_write_bytes(path, data)
+    except DatasetError:
+        raise
+    except OSError as exc:
+        raise DatasetError(
+            f"cannot write {path} ({exc.strerror or exc}); choose a dataset folder (--out) you "
+            "may write to, with free space, and no file in the way of its path."
+        ) from exc
 
 
 def read_shard(root: Path, index: int, sha256: str | None = None) -> dict[str, np.ndarray]:
@@ -111,15 +131,18 @@ def read_shard(root: Path, index: int, sha256: str | None = None) -> dict[str, n
             return {k: npz[k] for k in npz.files}
     except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
         raise DatasetError(
-            f"shard {path} is corrupt ({exc}); delete it and rerun `probaff generate ... "
-            "--resume`."
+            f"shard {path} is corrupt ({exc}); delete it and rerun `probaff generate ... --resume`."
         ) from exc
 
 
 def write_manifest(root: Path, manifest: dict[str, Any]) -> None:
-    """Write ``manifest.json`` atomically (sorted keys, so equal content gives equal bytes)."""
+    """Write ``manifest.json`` atomically (sorted keys, so equal content gives equal bytes).
+
+    Raises:
+        DatasetError: If the file cannot be written.
+    """
     text = json.dumps(manifest, indent=1, sort_keys=True) + "\n"
-    atomic_write_bytes(root / "manifest.json", text.encode())
+    _write(root / "manifest.json", text.encode())
 
 
 def read_manifest(root: Path) -> dict[str, Any]:
@@ -183,8 +206,9 @@ def load_dataset(root: str | os.PathLike[str]) -> PushDataset:
         arrays = read_shard(root, i, entry["sha256"])
         rows = len(arrays.get("effect", ()))
         if rows != entry["rows"]:
-            raise DatasetError(f"shard {i} of {root} has {rows} rows, manifest says "
-                               f"{entry['rows']}.")
+            raise DatasetError(
+                f"shard {i} of {root} has {rows} rows, manifest says {entry['rows']}."
+            )
         parts.append(PushDataset(arrays, list(manifest["object_names"]), manifest["meta"]))
     ds = PushDataset.concatenate(parts)
     noisy = plan.get("pose_noise") is not None

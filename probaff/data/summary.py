@@ -52,7 +52,9 @@ def summarize(ds: PushDataset) -> dict[str, Any]:
             err = ds["effect"][:, k] - eff[:, k]
             std = err.std(axis=0) if len(ds) else np.zeros(3)
             slots[f"o{k + 1}"]["observed_effect_error_std"] = {
-                "dy_p_m": float(std[0]), "dz_p_m": float(std[1]), "dtheta_p_rad": float(std[2]),
+                "dy_p_m": float(std[0]),
+                "dz_p_m": float(std[1]),
+                "dtheta_p_rad": float(std[2]),
             }
     noise = ds.meta.get("pose_noise")
     return {
@@ -63,9 +65,11 @@ def summarize(ds: PushDataset) -> dict[str, Any]:
         "object_counts": dict(sorted(names.items())),
         "push_distance_m": sorted({float(d) for d in np.unique(ds["push_distance"])}),
         "has_trajectories": ds.has_trajectories,
-        "pose_noise": None if noise is None else {"position_std_m": noise["position_std"],
-                                                  "yaw_std_rad": noise["yaw_std"]},
+        "pose_noise": None
+        if noise is None
+        else {"position_std_m": noise["position_std"], "yaw_std_rad": noise["yaw_std"]},
         "fraction_objects_touching": float(ds["object_contact"].any(axis=(1, 2)).mean())
-        if len(ds) else 0.0,
+        if len(ds)
+        else 0.0,
         "objects": slots,
     }

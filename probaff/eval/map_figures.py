@@ -20,18 +20,21 @@ from matplotlib.ticker import MaxNLocator
 
 from probaff._io import atomic_save_figure
 from probaff.grid import DIRECTION_NAMES, DIRECTION_OFFSETS
-from probaff.maps.loop import LoopSnapshot
+from probaff.planning.manipulation_loop import LoopSnapshot
 
 __all__ = ["plot_loop_steps", "plot_mrf_smoothing", "plot_step_curves"]
 
 _CMAP = "coolwarm"
 _COLOURS = {"information_gain": "tab:red", "exhaustive": "tab:blue"}
-_LABELS = {"information_gain": "maximum information gain (MRF)",
-           "exhaustive": "exhaustive (nearest box, no MRF)"}
+_LABELS = {
+    "information_gain": "maximum information gain (MRF)",
+    "exhaustive": "exhaustive (nearest box, no MRF)",
+}
 
 
-def plot_step_curves(curves: Mapping[str, np.ndarray], ylabel: str, title: str,
-                     path: str | os.PathLike[str]) -> None:
+def plot_step_curves(
+    curves: Mapping[str, np.ndarray], ylabel: str, title: str, path: str | os.PathLike[str]
+) -> None:
     """Mean of a per-step quantity over maps, with a band of one standard deviation.
 
     Args:
@@ -69,10 +72,10 @@ def _draw_cells(ax: Axes, occupancy: np.ndarray) -> None:
     ax.set_xticks(np.arange(cols) + 0.5, [str(c) for c in range(cols)], fontsize=6)
     ax.set_yticks(np.arange(rows) + 0.5, [str(r) for r in range(rows)], fontsize=6)
     ax.tick_params(length=0)
-    squares = [[(c, r), (c + 1, r), (c + 1, r + 1), (c, r + 1)]
-               for r, c in np.argwhere(occupancy).tolist()]
-    ax.add_collection(PolyCollection(squares, facecolors="none", edgecolors="k",
-                                     linewidths=0.8))
+    squares = [
+        [(c, r), (c + 1, r), (c + 1, r + 1), (c, r + 1)] for r, c in np.argwhere(occupancy).tolist()
+    ]
+    ax.add_collection(PolyCollection(squares, facecolors="none", edgecolors="k", linewidths=0.8))
     ax.plot([0, cols, cols, 0, 0], [0, 0, rows, rows, 0], color="k", lw=2.5)
 
 
@@ -80,13 +83,19 @@ def _heatmap(ax: Axes, occupancy: np.ndarray, values: np.ndarray) -> None:
     """Colour each believed box by `values` (rows, cols); free cells stay white."""
     img = np.where(occupancy, values, np.nan)
     rows, cols = occupancy.shape
-    ax.imshow(img, cmap=_CMAP, vmin=0.0, vmax=1.0, extent=(0, cols, rows, 0),
-              interpolation="nearest")
+    ax.imshow(
+        img, cmap=_CMAP, vmin=0.0, vmax=1.0, extent=(0, cols, rows, 0), interpolation="nearest"
+    )
     _draw_cells(ax, occupancy)
 
 
-def plot_mrf_smoothing(occupancy: np.ndarray, unary: np.ndarray, smoothed: np.ndarray,
-                       direction: int, path: str | os.PathLike[str]) -> None:
+def plot_mrf_smoothing(
+    occupancy: np.ndarray,
+    unary: np.ndarray,
+    smoothed: np.ndarray,
+    direction: int,
+    path: str | os.PathLike[str],
+) -> None:
     """Predicted pushability of one direction before and after MRF smoothing (Fig. 3.5).
 
     Args:
@@ -100,8 +109,10 @@ def plot_mrf_smoothing(occupancy: np.ndarray, unary: np.ndarray, smoothed: np.nd
     fig = Figure(figsize=(9.0, 4.2), layout="constrained")
     axes = fig.subplots(1, 2)
     name = DIRECTION_NAMES[direction]
-    for ax, values, title in ((axes[0], unary, "classifier"), (axes[1], smoothed,
-                                                                   "after MRF smoothing")):
+    for ax, values, title in (
+        (axes[0], unary, "classifier"),
+        (axes[1], smoothed, "after MRF smoothing"),
+    ):
         _heatmap(ax, occ, np.asarray(values, dtype=float)[..., direction])
         ax.set_title(f"pushable {name}: {title}", fontsize=9)
     bar = fig.colorbar(ScalarMappable(Normalize(0.0, 1.0), _CMAP), ax=list(axes), shrink=0.8)
@@ -112,8 +123,12 @@ def plot_mrf_smoothing(occupancy: np.ndarray, unary: np.ndarray, smoothed: np.nd
 def _triangles(r: int, c: int) -> list[list[tuple[float, float]]]:
     """The four triangles of cell (r, c), in `DIRECTION_NAMES` order (up, down, left, right)."""
     m = (c + 0.5, r + 0.5)
-    return [[(c, r), (c + 1, r), m], [(c, r + 1), (c + 1, r + 1), m],
-            [(c, r), (c, r + 1), m], [(c + 1, r), (c + 1, r + 1), m]]
+    return [
+        [(c, r), (c + 1, r), m],
+        [(c, r + 1), (c + 1, r + 1), m],
+        [(c, r), (c, r + 1), m],
+        [(c + 1, r), (c + 1, r + 1), m],
+    ]
 
 
 def _draw_snapshot(ax: Axes, shot: LoopSnapshot) -> None:
@@ -124,8 +139,14 @@ def _draw_snapshot(ax: Axes, shot: LoopSnapshot) -> None:
         polys.extend(_triangles(int(r), int(c)))
         values.extend(np.asarray(shot.pushability, dtype=float)[r, c])
     if polys:
-        coll = PolyCollection(polys, array=np.asarray(values), cmap=_CMAP,
-                              norm=Normalize(0.0, 1.0), edgecolors="0.6", linewidths=0.3)
+        coll = PolyCollection(
+            polys,
+            array=np.asarray(values),
+            cmap=_CMAP,
+            norm=Normalize(0.0, 1.0),
+            edgecolors="0.6",
+            linewidths=0.3,
+        )
         ax.add_collection(coll)
     _draw_cells(ax, occ)
     ax.plot(shot.robot[1] + 0.5, shot.robot[0] + 0.5, "o", color="k", ms=6)
@@ -134,12 +155,18 @@ def _draw_snapshot(ax: Axes, shot: LoopSnapshot) -> None:
         dr, dc = (int(v) for v in DIRECTION_OFFSETS[d])
         start = (c - dc + 0.5, r - dr + 0.5)  # the access cell's centre
         end = (c + 0.5 * dc + 0.5, r + 0.5 * dr + 0.5)  # the box's far edge
-        ax.annotate("", xy=end, xytext=start, annotation_clip=False,
-                    arrowprops={"arrowstyle": "-|>", "color": "limegreen", "lw": 2.5})
+        ax.annotate(
+            "",
+            xy=end,
+            xytext=start,
+            annotation_clip=False,
+            arrowprops={"arrowstyle": "-|>", "color": "limegreen", "lw": 2.5},
+        )
 
 
-def plot_loop_steps(snapshots: Sequence[LoopSnapshot], path: str | os.PathLike[str],
-                    title: str = "") -> None:
+def plot_loop_steps(
+    snapshots: Sequence[LoopSnapshot], path: str | os.PathLike[str], title: str = ""
+) -> None:
     """A few steps of the manipulation loop (Fig. 3.6).
 
     Each panel shows the belief before one push: every believed box split into four triangles
@@ -158,10 +185,13 @@ def plot_loop_steps(snapshots: Sequence[LoopSnapshot], path: str | os.PathLike[s
     axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
     for k, (ax, shot) in enumerate(zip(axes, snapshots, strict=False)):
         _draw_snapshot(ax, shot)
-        what = "stop" if shot.push is None else (
-            f"push ({shot.push[0]}, {shot.push[1]}) {DIRECTION_NAMES[shot.push[2]]}")
+        what = (
+            "stop"
+            if shot.push is None
+            else (f"push ({shot.push[0]}, {shot.push[1]}) {DIRECTION_NAMES[shot.push[2]]}")
+        )
         ax.set_title(f"step {k}: H = {shot.entropy:.2f} nats, {what}", fontsize=8)
-    for ax in axes[len(snapshots):]:
+    for ax in axes[len(snapshots) :]:
         ax.axis("off")
     bar = fig.colorbar(ScalarMappable(Normalize(0.0, 1.0), _CMAP), ax=list(axes), shrink=0.7)
     bar.set_label("P(pushable)")

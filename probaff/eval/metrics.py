@@ -37,8 +37,11 @@ def marginal_components(dist: Distribution) -> tuple[torch.Tensor, torch.Tensor,
     base = dist.base_dist if isinstance(dist, Independent) else dist
     if not isinstance(base, Normal):
         raise InputError(f"cannot score a {type(dist).__name__}; expected Normal or a mixture.")
-    return torch.ones(base.loc.shape[0], 1, dtype=base.loc.dtype), base.loc[:, None], \
-        base.scale[:, None]
+    return (
+        torch.ones(base.loc.shape[0], 1, dtype=base.loc.dtype),
+        base.loc[:, None],
+        base.scale[:, None],
+    )
 
 
 def _check_targets(dist: Distribution, y: torch.Tensor) -> torch.Tensor:
@@ -85,8 +88,9 @@ def nlpd(dist: Distribution, y: torch.Tensor) -> torch.Tensor:
     return -lp.mean(0)
 
 
-def interval_coverage(dist: Distribution, y: torch.Tensor, level: float = 0.9,
-                      iterations: int = 60) -> torch.Tensor:
+def interval_coverage(
+    dist: Distribution, y: torch.Tensor, level: float = 0.9, iterations: int = 60
+) -> torch.Tensor:
     """Fraction of observations inside the central `level` interval, per dimension.
 
     The interval of each 1-D marginal mixture is found by bisection on its CDF.

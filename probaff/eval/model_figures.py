@@ -24,8 +24,13 @@ __all__ = [
 _STYLES = {"em": "-", "em-hard": "-.", "vi": "--", "clustered": ":"}
 
 
-def plot_metric_vs_experts(rows: Sequence[dict[str, Any]], effects: Sequence[str], metric: str,
-                           path: str | os.PathLike[str], title: str = "") -> None:
+def plot_metric_vs_experts(
+    rows: Sequence[dict[str, Any]],
+    effects: Sequence[str],
+    metric: str,
+    path: str | os.PathLike[str],
+    title: str = "",
+) -> None:
     """One panel per effect dimension: `metric` against M, a line per (features, method).
 
     Args:
@@ -43,16 +48,26 @@ def plot_metric_vs_experts(rows: Sequence[dict[str, Any]], effects: Sequence[str
     colours = {f: f"C{i}" for i, f in enumerate(sorted({s[0] for s in series}))}
     for ax, effect in zip(axes, effects, strict=False):
         for feat, method in series:
-            pts = sorted((r["M"], r[f"{metric}.{effect}"]) for r in rows
-                         if (r["features"], r["method"]) == (feat, method))
-            ax.plot([p[0] for p in pts], [p[1] for p in pts], _STYLES.get(method, "-"),
-                    marker="o", ms=3, color=colours[feat], label=f"{feat} / {method}")
+            pts = sorted(
+                (r["M"], r[f"{metric}.{effect}"])
+                for r in rows
+                if (r["features"], r["method"]) == (feat, method)
+            )
+            ax.plot(
+                [p[0] for p in pts],
+                [p[1] for p in pts],
+                _STYLES.get(method, "-"),
+                marker="o",
+                ms=3,
+                color=colours[feat],
+                label=f"{feat} / {method}",
+            )
         if metric == "coverage90":
             ax.axhline(0.9, color="0.5", lw=0.8)
         ax.set_title(effect, fontsize=9)
         ax.set_xlabel("experts M", fontsize=8)
         ax.tick_params(labelsize=7)
-    for ax in axes[len(effects):]:
+    for ax in axes[len(effects) :]:
         ax.axis("off")
     axes[0].legend(fontsize=6)
     fig.suptitle(title, fontsize=10)
@@ -60,8 +75,13 @@ def plot_metric_vs_experts(rows: Sequence[dict[str, Any]], effects: Sequence[str
     atomic_save_figure(fig, path, dpi=120)
 
 
-def plot_effect_clusters(points: np.ndarray, labels: np.ndarray, axis_names: tuple[str, str],
-                         path: str | os.PathLike[str], title: str = "") -> None:
+def plot_effect_clusters(
+    points: np.ndarray,
+    labels: np.ndarray,
+    axis_names: tuple[str, str],
+    path: str | os.PathLike[str],
+    title: str = "",
+) -> None:
     """Effects of the pushes coloured by their expert or cluster (thesis Figs. 4.5, 5.4).
 
     Args:
@@ -75,8 +95,9 @@ def plot_effect_clusters(points: np.ndarray, labels: np.ndarray, axis_names: tup
     ax = fig.subplots()
     for k in np.unique(labels):
         sel = labels == k
-        ax.scatter(points[sel, 0], points[sel, 1], s=10, alpha=0.75, label=f"expert {k} "
-                   f"({sel.sum()})")
+        ax.scatter(
+            points[sel, 0], points[sel, 1], s=10, alpha=0.75, label=f"expert {k} ({sel.sum()})"
+        )
     ax.set_xlabel(axis_names[0])
     ax.set_ylabel(axis_names[1])
     ax.legend(fontsize=7)
@@ -85,9 +106,12 @@ def plot_effect_clusters(points: np.ndarray, labels: np.ndarray, axis_names: tup
     atomic_save_figure(fig, path, dpi=120)
 
 
-def plot_relevances(lengthscales: Sequence[Sequence[Sequence[float]]],
-                    columns: Sequence[int], groups: dict[str, slice],
-                    path: str | os.PathLike[str]) -> None:
+def plot_relevances(
+    lengthscales: Sequence[Sequence[Sequence[float]]],
+    columns: Sequence[int],
+    groups: dict[str, slice],
+    path: str | os.PathLike[str],
+) -> None:
     """ARD relevance (1 / length scale, averaged over outputs) of each expert's features.
 
     Args:
@@ -108,8 +132,13 @@ def plot_relevances(lengthscales: Sequence[Sequence[Sequence[float]]],
             if inside.size:
                 ax.axvspan(inside[0] - 0.5, inside[-1] + 0.5, color=f"C{g + 1}", alpha=0.12)
                 share = rel[inside].sum() / max(rel.sum(), 1e-12)
-                ax.text(inside.mean(), ax.get_ylim()[1] * 0.9 if rel.size else 0,
-                        f"{name} {100 * share:.0f}%", ha="center", fontsize=7)
+                ax.text(
+                    inside.mean(),
+                    ax.get_ylim()[1] * 0.9 if rel.size else 0,
+                    f"{name} {100 * share:.0f}%",
+                    ha="center",
+                    fontsize=7,
+                )
         ax.set_ylabel(f"expert {j}", fontsize=8)
         ax.tick_params(labelsize=7)
     axes[-1].set_xlabel("feature (expert input index)", fontsize=8)
@@ -118,9 +147,15 @@ def plot_relevances(lengthscales: Sequence[Sequence[Sequence[float]]],
     atomic_save_figure(fig, path, dpi=120)
 
 
-def plot_predictive_density(grid: np.ndarray, densities: dict[str, np.ndarray],
-                            observed: float, path: str | os.PathLike[str], *, xlabel: str,
-                            title: str = "") -> None:
+def plot_predictive_density(
+    grid: np.ndarray,
+    densities: dict[str, np.ndarray],
+    observed: float,
+    path: str | os.PathLike[str],
+    *,
+    xlabel: str,
+    title: str = "",
+) -> None:
     """Predictive densities of one effect dimension of one push, with the observed value.
 
     Args:

@@ -30,8 +30,12 @@ def _footprint_patch(name: str, pose: np.ndarray, **kw: object) -> Polygon | Cir
     return Polygon(poly @ R.T + pose[:2], closed=True, **kw)
 
 
-def plot_pushes(ds: PushDataset, indices: Sequence[int], path: str | os.PathLike[str],
-                reachable: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> None:
+def plot_pushes(
+    ds: PushDataset,
+    indices: Sequence[int],
+    path: str | os.PathLike[str],
+    reachable: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+) -> None:
     """Draw a grid of pushes, one panel each, and save it as an image.
 
     Each panel shows the table (world frame, metres), every object before (dashed outline) and
@@ -55,15 +59,28 @@ def plot_pushes(ds: PushDataset, indices: Sequence[int], path: str | os.PathLike
         ax.add_patch(Rectangle((-tw / 2, -th / 2), tw, th, fc="0.94", ec="0.4", lw=1))
         if reachable is not None:
             mask, xs, ys = reachable
-            ax.contourf(xs, ys, mask.astype(float), levels=[0.5, 1.5], colors=["#d9f0d3"],
-                        alpha=0.6)
+            ax.contourf(
+                xs, ys, mask.astype(float), levels=[0.5, 1.5], colors=["#d9f0d3"], alpha=0.6
+            )
         names = ds.objects_of(i)
         for k, name in enumerate(names):
             col = _COLOURS[k % len(_COLOURS)]
-            ax.add_patch(_footprint_patch(name, ds["state_before"][i, k], fill=False, ec=col,
-                                          ls="--", lw=1.2))
-            ax.add_patch(_footprint_patch(name, ds["state_after"][i, k], fc=col, alpha=0.45,
-                                          ec=col, lw=1.2, label=f"o{k + 1} {name}"))
+            ax.add_patch(
+                _footprint_patch(
+                    name, ds["state_before"][i, k], fill=False, ec=col, ls="--", lw=1.2
+                )
+            )
+            ax.add_patch(
+                _footprint_patch(
+                    name,
+                    ds["state_after"][i, k],
+                    fc=col,
+                    alpha=0.45,
+                    ec=col,
+                    lw=1.2,
+                    label=f"o{k + 1} {name}",
+                )
+            )
         for x0, y0, x1, y1 in ds["walls"][i]:
             ax.plot([x0, x1], [y0, y1], color="k", lw=3)
         if ds.has_trajectories:
@@ -71,13 +88,21 @@ def plot_pushes(ds: PushDataset, indices: Sequence[int], path: str | os.PathLike
             ax.plot(hand[:, 0], hand[:, 1], color="crimson", lw=1.5, label="gripper path")
         else:
             o, yaw, d = ds["push_origin"][i], ds["push_yaw"][i], ds["push_distance"][i]
-            ax.plot([o[0], o[0] + d * math.cos(yaw)], [o[1], o[1] + d * math.sin(yaw)],
-                    color="crimson", lw=1.5, label="gripper path")
+            ax.plot(
+                [o[0], o[0] + d * math.cos(yaw)],
+                [o[1], o[1] + d * math.sin(yaw)],
+                color="crimson",
+                lw=1.5,
+                label="gripper path",
+            )
         o = ds["push_origin"][i]
         ax.plot(o[0], o[1], "o", color="crimson", ms=4)
         e = ds["effect"][i, 0]
-        ax.set_title(f"push {i}: o1 dy={100 * e[0]:.1f} cm dz={100 * e[1]:.1f} cm "
-                     f"dth={math.degrees(e[2]):.0f} deg", fontsize=8)
+        ax.set_title(
+            f"push {i}: o1 dy={100 * e[0]:.1f} cm dz={100 * e[1]:.1f} cm "
+            f"dth={math.degrees(e[2]):.0f} deg",
+            fontsize=8,
+        )
         ax.set_xlim(-tw / 2 - 0.05, tw / 2 + 0.05)
         ax.set_ylim(-th / 2 - 0.05, th / 2 + 0.05)
         ax.set_aspect("equal")

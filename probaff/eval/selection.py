@@ -47,11 +47,15 @@ def _default_fit(model: Any, X: torch.Tensor, Y: torch.Tensor, seed: int) -> Non
     fit_em(model, X, Y, seed=seed)
 
 
-def select_n_experts(X: Any, Y: Any, candidates: Sequence[int] = (1, 2, 3, 4, 5, 6),
-                     folds: int = 3, seed: int = 0,
-                     make_model: Callable[[int], Any] = _default_model,
-                     fit: Callable[[Any, torch.Tensor, torch.Tensor, int], None] = _default_fit
-                     ) -> ExpertSelection:
+def select_n_experts(
+    X: Any,
+    Y: Any,
+    candidates: Sequence[int] = (1, 2, 3, 4, 5, 6),
+    folds: int = 3,
+    seed: int = 0,
+    make_model: Callable[[int], Any] = _default_model,
+    fit: Callable[[Any, torch.Tensor, torch.Tensor, int], None] = _default_fit,
+) -> ExpertSelection:
     """Pick the number of experts by K-fold cross-validated NLPD.
 
     Args:

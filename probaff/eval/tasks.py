@@ -11,13 +11,11 @@ from __future__ import annotations
 import json
 import os
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from tqdm.auto import tqdm
-
-from probaff._dask import check_workers, dask_client
+from probaff._dask import check_workers, run_batch
 from probaff._io import atomic_write_text
 from probaff.errors import InputError
 
@@ -59,19 +57,30 @@ class ResultStore:
         return [self.load(k) for k in keys]
 
 
-def run_tasks(fn: Callable[..., dict[str, Any]], tasks: Sequence[tuple[str, tuple[Any, ...]]],
-              store: ResultStore, *, workers: int | None = 0, scheduler: str | None = None,
-              progress: bool = True, desc: str = "tasks") -> list[dict[str, Any]]:
+def run_tasks(
+    fn: Callable[..., dict[str, Any]],
+    tasks: Sequence[tuple[str, tuple[Any, ...]]],
+    store: ResultStore,
+    *,
+    workers: int | None = 0,
+    scheduler: str | None = None,
+    progress: bool = True,
+    desc: str = "tasks",
+    shared: Mapping[str, Any] | None = None,
+) -> list[dict[str, Any]]:
     """Run every task whose result is not saved yet, then return all results.
 
     Args:
-        fn: ``fn(*args) -> dict``; must be importable by Dask workers (a module-level function).
-        tasks: ``(key, args)`` pairs with unique keys.
+        fn: ``fn(*args, **shared) -> dict``; must be importable by Dask workers (a
+            module-level function).
+        tasks: ``(key, args)`` pairs with unique keys, in the order they should start.
         store: Where results live.
         workers: 0 runs in this process; ``None`` or K > 0 uses a local Dask cluster.
         scheduler: Address of an existing Dask scheduler; overrides `workers`.
         progress: Show a tqdm bar.
         desc: Label of the bar.
+        shared: Keyword arguments every task receives (e.g. the data set), sent to Dask
+            workers once.
 
     Returns:
         The results of all tasks, in the order of `tasks`.
@@ -81,23 +90,16 @@ def run_tasks(fn: Callable[..., dict[str, Any]], tasks: Sequence[tuple[str, tupl
     if len(set(keys)) != len(keys):
         raise InputError("task keys must be unique.")
     todo = [(k, a) for k, a in tasks if not store.done(k)]
-    bar = tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc=desc, unit="task",
-               disable=not progress)
-    try:
-        if todo and workers == 0 and not scheduler:
-            for key, args in todo:
-                store.save(key, fn(*args))
-                bar.update()
-        elif todo:
-            from dask.distributed import as_completed
-
-            with dask_client(workers, scheduler) as client:
-                futures = [client.submit(fn, *args, key=f"{key}-{os.getpid()}", pure=False)
-                           for key, args in todo]
-                by_future = {f.key: key for f, (key, _) in zip(futures, todo, strict=True)}
-                for fut in as_completed(futures):
-                    store.save(by_future[fut.key], fut.result())
-                    bar.update()
-    finally:
-        bar.close()
+    run_batch(
+        fn,
+        todo,
+        lambda key, result: store.save(str(key), result),
+        workers=workers,
+        scheduler=scheduler,
+        shared=shared,
+        progress=progress,
+        done=len(tasks) - len(todo),
+        unit="task",
+        desc=desc,
+    )
     return store.results(keys)

@@ -47,8 +47,9 @@ class PushClouds:
         self.distance = ds["push_distance"][rows]
 
 
-def chunked(ds: PushDataset, dim: int, fn: Callable[[PushClouds], np.ndarray],
-            chunk: int = 1024) -> np.ndarray:
+def chunked(
+    ds: PushDataset, dim: int, fn: Callable[[PushClouds], np.ndarray], chunk: int = 1024
+) -> np.ndarray:
     """Apply `fn` to consecutive chunks of pushes and stack the (n, dim) results.
 
     Args:

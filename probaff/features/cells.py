@@ -110,8 +110,8 @@ class _Groups:
 def _group(keys: np.ndarray, points: np.ndarray) -> _Groups:
     uniq, index, counts = np.unique(keys, return_inverse=True, return_counts=True)
     g = len(uniq)
-    mean = np.stack([np.bincount(index, points[:, a], g) for a in range(3)], -1)
-    mean /= counts[:, None]
+    sums = np.stack([np.bincount(index, points[:, a], g) for a in range(3)], -1)
+    mean = sums / counts[:, None]
     d = points - mean[index]
     cov = np.empty((g, 3, 3))
     for a in range(3):
@@ -120,9 +120,15 @@ def _group(keys: np.ndarray, points: np.ndarray) -> _Groups:
     return _Groups(uniq, index, counts, mean, cov)
 
 
-def _sub_voxel_normals(points: np.ndarray, voxel: np.ndarray, corner: np.ndarray,
-                       axis_xy: np.ndarray, n_voxels: int, size: float, side: float
-                       ) -> np.ndarray:
+def _sub_voxel_normals(
+    points: np.ndarray,
+    voxel: np.ndarray,
+    corner: np.ndarray,
+    axis_xy: np.ndarray,
+    n_voxels: int,
+    size: float,
+    side: float,
+) -> np.ndarray:
     """Histogram of sub-voxel normal directions per voxel.
 
     Args:
@@ -149,16 +155,24 @@ def _sub_voxel_normals(points: np.ndarray, voxel: np.ndarray, corner: np.ndarray
     outward = g.mean[ok, :2] - axis_xy[first[ok]]
     normal *= np.where((normal[:, :2] * outward).sum(-1) < 0, -1.0, 1.0)[:, None]
     dirs = np.column_stack([DIRECTION_OFFSETS[:, 1], -DIRECTION_OFFSETS[:, 0]])  # world xy
-    votes = np.where(np.abs(normal[:, 2]) >= np.abs(normal[:, :2]).max(-1), 4,
-                     np.argmax(normal[:, :2] @ dirs.T, -1))
+    votes = np.where(
+        np.abs(normal[:, 2]) >= np.abs(normal[:, :2]).max(-1),
+        4,
+        np.argmax(normal[:, :2] @ dirs.T, -1),
+    )
     owner = voxel[first[ok]]
     hist = np.bincount(owner * 5 + votes, minlength=n_voxels * 5).reshape(n_voxels, 5)
     total = hist.sum(-1, keepdims=True)
     return hist / np.maximum(total, 1)
 
 
-def cell_features(points: np.ndarray, grid: OccupancyGrid, n_layers: int = 2,
-                  floor_height: float = 0.05, min_points: int = 3) -> VoxelFeatures:
+def cell_features(
+    points: np.ndarray,
+    grid: OccupancyGrid,
+    n_layers: int = 2,
+    floor_height: float = 0.05,
+    min_points: int = 3,
+) -> VoxelFeatures:
     """Features of the occupied voxels of an explored map.
 
     Args:
@@ -190,8 +204,9 @@ def cell_features(points: np.ndarray, grid: OccupancyGrid, n_layers: int = 2,
     inside = (row >= 0) & (row < rows) & (col >= 0) & (col < cols)
     pts, row, col = pts[inside], row[inside], col[inside]
     layer = np.clip(np.floor(pts[:, 2] / s).astype(np.int64), 0, n_layers - 1)
-    counts = np.bincount((row * cols + col) * n_layers + layer,
-                         minlength=rows * cols * n_layers).reshape(rows, cols, n_layers)
+    counts = np.bincount(
+        (row * cols + col) * n_layers + layer, minlength=rows * cols * n_layers
+    ).reshape(rows, cols, n_layers)
 
     fractions = grid.cell_fractions()
     occupied_cell = fractions[..., 1] > 0
@@ -199,21 +214,23 @@ def cell_features(points: np.ndarray, grid: OccupancyGrid, n_layers: int = 2,
     pts, row, col, layer = pts[keep], row[keep], col[keep], layer[keep]
     names, groups = feature_names()
     if not len(pts):
-        return VoxelFeatures(features=FeatureSet(np.empty((0, len(names))), groups, names),
-                             cells=np.empty((0, 2), dtype=np.int64),
-                             layers=np.empty(0, dtype=np.int64))
+        return VoxelFeatures(
+            features=FeatureSet(np.empty((0, len(names))), groups, names),
+            cells=np.empty((0, 2), dtype=np.int64),
+            layers=np.empty(0, dtype=np.int64),
+        )
     g = _group((row * cols + col) * n_layers + layer, pts)
     v_layer = g.keys % n_layers
     v_cell = np.column_stack([(g.keys // n_layers) // cols, (g.keys // n_layers) % cols])
-    centre = np.column_stack([(v_cell[:, 1] + 0.5) * s, (rows - v_cell[:, 0] - 0.5) * s,
-                              (v_layer + 0.5) * s])
+    centre = np.column_stack(
+        [(v_cell[:, 1] + 0.5) * s, (rows - v_cell[:, 0] - 0.5) * s, (v_layer + 0.5) * s]
+    )
 
     evals, evecs = np.linalg.eigh(g.cov)  # ascending: l2, l1, l0
     l2, l1, l0 = evals[:, 0], evals[:, 1], evals[:, 2]
     order = np.argsort(g.index, kind="stable")
     starts = np.concatenate([[0], np.cumsum(g.counts)[:-1]])
-    span = (np.maximum.reduceat(pts[order], starts, 0)
-            - np.minimum.reduceat(pts[order], starts, 0))
+    span = np.maximum.reduceat(pts[order], starts, 0) - np.minimum.reduceat(pts[order], starts, 0)
 
     walls = np.pad(fractions, ((1, 1), (1, 1), (0, 0)))
     walls[[0, -1], :, 1] = 1.0
@@ -227,19 +244,26 @@ def cell_features(points: np.ndarray, grid: OccupancyGrid, n_layers: int = 2,
         beyond_wall = ~((r1 + dr >= 1) & (r1 + dr <= rows) & (c1 + dc >= 1) & (c1 + dc <= cols))
         pair.append(np.where(beyond_wall, 1.0, nb / (nb + g.counts)))
 
-    hmp = [_sub_voxel_normals(pts, g.index, (centre - 0.5 * s)[g.index], centre[g.index, :2],
-                              len(g.keys), s, side) for side in HMP_SCALES]
-    values = np.column_stack([
-        l0, l0 - l1, l1 - l2,
-        np.abs(evecs[:, :, 0]),
-        span,
-        g.mean - centre,
-        np.log1p(g.counts),
-        v_layer,
-        fractions[v_cell[:, 0], v_cell[:, 1]],
-        *access,
-        *hmp,
-        *pair,
-    ])
-    return VoxelFeatures(features=FeatureSet(values, groups, names), cells=v_cell,
-                         layers=v_layer)
+    hmp = [
+        _sub_voxel_normals(
+            pts, g.index, (centre - 0.5 * s)[g.index], centre[g.index, :2], len(g.keys), s, side
+        )
+        for side in HMP_SCALES
+    ]
+    values = np.column_stack(
+        [
+            l0,
+            l0 - l1,
+            l1 - l2,
+            np.abs(evecs[:, :, 0]),
+            span,
+            g.mean - centre,
+            np.log1p(g.counts),
+            v_layer,
+            fractions[v_cell[:, 0], v_cell[:, 1]],
+            *access,
+            *hmp,
+            *pair,
+        ]
+    )
+    return VoxelFeatures(features=FeatureSet(values, groups, names), cells=v_cell, layers=v_layer)

@@ -73,8 +73,9 @@ def _names() -> tuple[str, ...]:
     names += [f"f_o.{m}_{a}" for m in ("min", "max") for a in "xyz"]
     names += [f"f_c.mean_{i}" for i in range(6)]
     names += [f"f_c.cov_{i}{j}" for i in range(6) for j in range(6)]
-    names += [f"f_x.r{r}.c{c}.{k}" for r in range(_GRID) for c in range(_GRID)
-              for k in CONTEXT_CLASSES]
+    names += [
+        f"f_x.r{r}.c{c}.{k}" for r in range(_GRID) for c in range(_GRID) for k in CONTEXT_CLASSES
+    ]
     return tuple(names)
 
 
@@ -83,8 +84,7 @@ def _object(c: PushClouds) -> np.ndarray:
     centroid = p.mean(1)
     yaw = principal_yaw(p[..., 1], p[..., 2], np.ones(p.shape[:2], dtype=bool))
     # a turn by yaw from z_p towards y_p is a turn by yaw about x_p
-    quat = np.stack([np.cos(yaw / 2), np.sin(yaw / 2), np.zeros_like(yaw),
-                     np.zeros_like(yaw)], -1)
+    quat = np.stack([np.cos(yaw / 2), np.sin(yaw / 2), np.zeros_like(yaw), np.zeros_like(yaw)], -1)
     rel = p - centroid[:, None]
     return np.concatenate([centroid, quat, rel.min(1), rel.max(1)], axis=1)
 
@@ -95,8 +95,14 @@ def _contact(c: PushClouds) -> np.ndarray:
     nrm = c.normals.reshape(n, K * P, 3)
     h = c.height.reshape(n, K * P)
     (z0, z1), (y0, y1), (h0, h1) = _HAND_BOX
-    inside = ((p[..., 2] >= z0) & (p[..., 2] < z1) & (p[..., 1] >= y0) & (p[..., 1] < y1)
-              & (h >= h0) & (h < h1))
+    inside = (
+        (p[..., 2] >= z0)
+        & (p[..., 2] < z1)
+        & (p[..., 1] >= y0)
+        & (p[..., 1] < y1)
+        & (h >= h0)
+        & (h < h1)
+    )
     out = np.zeros((n, 42))
     sample, idx = np.nonzero(inside)
     if len(sample) == 0:
@@ -108,18 +114,31 @@ def _contact(c: PushClouds) -> np.ndarray:
     key = ((sample * 20 + vz) * 10 + vy) * 10 + vh
     uniq, inv = np.unique(key, return_inverse=True)
     cnt = np.bincount(inv).astype(float)
-    feats = np.stack([np.bincount(inv, weights=v) for v in
-                      (*q.T, *nrm[sample, idx].T)], -1) / cnt[:, None]
+    feats = (
+        np.stack([np.bincount(inv, weights=v) for v in (*q.T, *nrm[sample, idx].T)], -1)
+        / cnt[:, None]
+    )
     norm = np.linalg.norm(feats[:, 3:], axis=1, keepdims=True)
     feats[:, 3:] /= np.maximum(norm, 1e-12)
     owner = uniq // (20 * 10 * 10)
     m = np.bincount(owner, minlength=n).astype(float)
-    mean = np.stack([np.bincount(owner, weights=feats[:, j], minlength=n) for j in range(6)],
-                    -1) / np.maximum(m, 1)[:, None]
+    mean = (
+        np.stack([np.bincount(owner, weights=feats[:, j], minlength=n) for j in range(6)], -1)
+        / np.maximum(m, 1)[:, None]
+    )
     dev = feats - mean[owner]
     outer = dev[:, :, None] * dev[:, None, :]
-    cov = np.stack([np.bincount(owner, weights=outer[:, i, j], minlength=n)
-                    for i in range(6) for j in range(6)], -1) / np.maximum(m, 1)[:, None]
+    cov = (
+        np.stack(
+            [
+                np.bincount(owner, weights=outer[:, i, j], minlength=n)
+                for i in range(6)
+                for j in range(6)
+            ],
+            -1,
+        )
+        / np.maximum(m, 1)[:, None]
+    )
     out[:, :6] = mean
     out[:, 6:] = cov
     return out
@@ -138,8 +157,9 @@ def _wall_points(walls: np.ndarray) -> np.ndarray:
     return pts.reshape(n, -1, 2)
 
 
-def chapter4_features(ds: PushDataset, table: TableGeometry | None = None,
-                      chunk: int = 512) -> FeatureSet:
+def chapter4_features(
+    ds: PushDataset, table: TableGeometry | None = None, chunk: int = 512
+) -> FeatureSet:
     """Compute the chapter 4 features of every push.
 
     Args:
@@ -170,11 +190,14 @@ def chapter4_features(ds: PushDataset, table: TableGeometry | None = None,
         centre = c.points[:, 0, :, 1:].mean(1)  # o1 centroid (y_p, z_p)
         walls = walls_all[rows]
         wq = walls.shape[1]
-        wall_p = points_to_push_frame(np.concatenate([walls, np.zeros((n, wq, 1))], -1),
-                                      origin_all[rows], yaw_all[rows], height)[..., 1:]
+        wall_p = points_to_push_frame(
+            np.concatenate([walls, np.zeros((n, wq, 1))], -1),
+            origin_all[rows],
+            yaw_all[rows],
+            height,
+        )[..., 1:]
         yz = np.concatenate([c.points[..., 1:].reshape(n, K * P, 2), wall_p], 1)
-        is_obj = np.concatenate([np.ones((n, P), bool), np.zeros((n, (K - 1) * P + wq), bool)],
-                                1)
+        is_obj = np.concatenate([np.ones((n, P), bool), np.zeros((n, (K - 1) * P + wq), bool)], 1)
         rel = yz - centre[:, None]
         col = np.floor(rel[..., 0] / _CELL + _GRID / 2).astype(np.int64)
         row = np.floor(rel[..., 1] / _CELL + _GRID / 2).astype(np.int64)

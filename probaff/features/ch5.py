@@ -83,11 +83,12 @@ def _contact(c: PushClouds, opening: float, push_height: float) -> np.ndarray:
         pos = (p * region[..., None]).sum(1) / safe
         normal = (nrm * region[..., None]).sum(1) / safe
         missed = cnt == 0
-        pos[missed] = np.stack([np.zeros(missed.sum()), np.full(missed.sum(), y_f),
-                                c.distance[missed]], -1)
+        pos[missed] = np.stack(
+            [np.zeros(missed.sum()), np.full(missed.sum(), y_f), c.distance[missed]], -1
+        )
         normal[missed] = 0.0
-        out[:, 1 + 6 * f: 4 + 6 * f] = pos
-        out[:, 4 + 6 * f: 7 + 6 * f] = normal
+        out[:, 1 + 6 * f : 4 + 6 * f] = pos
+        out[:, 4 + 6 * f : 7 + 6 * f] = normal
         nearest = np.minimum(nearest, zmin)
     out[:, 0] = np.where(np.isfinite(nearest), nearest, c.distance)
     return out

@@ -17,8 +17,9 @@ def _axes(yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return d, left
 
 
-def points_to_push_frame(points: np.ndarray, origin: np.ndarray, yaw: np.ndarray,
-                         height: float) -> np.ndarray:
+def points_to_push_frame(
+    points: np.ndarray, origin: np.ndarray, yaw: np.ndarray, height: float
+) -> np.ndarray:
     """World points to pushing-frame coordinates.
 
     Args:

@@ -10,6 +10,7 @@ the sum-product update becomes ``ν_(i→j) = atanh(tanh(K_ij) · tanh(η_i - ν
 
 In float32 the update loses precision when ``tanh(K)`` approaches 1: about ``3e-4`` in a
 message at ``|K| = 5``, ``1e-7`` at the default ``K = 0.4``; use float64 for strong couplings.
+Solver options are validated by `probaff.maps.options.BPOptions`, not here.
 """
 
 from __future__ import annotations
@@ -18,42 +19,12 @@ import math
 
 import torch
 
-from probaff._checks import check_count
-from probaff.errors import InputError
-
 __all__ = [
-    "check_solver_options",
     "clamp_fields",
     "damped_update_",
     "ising_messages_",
     "marginals_from_fields",
-    "resolve_dtype",
 ]
-
-
-def resolve_dtype(dtype: torch.dtype) -> torch.dtype:
-    """Return `dtype` if it is float32 or float64, else raise `InputError`."""
-    if dtype not in (torch.float32, torch.float64):
-        raise InputError(f"dtype must be torch.float32 or torch.float64, got {dtype}.")
-    return dtype
-
-
-def check_solver_options(damping: float, tol: float, max_iterations: int) -> int:
-    """Raise `InputError` unless ``0 <= damping < 1``, ``tol >= 0`` and ``max_iterations >= 1``.
-
-    Args:
-        damping: Weight of the old message in each update.
-        tol: Convergence threshold on the largest message change.
-        max_iterations: Iteration budget (a positive integer).
-
-    Returns:
-        `max_iterations` as a builtin `int`.
-    """
-    if not (isinstance(damping, (int, float)) and 0.0 <= float(damping) < 1.0):
-        raise InputError(f"damping must be a number in [0, 1), got {damping!r}.")
-    if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol >= 0):
-        raise InputError(f"tol must be a finite number >= 0, got {tol!r}.")
-    return check_count("max_iterations", max_iterations)
 
 
 def clamp_fields(fields: torch.Tensor, evidence: torch.Tensor) -> torch.Tensor:

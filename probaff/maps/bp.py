@@ -18,33 +18,30 @@ import torch
 from probaff._checks import check_finite, check_shape
 from probaff.errors import InputError
 from probaff.maps._kernels import (
-    check_solver_options,
     clamp_fields,
     damped_update_,
     ising_messages_,
     marginals_from_fields,
-    resolve_dtype,
 )
 from probaff.maps.evidence import as_evidence
-from probaff.maps.graph import MAX_COUPLING
+from probaff.maps.options import (
+    DEFAULT_DAMPING,
+    DEFAULT_MAX_ITERATIONS,
+    DEFAULT_TOL,
+    MAX_COUPLING,
+    BPOptions,
+    resolve_bp_options,
+)
 
 __all__ = [
     "DEFAULT_DAMPING",
     "DEFAULT_MAX_ITERATIONS",
     "DEFAULT_TOL",
+    "BPOptions",
     "BeliefPropagationResult",
     "ising_form",
     "loopy_belief_propagation",
 ]
-
-DEFAULT_DAMPING = 0.3
-"""Weight of the previous message in each update."""
-
-DEFAULT_TOL = 1e-6
-"""Stop when no message (half log-ratio) changes by this much or more."""
-
-DEFAULT_MAX_ITERATIONS = 200
-"""Iteration budget of one call."""
 
 
 @dataclass(frozen=True)
@@ -138,10 +135,11 @@ def loopy_belief_propagation(
     pairwise_log: Any,
     evidence: Any = None,
     *,
-    damping: float = DEFAULT_DAMPING,
-    tol: float = DEFAULT_TOL,
-    max_iterations: int = DEFAULT_MAX_ITERATIONS,
-    dtype: torch.dtype = torch.float32,
+    options: BPOptions | None = None,
+    damping: float | None = None,
+    tol: float | None = None,
+    max_iterations: int | None = None,
+    dtype: torch.dtype | None = None,
 ) -> BeliefPropagationResult:
     """Sum-product loopy BP with damped parallel updates, batched over evidence.
 
@@ -153,10 +151,12 @@ def loopy_belief_propagation(
         pairwise_log: ``(E, 2, 2)`` log pairwise potentials ``[edge, x_a, x_b]``.
         evidence: None, ``(V,)`` or ``(B, V)`` values in {-1 (free), 0, 1}; a clamped
             variable's unary is replaced by the indicator of its value.
-        damping: Weight of the previous message, in ``[0, 1)``.
-        tol: Converged once every message changes by less than this (half log-ratio).
-        max_iterations: Maximum number of parallel updates (>= 1).
-        dtype: torch.float32 (default) or torch.float64.
+        options: Solver settings; None for `BPOptions()` (damping `DEFAULT_DAMPING`, tol
+            `DEFAULT_TOL`, `DEFAULT_MAX_ITERATIONS` iterations, float32).
+        damping: Overrides ``options.damping`` when given.
+        tol: Overrides ``options.tol`` when given.
+        max_iterations: Overrides ``options.max_iterations`` when given.
+        dtype: Overrides ``options.dtype`` when given.
 
     Returns:
         Result whose ``marginals`` are ``(V, 2)``, or ``(B, V, 2)`` for ``(B, V)`` evidence.
@@ -164,8 +164,10 @@ def loopy_belief_propagation(
     Raises:
         InputError: On malformed potentials, edges, evidence or solver options.
     """
-    max_iterations = check_solver_options(damping, tol, max_iterations)
-    dtype = resolve_dtype(dtype)
+    opts = resolve_bp_options(
+        options, damping=damping, tol=tol, max_iterations=max_iterations, dtype=dtype
+    )
+    damping, tol, dtype = opts.damping, opts.tol, opts.dtype
     fields, coupling, edge_t = ising_form(unary_log, edges, pairwise_log)
     num_variables, num_edges = fields.shape[0], edge_t.shape[0]
     ev, batched = as_evidence(evidence, (num_variables,))
@@ -196,7 +198,7 @@ def loopy_belief_propagation(
                 beliefs.scatter_add_(0, scatter_index, messages)
 
     iterations, delta, converged = 0, 0.0, num_edges == 0
-    while not converged and iterations < max_iterations:
+    while not converged and iterations < opts.max_iterations:
         update_beliefs()
         if flat:
             torch.index_select(beliefs.view(-1), 0, src, out=proposals.view(-1))

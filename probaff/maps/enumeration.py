@@ -23,8 +23,9 @@ MAX_ENUMERATION_VARIABLES = 16
 """Largest component solved by enumeration (65,536 joint states)."""
 
 
-def _component_log_weights(graph: AffordanceGraph, k: int, dtype: torch.dtype
-                           ) -> tuple[torch.Tensor, torch.Tensor]:
+def _component_log_weights(
+    graph: AffordanceGraph, k: int, dtype: torch.dtype
+) -> tuple[torch.Tensor, torch.Tensor]:
     """``(bits (S, n) bool, log_w (S,))`` of every joint state of component `k`."""
     variables = graph.components[k]
     n = int(variables.size)
@@ -42,9 +43,12 @@ def _component_log_weights(graph: AffordanceGraph, k: int, dtype: torch.dtype
     return bits, log_w
 
 
-def enumerate_marginals(graph: AffordanceGraph, evidence: torch.Tensor,
-                        components: Sequence[int], dtype: torch.dtype = torch.float64
-                        ) -> torch.Tensor:
+def enumerate_marginals(
+    graph: AffordanceGraph,
+    evidence: torch.Tensor,
+    components: Sequence[int],
+    dtype: torch.dtype = torch.float64,
+) -> torch.Tensor:
     """Exact marginals of the selected components under a batch of evidence.
 
     Args:

@@ -40,6 +40,7 @@ from probaff._checks import check_finite, check_probability, check_shape
 from probaff.errors import InputError
 from probaff.grid import DIRECTION_NAMES
 from probaff.maps.components import component_labels, group_components
+from probaff.maps.options import DEFAULT_COUPLING, MAX_COUPLING, check_coupling
 
 __all__ = [
     "DEFAULT_COUPLING",
@@ -54,13 +55,6 @@ __all__ = [
 DIRECTIONS: tuple[str, ...] = DIRECTION_NAMES
 """Direction order of the last axis of unary arrays; "up" decreases the row index."""
 
-DEFAULT_COUPLING = 0.4
-"""Default Ising strength ``J`` between equal directions of neighbouring boxes."""
-
-MAX_COUPLING = 5.0
-"""Largest accepted ``|J|`` (and ``|J_sym|``): ``exp(2 * 5) ≈ 2.2e4`` already makes
-neighbours almost deterministic, and larger values only cost numerical precision."""
-
 EDGE_ISING = 0
 """`AffordanceGraph.edge_kinds` value of a same-direction Ising edge."""
 
@@ -68,28 +62,6 @@ EDGE_SYMMETRY = 1
 """`AffordanceGraph.edge_kinds` value of an up/down or left/right symmetry edge."""
 
 _UP, _DOWN, _LEFT, _RIGHT = range(4)
-
-
-def check_coupling(name: str, value: float) -> float:
-    """Return `value` as a float, or raise `InputError` unless it is finite with ``|J| <= 5``.
-
-    Args:
-        name: What the value is, as the user knows it (e.g. ``"coupling"``).
-        value: The coupling strength.
-
-    Returns:
-        The coupling as a Python float.
-    """
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a number, got {value!r}.") from None
-    if not math.isfinite(v) or abs(v) > MAX_COUPLING:
-        raise InputError(
-            f"{name} must be finite with |{name}| <= {MAX_COUPLING}, got {value!r}; stronger "
-            "couplings make neighbouring boxes deterministic copies of each other."
-        )
-    return v
 
 
 def _check_occupancy(occupancy: Any) -> np.ndarray:
@@ -169,7 +141,8 @@ class AffordanceGraph:
             else check_coupling("symmetry_coupling", symmetry_coupling)
         )
         self.along_coupling = (
-            self.coupling if along_coupling is None
+            self.coupling
+            if along_coupling is None
             else check_coupling("along_coupling", along_coupling)
         )
         self.occupancy = occ.copy()
@@ -197,8 +170,9 @@ class AffordanceGraph:
         vertical_along = np.array([True, True, False, False])  # up/down lie along a column
         per_dir = np.where(vertical_along, self.along_coupling, self.coupling)
         per_dir_h = np.where(~vertical_along, self.along_coupling, self.coupling)
-        couplings = [np.concatenate([np.tile(per_dir, upper.shape[0]),
-                                     np.tile(per_dir_h, left.shape[0])])]
+        couplings = [
+            np.concatenate([np.tile(per_dir, upper.shape[0]), np.tile(per_dir_h, left.shape[0])])
+        ]
         if self.symmetry_coupling is not None:
             sym = np.concatenate(
                 [

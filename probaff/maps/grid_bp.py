@@ -21,21 +21,14 @@ import torch
 from probaff._checks import check_finite, check_shape
 from probaff.errors import InputError
 from probaff.maps._kernels import (
-    check_solver_options,
     clamp_fields,
     damped_update_,
     ising_messages_,
     marginals_from_fields,
-    resolve_dtype,
 )
-from probaff.maps.bp import (
-    DEFAULT_DAMPING,
-    DEFAULT_MAX_ITERATIONS,
-    DEFAULT_TOL,
-    BeliefPropagationResult,
-)
+from probaff.maps.bp import BeliefPropagationResult
 from probaff.maps.evidence import as_evidence
-from probaff.maps.graph import MAX_COUPLING
+from probaff.maps.options import MAX_COUPLING, BPOptions, resolve_bp_options
 
 __all__ = ["GRID_BYTES_PER_CELL", "grid_belief_propagation"]
 
@@ -78,10 +71,11 @@ def grid_belief_propagation(
     coupling: float | tuple[Any, Any],
     evidence: Any = None,
     *,
-    damping: float = DEFAULT_DAMPING,
-    tol: float = DEFAULT_TOL,
-    max_iterations: int = DEFAULT_MAX_ITERATIONS,
-    dtype: torch.dtype = torch.float32,
+    options: BPOptions | None = None,
+    damping: float | None = None,
+    tol: float | None = None,
+    max_iterations: int | None = None,
+    dtype: torch.dtype | None = None,
 ) -> BeliefPropagationResult:
     """Loopy BP on an H x W grid with Ising factors ``exp(J s_i s_j)`` between 4-neighbours.
 
@@ -94,10 +88,11 @@ def grid_belief_propagation(
             ``(H - 1, W)`` (between ``(r, c)`` and ``(r + 1, c)``) and ``(H, W - 1)``
             (between ``(r, c)`` and ``(r, c + 1)``); ``|J| <= MAX_COUPLING``.
         evidence: None, ``(H, W)`` or ``(B, H, W)`` values in {-1 (free), 0, 1}.
-        damping: Weight of the previous message, in ``[0, 1)``.
-        tol: Converged once every message changes by less than this (half log-ratio).
-        max_iterations: Maximum number of parallel updates (>= 1).
-        dtype: torch.float32 (default) or torch.float64.
+        options: Solver settings; None for `BPOptions()`.
+        damping: Overrides ``options.damping`` when given.
+        tol: Overrides ``options.tol`` when given.
+        max_iterations: Overrides ``options.max_iterations`` when given.
+        dtype: Overrides ``options.dtype`` when given.
 
     Returns:
         Result whose ``marginals`` are ``(H, W, 2)``, or ``(B, H, W, 2)`` for batched
@@ -106,8 +101,10 @@ def grid_belief_propagation(
     Raises:
         InputError: On malformed potentials, couplings, evidence or solver options.
     """
-    max_iterations = check_solver_options(damping, tol, max_iterations)
-    dtype = resolve_dtype(dtype)
+    opts = resolve_bp_options(
+        options, damping=damping, tol=tol, max_iterations=max_iterations, dtype=dtype
+    )
+    damping, tol, dtype = opts.damping, opts.tol, opts.dtype
     unary = torch.as_tensor(unary_log).detach()
     device = unary.device
     check_shape("unary_log", unary, (None, None, 2))
@@ -129,15 +126,17 @@ def grid_belief_propagation(
     h = clamp_fields(fields, ev.to(device))  # (B, H, W), read only
     del fields, ev
     batch = h.shape[0]
-    like = {"dtype": dtype, "device": device}
-    down = torch.zeros(batch, height - 1, width, **like)
+    down = torch.zeros(batch, height - 1, width, dtype=dtype, device=device)
     up = torch.zeros_like(down)
-    right = torch.zeros(batch, height, width - 1, **like)
+    right = torch.zeros(batch, height, width - 1, dtype=dtype, device=device)
     left = torch.zeros_like(right)
     # Vertical and horizontal proposals depend on disjoint message arrays, so the two axes
     # are updated one after the other through one pair of scratch buffers.
     scratch_size = max(down.numel(), right.numel())
-    scratch = (torch.empty(scratch_size, **like), torch.empty(scratch_size, **like))
+    scratch = (
+        torch.empty(scratch_size, dtype=dtype, device=device),
+        torch.empty(scratch_size, dtype=dtype, device=device),
+    )
     beliefs = torch.empty_like(h)
     axes = (
         (down, up, tk_v, (slice(None), slice(None, -1)), (slice(None), slice(1, None))),
@@ -152,7 +151,7 @@ def grid_belief_propagation(
 
     has_edges = down.numel() + right.numel() > 0
     iterations, delta, converged = 0, 0.0, not has_edges
-    while not converged and iterations < max_iterations:
+    while not converged and iterations < opts.max_iterations:
         _grid_beliefs(beliefs, h, down, up, right, left)
         delta = 0.0
         for forward, backward, tk, first, second in axes:

@@ -3,6 +3,11 @@
 ``method="auto"`` solves components of at most `MAX_ENUMERATION_VARIABLES` variables exactly
 by batched enumeration in torch, other components whose elimination width allows it with gtsam
 when there is a single evidence row, and everything else with batched loopy BP.
+
+``method="bp"`` on a map whose every cell holds a box and that has no symmetry factors (a
+"full rectangle": four independent ``H x W`` Ising grids, one per direction) runs the grid
+solver `grid_belief_propagation` on the four grids laid side by side, which gives the same
+messages as the generic solver without any edge list.
 """
 
 from __future__ import annotations
@@ -15,19 +20,18 @@ import torch
 
 from probaff._checks import check_count
 from probaff.errors import InputError
-from probaff.maps.bp import (
-    DEFAULT_DAMPING,
-    DEFAULT_MAX_ITERATIONS,
-    DEFAULT_TOL,
-    BeliefPropagationResult,
-    loopy_belief_propagation,
-)
+from probaff.maps.bp import BeliefPropagationResult, loopy_belief_propagation
 from probaff.maps.enumeration import MAX_ENUMERATION_VARIABLES, enumerate_marginals
 from probaff.maps.evidence import as_evidence
 from probaff.maps.exact import DEFAULT_MAX_EXACT_WIDTH, component_widths, exact_marginals
 from probaff.maps.graph import AffordanceGraph
+from probaff.maps.grid_bp import grid_belief_propagation
+from probaff.maps.options import BPOptions, resolve_bp_options
 
-__all__ = ["METHODS", "MapMarginals", "affordance_marginals"]
+__all__ = ["BP_SOLVERS", "METHODS", "MapMarginals", "affordance_marginals", "is_full_grid"]
+
+BP_SOLVERS = ("generic", "grid")
+"""Values of `MapMarginals.bp_solver` when BP ran: the edge-list or the grid solver."""
 
 METHODS = ("auto", "bp", "exact")
 """Accepted values of ``method``."""
@@ -41,12 +45,66 @@ class MapMarginals:
         marginals: ``(V, 2)`` or, for batched evidence, ``(B, V, 2)`` probabilities.
         component_methods: ``"enumeration"``, ``"exact"`` (gtsam) or ``"bp"`` for each entry
             of ``graph.components``.
-        bp: Diagnostics of the belief propagation run over the "bp" components, if any.
+        bp: Diagnostics of the belief propagation run over the "bp" components, if any; its
+            ``marginals`` are ``(B, n, 2)`` (or ``(n, 2)``) over the BP variables in the order
+            of the concatenated BP components.
+        bp_solver: ``"generic"`` (edge lists) or ``"grid"`` (`grid_belief_propagation`) when
+            BP ran, else None.
     """
 
     marginals: torch.Tensor
     component_methods: tuple[str, ...]
     bp: BeliefPropagationResult | None
+    bp_solver: str | None = None
+
+
+def is_full_grid(graph: AffordanceGraph) -> bool:
+    """Whether `graph` is a full rectangle: a box in every cell and no symmetry factors.
+
+    Such a map is four independent ``H x W`` Ising grids (one per direction), with `coupling`
+    across the direction and `along_coupling` along it.
+
+    Args:
+        graph: The affordance map.
+
+    Returns:
+        True when the grid solver applies.
+    """
+    return bool(graph.occupancy.all()) and graph.symmetry_coupling is None
+
+
+def _grid_bp(graph: AffordanceGraph, ev: torch.Tensor, opts: BPOptions) -> BeliefPropagationResult:
+    """BP on a full-rectangle map with the grid solver; marginals ``(B, V, 2)`` (global order).
+
+    The four direction grids ``(H, W)`` are laid side by side as one ``(H, 4W)`` grid; the
+    horizontal coupling between two blocks is 0, which removes those edges.
+    """
+    height, width = graph.shape
+    n_dir = 4
+    # Variable v = (r * W + c) * 4 + d sits at grid cell (r, d * W + c).
+    unary = graph.unary_log_potentials(opts.dtype).reshape(height, width, n_dir, 2)
+    unary = unary.permute(0, 2, 1, 3).reshape(height, n_dir * width, 2)
+    evidence = ev.reshape(-1, height, width, n_dir).permute(0, 1, 3, 2)
+    evidence = evidence.reshape(-1, height, n_dir * width)
+    across, along = graph.coupling, graph.along_coupling
+    vertical_j = [along, along, across, across]  # up/down lie along a column
+    horizontal_j = [across, across, along, along]
+    vertical = np.repeat(np.asarray(vertical_j, dtype=np.float64), width)
+    vertical = np.broadcast_to(vertical, (max(height - 1, 0), n_dir * width))
+    horizontal = np.zeros(n_dir * width - 1)
+    for d in range(n_dir):
+        horizontal[d * width : d * width + width - 1] = horizontal_j[d]
+    horizontal = np.broadcast_to(horizontal, (height, n_dir * width - 1))
+    result = grid_belief_propagation(
+        unary, (vertical.copy(), horizontal.copy()), evidence, options=opts
+    )
+    marg = result.marginals.reshape(-1, height, n_dir, width, 2).permute(0, 1, 3, 2, 4)
+    return BeliefPropagationResult(
+        marginals=marg.reshape(-1, graph.num_variables, 2),
+        converged=result.converged,
+        iterations=result.iterations,
+        max_delta=result.max_delta,
+    )
 
 
 def affordance_marginals(
@@ -55,10 +113,11 @@ def affordance_marginals(
     *,
     method: str = "auto",
     max_exact_width: int = DEFAULT_MAX_EXACT_WIDTH,
-    damping: float = DEFAULT_DAMPING,
-    tol: float = DEFAULT_TOL,
-    max_iterations: int = DEFAULT_MAX_ITERATIONS,
-    dtype: torch.dtype = torch.float32,
+    options: BPOptions | None = None,
+    damping: float | None = None,
+    tol: float | None = None,
+    max_iterations: int | None = None,
+    dtype: torch.dtype | None = None,
 ) -> MapMarginals:
     """Marginal pushability of every (box, direction), optionally under evidence.
 
@@ -69,26 +128,44 @@ def affordance_marginals(
             min-degree elimination width exceeds `max_exact_width`), ``"bp"`` (loopy belief
             propagation everywhere) or ``"auto"`` (batched enumeration for small components;
             for larger ones gtsam where the width allows and the evidence is a single row,
-            else BP; all BP components in one batched run).
+            else BP; all BP components in one batched run; a full-rectangle map, see
+            `is_full_grid`, runs `grid_belief_propagation` under ``"bp"``).
         max_exact_width: Width limit of exact inference (an integer >= 0).
-        damping: BP damping, see `loopy_belief_propagation`.
-        tol: BP convergence tolerance.
-        max_iterations: BP iteration budget (a positive integer).
-        dtype: Floating dtype of BP and of the returned marginals.
+        options: BP settings (`BPOptions`); ``options.dtype`` is also the dtype of the
+            returned marginals. None for the defaults.
+        damping: Overrides ``options.damping`` when given.
+        tol: Overrides ``options.tol`` when given.
+        max_iterations: Overrides ``options.max_iterations`` when given.
+        dtype: Overrides ``options.dtype`` when given.
 
     Returns:
         The marginals and per-component methods.
 
     Raises:
-        InputError: On an unknown method, malformed evidence, a count that is not an
-            integer, or an exact request on a component that is too wide.
+        InputError: On an unknown method, malformed evidence, BP options out of range, a
+            count that is not an integer, or an exact request on a component that is too wide.
     """
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}.")
     max_exact_width = check_count("max_exact_width", max_exact_width, minimum=0)
-    max_iterations = check_count("max_iterations", max_iterations)
+    opts = resolve_bp_options(
+        options, damping=damping, tol=tol, max_iterations=max_iterations, dtype=dtype
+    )
+    dtype = opts.dtype
     ev, batched = as_evidence(evidence, (graph.num_variables,))
     count = len(graph.components)
+    if method == "bp" and graph.num_edges and is_full_grid(graph):
+        grid = _grid_bp(graph, ev, opts)
+        full = grid.marginals  # (B, V, 2), global order
+        order = torch.from_numpy(np.concatenate(graph.components))
+        bp_order = full[:, order]  # the generic path's BP order: concatenated components
+        diagnostics = BeliefPropagationResult(
+            marginals=bp_order if batched else bp_order[0],
+            converged=grid.converged,
+            iterations=grid.iterations,
+            max_delta=grid.max_delta,
+        )
+        return MapMarginals(full if batched else full[0], ("bp",) * count, diagnostics, "grid")
     if method == "exact":
         exact = exact_marginals(graph, ev, max_width=max_exact_width).to(dtype)
         return MapMarginals(exact if batched else exact[0], ("exact",) * count, None)
@@ -128,12 +205,12 @@ def affordance_marginals(
             torch.from_numpy(local[graph.edges[edge_ids]]),
             graph.pairwise_log_potentials(dtype)[torch.from_numpy(edge_ids)],
             ev[:, var_t],
-            damping=damping,
-            tol=tol,
-            max_iterations=max_iterations,
-            dtype=dtype,
+            options=opts,
         )
         out[:, var_t] = bp_result.marginals
-    methods = tuple("bp" if k in bp_set else "enumeration" if k in enum_set else "exact"
-                    for k in range(count))
-    return MapMarginals(out if batched else out[0], methods, bp_result)
+    methods = tuple(
+        "bp" if k in bp_set else "enumeration" if k in enum_set else "exact" for k in range(count)
+    )
+    return MapMarginals(
+        out if batched else out[0], methods, bp_result, "generic" if bp_result is not None else None
+    )

@@ -18,11 +18,12 @@ from sklearn.mixture import GaussianMixture
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
-from torch.distributions import Categorical, Independent, MixtureSameFamily
+from torch.distributions import MixtureSameFamily, Normal
 
 from probaff._checks import check_count
 from probaff.errors import InputError, NotFittedError
 from probaff.models._tensors import as_matrix
+from probaff.models.gated import gated_probs, mixture_distribution
 from probaff.models.gp_expert import GPExpert
 
 __all__ = ["ClusteredGPModel"]
@@ -41,9 +42,17 @@ class ClusteredGPModel:
         expert_kwargs: Passed to each `GPExpert`.
     """
 
-    def __init__(self, n_clusters: int, *, cluster_dims: tuple[int, ...] = (0, 1),
-                 seed: int = 0, n_init: int = 5, svm_c: float = 1.0, soft_gate: bool = False,
-                 expert_kwargs: dict[str, Any] | None = None) -> None:
+    def __init__(
+        self,
+        n_clusters: int,
+        *,
+        cluster_dims: tuple[int, ...] = (0, 1),
+        seed: int = 0,
+        n_init: int = 5,
+        svm_c: float = 1.0,
+        soft_gate: bool = False,
+        expert_kwargs: dict[str, Any] | None = None,
+    ) -> None:
         self.n_clusters = check_count("n_clusters", n_clusters)
         check_count("n_init", n_init)
         check_count("seed", seed, minimum=0)
@@ -54,9 +63,35 @@ class ClusteredGPModel:
         self.soft_gate = soft_gate
         self.expert_kwargs = dict(expert_kwargs or {})
         self.experts: list[GPExpert] = []
+        self.n_features: int | None = None
+        self.n_outputs: int | None = None
+        self.train_X: torch.Tensor | None = None
+        self.train_Y: torch.Tensor | None = None
         self.labels_: np.ndarray | None = None
         self._svm: Any = None
         self._classes: np.ndarray | None = None
+
+    def config(self) -> dict[str, Any]:
+        """Constructor arguments, so that ``ClusteredGPModel(**model.config())`` rebuilds it."""
+        return {
+            "n_clusters": self.n_clusters,
+            "cluster_dims": self.cluster_dims,
+            "seed": self.seed,
+            "n_init": self.n_init,
+            "svm_c": self.svm_c,
+            "soft_gate": self.soft_gate,
+            "expert_kwargs": dict(self.expert_kwargs),
+        }
+
+    @property
+    def is_fitted(self) -> bool:
+        """Whether `fit` has run."""
+        return bool(self.experts) and self.labels_ is not None
+
+    def check_fitted(self) -> None:
+        """Raise `NotFittedError` unless the model has been fitted."""
+        if not self.is_fitted:
+            raise NotFittedError("ClusteredGPModel is not fitted; call fit first.")
 
     def fit(self, X: Any, Y: Any) -> ClusteredGPModel:
         """Cluster, fit the experts and the gate.
@@ -64,6 +99,9 @@ class ClusteredGPModel:
         Args:
             X: Features, (N, D).
             Y: Effects, (N, E).
+
+        Returns:
+            This model.
 
         Raises:
             InputError: On malformed data, a cluster dimension that does not exist, or more
@@ -78,30 +116,51 @@ class ClusteredGPModel:
             raise InputError(
                 f"{self.n_clusters} clusters but only {n} samples; use at most {n} clusters."
             )
-        xn, yn = x.numpy(), y.numpy()
+        yn = y.numpy()
         if self.n_clusters == 1:
             labels = np.zeros(n, dtype=int)
         else:
-            gmm = GaussianMixture(self.n_clusters, n_init=self.n_init, random_state=self.seed,
-                                  reg_covar=1e-6)
+            gmm = GaussianMixture(
+                self.n_clusters, n_init=self.n_init, random_state=self.seed, reg_covar=1e-6
+            )
             labels = gmm.fit_predict(yn[:, list(self.cluster_dims)])
+        self.experts = [
+            GPExpert(x.shape[1], e, **self.expert_kwargs).fit(x[labels == k], y[labels == k])
+            for k in np.unique(labels)
+        ]
+        self.fit_gate(x, y, labels)
+        return self
+
+    def fit_gate(self, X: Any, Y: Any, labels: Any) -> None:
+        """Set the clustering and train the SVM gate on it (the experts are left alone).
+
+        Called by `fit`, and by `probaff.models.load`, which restores the experts from their
+        saved state and refits the (deterministic) gate on the saved clustering.
+
+        Args:
+            X: Features, (N, D).
+            Y: Effects, (N, E).
+            labels: Cluster of every sample, (N,).
+        """
+        x = as_matrix("features X", X)
+        y = as_matrix("effects Y", Y, n_rows=x.shape[0])
+        labels = np.asarray(labels, dtype=int)
+        xn = x.numpy()
+        self.n_features, self.n_outputs = int(x.shape[1]), int(y.shape[1])
+        self.train_X, self.train_Y = x, y
         self._classes = np.unique(labels)
-        self.experts = [GPExpert(x.shape[1], e, **self.expert_kwargs).fit(x[labels == k],
-                                                                          y[labels == k])
-                        for k in self._classes]
         self.labels_ = labels
+        self._svm = None
         if len(self._classes) > 1:
             svm: Any = SVC(C=self.svm_c, kernel="rbf", random_state=self.seed)
             if self.soft_gate:
                 svm = CalibratedClassifierCV(svm, ensemble=False)
             self._svm = make_pipeline(StandardScaler(), svm)
             self._svm.fit(xn, labels)
-        return self
 
     def gate_probs(self, X: Any) -> torch.Tensor:
         """(N, m') probabilities of each fitted cluster (one-hot unless `soft_gate`)."""
-        if not self.experts:
-            raise NotFittedError("ClusteredGPModel is not fitted; call fit first.")
+        self.check_fitted()
         x = as_matrix("features X", X, n_cols=self.experts[0].n_features).numpy()
         k = len(self.experts)
         if k == 1:
@@ -112,11 +171,22 @@ class ClusteredGPModel:
         pick = np.searchsorted(self._classes, self._svm.predict(x))
         return torch.nn.functional.one_hot(torch.as_tensor(pick), k).double()
 
-    def predict(self, X: Any) -> MixtureSameFamily:
-        """Predictive distribution over effects, batch (N,), event (E,)."""
-        probs = self.gate_probs(X)
+    def expert_predictions(self, X: Any) -> Normal:
+        """Every cluster expert's predictive distribution, loc and scale (N, m', E)."""
+        self.check_fitted()
         preds = [ex.predict(X) for ex in self.experts]
-        loc = torch.stack([p.loc for p in preds], dim=1)  # (N, m', E)
-        scale = torch.stack([p.scale for p in preds], dim=1)
-        return MixtureSameFamily(Categorical(probs=probs),
-                                 Independent(torch.distributions.Normal(loc, scale), 1))
+        return Normal(
+            torch.stack([p.loc for p in preds], dim=1), torch.stack([p.scale for p in preds], dim=1)
+        )
+
+    def predict(self, X: Any, *, gating: str = "soft") -> MixtureSameFamily:
+        """Predictive distribution over effects, batch (N,), event (E,).
+
+        Args:
+            X: Features, (N, D).
+            gating: ``"soft"`` (default) mixes the experts by `gate_probs` (one-hot unless
+                `soft_gate`); ``"hard"`` uses the most probable cluster only.
+        """
+        return mixture_distribution(
+            gated_probs(self.gate_probs(X), gating), self.expert_predictions(X)
+        )

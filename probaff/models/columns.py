@@ -56,8 +56,13 @@ def check_feature_spec(what: str, spec: FeatureSpec, groups: FeatureGroups | Non
         )
 
 
-def check_mixture_args(n_experts: int, groups: FeatureGroups | None, gate_features: FeatureSpec,
-                       expert_features: FeatureSpec, gate_l2: float | str) -> int:
+def check_mixture_args(
+    n_experts: int,
+    groups: FeatureGroups | None,
+    gate_features: FeatureSpec,
+    expert_features: FeatureSpec,
+    gate_l2: float | str,
+) -> int:
     """Validate the arguments every mixture of experts takes; return `n_experts` as an int.
 
     Raises:
@@ -119,7 +124,7 @@ def resolve_features(
         resolved = resolve_groups(groups, n_features)
         cols = [c for n in names for c in resolved[n]]
     else:
-        cols = [int(c) for c in spec]  # type: ignore[arg-type]
+        cols = [int(c) for c in spec]
     if not cols:
         raise InputError(f"{what} selects no column; pass None to use every column.")
     bad = [c for c in cols if not -n_features <= c < n_features]

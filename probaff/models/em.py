@@ -36,7 +36,7 @@ logger = logging.getLogger(__name__)
 _SINGLE_ITER = 2
 
 # Iterations a split-and-merge trial runs before it must beat the current objective.
-_SCREEN_ITER = 3
+_SCREEN_ITER = 2
 
 # Cold starts cycled through by `init="auto"` after the grown candidate.
 _COLD_STARTS = ("joint", "effects")
@@ -172,8 +172,18 @@ def _beta(settings: _Settings, iteration: int) -> float:
 class _Run:
     """One EM run from given responsibilities; it keeps the best state it reaches."""
 
-    def __init__(self, model: MixtureOfGPExperts, x: Tensor, y: Tensor, resp: Tensor,
-                 settings: _Settings, *, init: str, seed: int, warm: bool = False) -> None:
+    def __init__(
+        self,
+        model: MixtureOfGPExperts,
+        x: Tensor,
+        y: Tensor,
+        resp: Tensor,
+        settings: _Settings,
+        *,
+        init: str,
+        seed: int,
+        warm: bool = False,
+    ) -> None:
         self.model, self.x, self.y, self.resp = model, x, y, resp
         self.settings, self.init, self.seed, self.warm = settings, init, seed, warm
         self.history = EMHistory(init=init)
@@ -206,12 +216,18 @@ class _Run:
             logger.info("EM (%s) iteration %d: objective %.6g", self.init, it, total)
             if total > self.history.best:
                 self.history.best = total
-                self.best_state = (copy.deepcopy(self.model.state_dict()), weights.clone(),
-                                   torch.softmax(log_joint, dim=1))
+                self.best_state = (
+                    copy.deepcopy(self.model.state_dict()),
+                    weights.clone(),
+                    torch.softmax(log_joint, dim=1),
+                )
             self.resp = torch.softmax(_beta(s, it + 1) * log_joint, dim=1)
             prev = self.history.objective[-2] if it > 1 else None
-            if (prev is not None and abs(total - prev) <= s.tol * self.x.shape[0]
-                    and _beta(s, it) == 1.0):
+            if (
+                prev is not None
+                and abs(total - prev) <= s.tol * self.x.shape[0]
+                and _beta(s, it) == 1.0
+            ):
                 self.history.converged = True
                 self.done = True
                 break
@@ -231,19 +247,24 @@ class _Run:
             if not donors:
                 continue
             if self.log_lik is not None:
-                score = {d: float((self.resp[:, d] * self.log_lik[:, d]).sum() / mass[d])
-                         for d in donors}
+                score = {
+                    d: float((self.resp[:, d] * self.log_lik[:, d]).sum() / mass[d]) for d in donors
+                }
                 donor = min(donors, key=lambda d: score[d])
             else:
                 donor = max(donors, key=lambda d: float(mass[d]))
             w = self.resp[:, donor] / self.resp[:, donor].sum()
             residuals = self.y - w @ self.y
             self.resp = split_responsibilities(
-                self.resp, donor, self.x[:, self.model.gate_columns], residuals, into=j,
-                seed=self.seed + it)
+                self.resp,
+                donor,
+                self.x[:, self.model.gate_columns],
+                residuals,
+                into=j,
+                seed=self.seed + it,
+            )
             self.history.splits.append((it - 1, j, donor))
-        reseeded = _reseed_collapsed(
-            self.resp, self._point_log_lik(), s.min_size, s.prune_below)
+        reseeded = _reseed_collapsed(self.resp, self._point_log_lik(), s.min_size, s.prune_below)
         if reseeded:
             self.history.reseeded.extend((it - 1, j) for j in reseeded)
         if (self.history.splits and self.history.splits[-1][0] == it - 1) or reseeded:
@@ -269,8 +290,9 @@ class _Run:
         return self.history
 
 
-def _fresh(template: MixtureOfGPExperts, n_experts: int, x: Tensor, y: Tensor
-           ) -> MixtureOfGPExperts:
+def _fresh(
+    template: MixtureOfGPExperts, n_experts: int, x: Tensor, y: Tensor
+) -> MixtureOfGPExperts:
     """A new, built mixture like `template` with `n_experts` experts."""
     model = MixtureOfGPExperts(**{**template.config(), "n_experts": n_experts})
     model.build(x.shape[1], y.shape[1], template.resolve_noise_floor(y))
@@ -306,15 +328,23 @@ def _split_target(resp: Tensor, log_lik: Tensor, min_size: float) -> int:
 
 def _residuals(model: MixtureOfGPExperts, expert: int, x: Tensor, y: Tensor) -> Tensor:
     """Residuals `(N, E)` of every sample under one expert (leave-one-out where it holds it)."""
-    held = model.train_weights[:, expert] > 0  # type: ignore[index]
+    held = model.train_weights[:, expert] > 0
     residuals = y - model.expert_predictions(x).loc[:, expert]
-    residuals[held] = y[held] - model.experts[expert].loo_predict().loc  # type: ignore[operator]
+    residuals[held] = y[held] - model.experts[expert].loo_predict().loc
     return residuals
 
 
-def _split_merge(model: MixtureOfGPExperts, history: EMHistory, x: Tensor, y: Tensor,
-                 settings: _Settings, *, rounds: int, n_candidates: int, seed: int
-                 ) -> tuple[MixtureOfGPExperts, EMHistory]:
+def _split_merge(
+    model: MixtureOfGPExperts,
+    history: EMHistory,
+    x: Tensor,
+    y: Tensor,
+    settings: _Settings,
+    *,
+    rounds: int,
+    n_candidates: int,
+    seed: int,
+) -> tuple[MixtureOfGPExperts, EMHistory]:
     """Escape a local optimum by merging two experts and splitting a third (SMEM).
 
     After EM has converged, two experts that explain each other's samples best are merged
@@ -335,8 +365,11 @@ def _split_merge(model: MixtureOfGPExperts, history: EMHistory, x: Tensor, y: Te
         cross = _fit_matrix(resp, log_lik)
         own = cross.diagonal()
         pairs = sorted(
-            ((float(own[i] - cross[i, j] + own[j] - cross[j, i]), i, j)
-             for i in range(m) for j in range(i + 1, m)),
+            (
+                (float(own[i] - cross[i, j] + own[j] - cross[j, i]), i, j)
+                for i in range(m)
+                for j in range(i + 1, m)
+            ),
         )[:n_candidates]
         improved = False
         trials = []
@@ -350,8 +383,14 @@ def _split_merge(model: MixtureOfGPExperts, history: EMHistory, x: Tensor, y: Te
             merged = resp.clone()
             merged[:, i] += merged[:, j]
             merged[:, j] = 0.0
-            start = split_responsibilities(merged, k, x[:, model.gate_columns],
-                                           _residuals(model, k, x, y), into=j, seed=seed + r)
+            start = split_responsibilities(
+                merged,
+                k,
+                x[:, model.gate_columns],
+                _residuals(model, k, x, y),
+                into=j,
+                seed=seed + r,
+            )
             trial = copy.deepcopy(model)
             trial.experts[j].load_state_dict(model.experts[k].state_dict())
             run = _Run(trial, x, y, start, settings, init=history.init, seed=seed, warm=True)
@@ -361,8 +400,7 @@ def _split_merge(model: MixtureOfGPExperts, history: EMHistory, x: Tensor, y: Te
             trial_history = run.step(settings.max_iter).finish()
             if trial_history.best > history.best + settings.tol * n:
                 trial_history.candidates = history.candidates
-                trial_history.split_merge = [*history.split_merge,
-                                             (i, j, k, trial_history.best)]
+                trial_history.split_merge = [*history.split_merge, (i, j, k, trial_history.best)]
                 model, history, improved = trial, trial_history, True
                 break
         if not improved:
@@ -370,23 +408,37 @@ def _split_merge(model: MixtureOfGPExperts, history: EMHistory, x: Tensor, y: Te
     return model, history
 
 
-def _grow(prev: MixtureOfGPExperts, x: Tensor, y: Tensor, settings: _Settings, seed: int
-          ) -> tuple[_Run, int]:
+def _inherit_hyperparameters(
+    model: MixtureOfGPExperts, prev: MixtureOfGPExperts, resp: Tensor
+) -> None:
+    """Start each expert of `model` from the `prev` expert that shares most of its samples.
+
+    A cold start of `M` experts then needs only warm L-BFGS iterations: the `M - 1`
+    solution's experts already hold hyperparameters fitted to the same data.
+    """
+    overlap = resp.T @ prev.train_weights
+    for j, src in enumerate(overlap.argmax(dim=1).tolist()):
+        model.experts[j].load_state_dict(prev.experts[src].state_dict())
+
+
+def _grow(
+    prev: MixtureOfGPExperts, x: Tensor, y: Tensor, settings: _Settings, seed: int
+) -> tuple[_Run, int]:
     """Start an EM run for `M` experts by splitting one expert of the `M - 1` solution."""
     m = prev.n_experts + 1
     log_joint, log_lik = _loo_terms(prev, x, y)
     resp = torch.softmax(log_joint, dim=1)
     target = _split_target(resp, log_lik, settings.min_size)
-    split = split_responsibilities(resp, target, x[:, prev.gate_columns],
-                                   _residuals(prev, target, x, y), seed=seed)
+    split = split_responsibilities(
+        resp, target, x[:, prev.gate_columns], _residuals(prev, target, x, y), seed=seed
+    )
     model = _fresh(prev, m, x, y)
     for k, src in enumerate([*range(m - 1), target]):
         model.experts[k].load_state_dict(prev.experts[src].state_dict())
     return _Run(model, x, y, split, settings, init="grow", seed=seed, warm=True), target
 
 
-def _copy_state(prev: MixtureOfGPExperts, target: int, x: Tensor, y: Tensor
-                ) -> MixtureOfGPExperts:
+def _copy_state(prev: MixtureOfGPExperts, target: int, x: Tensor, y: Tensor) -> MixtureOfGPExperts:
     """The `M - 1` solution as an `M`-expert mixture with expert `target` duplicated.
 
     Both copies keep the original's training weights and hyperparameters, and the gate
@@ -396,7 +448,7 @@ def _copy_state(prev: MixtureOfGPExperts, target: int, x: Tensor, y: Tensor
     m = prev.n_experts + 1
     model = _fresh(prev, m, x, y)
     order = [*range(m - 1), target]
-    w = prev.train_weights[:, order]  # type: ignore[index]
+    w = prev.train_weights[:, order]
     model.condition(x, y, w)
     for k, src in enumerate(order):
         model.experts[k].load_state_dict(prev.experts[src].state_dict())
@@ -422,10 +474,20 @@ def _candidates(init: str, n_restarts: int, seed: int, grown: bool) -> list[tupl
     return out
 
 
-def _fit_level(template: MixtureOfGPExperts, x: Tensor, y: Tensor, m: int,
-               prev: MixtureOfGPExperts | None, settings: _Settings, *, init: str | Tensor,
-               n_restarts: int, screen_iter: int | None, split_merge: int, seed: int
-               ) -> tuple[MixtureOfGPExperts, EMHistory]:
+def _fit_level(
+    template: MixtureOfGPExperts,
+    x: Tensor,
+    y: Tensor,
+    m: int,
+    prev: MixtureOfGPExperts | None,
+    settings: _Settings,
+    *,
+    init: str | Tensor,
+    n_restarts: int,
+    screen_iter: int | None,
+    split_merge: int,
+    seed: int,
+) -> tuple[MixtureOfGPExperts, EMHistory]:
     """Fit `m` experts: screen every start, finish the best, never fall below `prev`."""
     if isinstance(init, Tensor):
         model = _fresh(template, m, x, y)
@@ -435,8 +497,15 @@ def _fit_level(template: MixtureOfGPExperts, x: Tensor, y: Tensor, m: int,
         return model, history
     if m == 1:
         model = _fresh(template, 1, x, y)
-        run = _Run(model, x, y, torch.ones(x.shape[0], 1, dtype=torch.float64), settings,
-                   init="effects", seed=seed)
+        run = _Run(
+            model,
+            x,
+            y,
+            torch.ones(x.shape[0], 1, dtype=torch.float64),
+            settings,
+            init="effects",
+            seed=seed,
+        )
         history = run.step(_SINGLE_ITER).finish()
         history.candidates = [("effects", seed, history.best)]
         return model, history
@@ -449,25 +518,34 @@ def _fit_level(template: MixtureOfGPExperts, x: Tensor, y: Tensor, m: int,
             run, target = _grow(prev, x, y, settings, s)
         else:
             model = _fresh(template, m, x, y)
-            resp = initial_responsibilities(name, x[:, model.gate_columns], y, m,
-                                            n_init=settings.n_init, seed=s)
-            run = _Run(model, x, y, resp, settings, init=name, seed=s)
+            resp = initial_responsibilities(
+                name, x[:, model.gate_columns], y, m, n_init=settings.n_init, seed=s
+            )
+            warm = prev is not None
+            if prev is not None:
+                _inherit_hyperparameters(model, prev, resp)
+            run = _Run(model, x, y, resp, settings, init=name, seed=s, warm=warm)
         runs.append(run.step(settings.max_iter if screen_iter is None else screen_iter))
     best = max(runs, key=lambda r: r.best)
     best.step(settings.max_iter)
     history = best.finish()
     history.candidates = [(r.init, r.seed, r.best) for r in runs]
-    model, history = _split_merge(best.model, history, x, y, settings, rounds=split_merge,
-                                  n_candidates=2, seed=seed)
+    model, history = _split_merge(
+        best.model, history, x, y, settings, rounds=split_merge, n_candidates=2, seed=seed
+    )
     if grown and prev is not None:
         floor = _objective(prev, x, y)
         if history.best < floor:
             model = _copy_state(prev, target, x, y)
             log_joint = model.loo_log_joint(x, y)
-            history = EMHistory(objective=[float(torch.logsumexp(log_joint, 1).sum())],
-                                best=floor, converged=True, init="grow-copy",
-                                candidates=history.candidates,
-                                responsibilities=torch.softmax(log_joint, dim=1))
+            history = EMHistory(
+                objective=[float(torch.logsumexp(log_joint, 1).sum())],
+                best=floor,
+                converged=True,
+                init="grow-copy",
+                candidates=history.candidates,
+                responsibilities=torch.softmax(log_joint, dim=1),
+            )
     return model, history
 
 
@@ -475,10 +553,23 @@ def _objective(model: MixtureOfGPExperts, x: Tensor, y: Tensor) -> float:
     return float(torch.logsumexp(model.loo_log_joint(x, y), dim=1).sum())
 
 
-def _settings(model: MixtureOfGPExperts, *, max_iter: Any, tol: Any, n_init: Any,
-              prune_below: Any, min_size: Any, gp_max_iter: Any, warm_max_iter: Any,
-              anneal: bool, anneal_start: Any, anneal_iter: Any, n_restarts: Any,
-              screen_iter: Any, init: str | Tensor) -> tuple[_Settings, int, int | None]:
+def _settings(
+    model: MixtureOfGPExperts,
+    *,
+    max_iter: Any,
+    tol: Any,
+    n_init: Any,
+    prune_below: Any,
+    min_size: Any,
+    gp_max_iter: Any,
+    warm_max_iter: Any,
+    anneal: bool,
+    anneal_start: Any,
+    anneal_iter: Any,
+    n_restarts: Any,
+    screen_iter: Any,
+    init: str | Tensor,
+) -> tuple[_Settings, int, int | None]:
     if not isinstance(init, Tensor):
         check_initialization(init)
     max_iter = check_count("max_iter", max_iter)
@@ -500,8 +591,18 @@ def _settings(model: MixtureOfGPExperts, *, max_iter: Any, tol: Any, n_init: Any
     n_restarts = check_count("n_restarts", n_restarts)
     if screen_iter is not None:
         screen_iter = check_count("screen_iter", screen_iter)
-    settings = _Settings(max_iter, float(tol), n_init, float(prune_below), float(min_size),
-                         first, warm, bool(anneal), float(anneal_start), anneal_iter)
+    settings = _Settings(
+        max_iter,
+        float(tol),
+        n_init,
+        float(prune_below),
+        float(min_size),
+        first,
+        warm,
+        bool(anneal),
+        float(anneal_start),
+        anneal_iter,
+    )
     return settings, n_restarts, screen_iter
 
 
@@ -524,7 +625,7 @@ def fit_em_path(
     *,
     init: str | Tensor = "auto",
     n_restarts: int = 3,
-    screen_iter: int | None = 3,
+    screen_iter: int | None = 2,
     split_merge: int = 2,
     max_iter: int = 10,
     tol: float = 1e-3,
@@ -577,10 +678,21 @@ def fit_em_path(
         raise InputError("n_experts is empty; pass the mixture sizes to fit, e.g. (1, 2, 3).")
     template = MixtureOfGPExperts(**{**model.config(), "n_experts": sizes[-1]})
     settings, n_restarts, screen_iter = _settings(
-        template, max_iter=max_iter, tol=tol, n_init=n_init, prune_below=prune_below,
-        min_size=min_size, gp_max_iter=gp_max_iter, warm_max_iter=warm_max_iter,
-        anneal=anneal, anneal_start=anneal_start, anneal_iter=anneal_iter,
-        n_restarts=n_restarts, screen_iter=screen_iter, init=init)
+        template,
+        max_iter=max_iter,
+        tol=tol,
+        n_init=n_init,
+        prune_below=prune_below,
+        min_size=min_size,
+        gp_max_iter=gp_max_iter,
+        warm_max_iter=warm_max_iter,
+        anneal=anneal,
+        anneal_start=anneal_start,
+        anneal_iter=anneal_iter,
+        n_restarts=n_restarts,
+        screen_iter=screen_iter,
+        init=init,
+    )
     x, y = template.check_data(X, Y)
     if isinstance(init, Tensor):
         init = _given_responsibilities(init, x.shape[0], sizes)
@@ -588,11 +700,19 @@ def fit_em_path(
     out: dict[int, tuple[MixtureOfGPExperts, EMHistory]] = {}
     prev: MixtureOfGPExperts | None = None
     for m in range(1, sizes[-1] + 1) if grows else sizes:
-        fitted, history = _fit_level(template, x, y, m, prev, settings, init=init,
-                                     n_restarts=n_restarts, screen_iter=screen_iter,
-                                     split_merge=check_count("split_merge", split_merge,
-                                                             minimum=0),
-                                     seed=seed)
+        fitted, history = _fit_level(
+            template,
+            x,
+            y,
+            m,
+            prev,
+            settings,
+            init=init,
+            n_restarts=n_restarts,
+            screen_iter=screen_iter,
+            split_merge=check_count("split_merge", split_merge, minimum=0),
+            seed=seed,
+        )
         prev = fitted
         if m in sizes:
             out[m] = (fitted, history)
@@ -606,7 +726,7 @@ def fit_em(
     *,
     init: str | Tensor = "auto",
     n_restarts: int = 3,
-    screen_iter: int | None = 3,
+    screen_iter: int | None = 2,
     split_merge: int = 2,
     max_iter: int = 10,
     tol: float = 1e-3,
@@ -704,14 +824,28 @@ def fit_em(
             initialisation, non-integer counts, or more experts than samples.
     """
     path = fit_em_path(
-        model, X, Y, (model.n_experts,), init=init, n_restarts=n_restarts,
-        screen_iter=screen_iter, split_merge=split_merge, max_iter=max_iter, tol=tol,
-        n_init=n_init, seed=seed,
-        prune_below=prune_below, min_size=min_size, gp_max_iter=gp_max_iter,
-        warm_max_iter=warm_max_iter, anneal=anneal, anneal_start=anneal_start,
-        anneal_iter=anneal_iter)
+        model,
+        X,
+        Y,
+        (model.n_experts,),
+        init=init,
+        n_restarts=n_restarts,
+        screen_iter=screen_iter,
+        split_merge=split_merge,
+        max_iter=max_iter,
+        tol=tol,
+        n_init=n_init,
+        seed=seed,
+        prune_below=prune_below,
+        min_size=min_size,
+        gp_max_iter=gp_max_iter,
+        warm_max_iter=warm_max_iter,
+        anneal=anneal,
+        anneal_start=anneal_start,
+        anneal_iter=anneal_iter,
+    )
     fitted, history = path[model.n_experts]
     x, y = model.check_data(X, Y)
-    model.condition(x, y, fitted.train_weights)  # type: ignore[arg-type]
+    model.condition(x, y, fitted.train_weights)
     model.load_state_dict(fitted.state_dict())
     return history

@@ -67,7 +67,7 @@ def _minimise(
         tolerance_grad=tolerance_grad,
         tolerance_change=tolerance_change,
     )
-    optimiser.step(closure)  # type: ignore[no-untyped-call]
+    optimiser.step(closure)
 
 
 def _log_softmax(logits: Tensor) -> Tensor:
@@ -185,11 +185,11 @@ class SoftmaxGate(torch.nn.Module):
         self.max_iter = check_count("max_iter", max_iter)
         if l2_grid is not None and self.l2 != "cv":
             raise InputError(
-                f"l2_grid is only used when l2='cv', but l2={l2!r}; pass l2='cv' or drop "
-                "l2_grid."
+                f"l2_grid is only used when l2='cv', but l2={l2!r}; pass l2='cv' or drop l2_grid."
             )
-        grid = DEFAULT_L2_GRID if l2_grid is None else _check_grid("l2_grid", l2_grid,
-                                                                    allow_zero=True)
+        grid = (
+            DEFAULT_L2_GRID if l2_grid is None else _check_grid("l2_grid", l2_grid, allow_zero=True)
+        )
         self.l2_grid_: tuple[float, ...] = tuple(sorted(grid, reverse=True))
         self.n_folds = check_count("n_folds", n_folds, minimum=2)
         self.cv_max_iter = check_count("cv_max_iter", cv_max_iter)
@@ -270,8 +270,9 @@ class SoftmaxGate(torch.nn.Module):
         """
         return self.basis(x) @ self.weight.T + self.bias
 
-    def fit(self, X: Any, targets: Any, sample_weight: Any | None = None, *,
-            reuse_choice: bool = False) -> SoftmaxGate:
+    def fit(
+        self, X: Any, targets: Any, sample_weight: Any | None = None, *, reuse_choice: bool = False
+    ) -> SoftmaxGate:
         """Fit the gate to soft targets.
 
         Args:
@@ -300,8 +301,14 @@ class SoftmaxGate(torch.nn.Module):
         self.scaler.fit(x)
         z = self.scaler(x)
         if reuse_choice and bool(self.fitted):
-            self._fit_fixed(self._expand(z, self._current_setting()), r, s, self.l2_,
-                            history_size=_CV_HISTORY, tolerance_grad=_CV_TOLERANCE)
+            self._fit_fixed(
+                self._expand(z, self._current_setting()),
+                r,
+                s,
+                self.l2_,
+                history_size=_CV_HISTORY,
+                tolerance_grad=_CV_TOLERANCE,
+            )
             return self
         settings = self._settings(z)
         if self.l2 == "cv" or len(settings) > 1:
@@ -374,8 +381,14 @@ class SoftmaxGate(torch.nn.Module):
             loss.backward()
             return loss
 
-        _minimise(params, closure, max_iter=self.max_iter, tolerance_grad=tolerance_grad,
-                  tolerance_change=1e-12, history_size=history_size)
+        _minimise(
+            params,
+            closure,
+            max_iter=self.max_iter,
+            tolerance_grad=tolerance_grad,
+            tolerance_change=1e-12,
+            history_size=history_size,
+        )
 
     def _folds(self, r: Tensor) -> Tensor:
         """Fold of each row, `(N,)`, stratified by the row's most likely expert."""
@@ -435,11 +448,17 @@ class SoftmaxGate(torch.nn.Module):
                 bias.grad = residual.sum(0)
                 return loss
 
-            _minimise([weight, bias], closure, max_iter=self.cv_max_iter,
-                      tolerance_grad=1e-7, tolerance_change=1e-10, history_size=_CV_HISTORY)
+            _minimise(
+                [weight, bias],
+                closure,
+                max_iter=self.cv_max_iter,
+                tolerance_grad=1e-7,
+                tolerance_change=1e-10,
+                history_size=_CV_HISTORY,
+            )
             log_p = log_proba()
             scores[i] = -(w_held * (target * log_p[:, :k])).sum()
-            solutions.append((weight[:, k * m:].T.clone(), bias[k * m:].clone()))
+            solutions.append((weight[:, k * m :].T.clone(), bias[k * m :].clone()))
         return scores, solutions
 
     def _fit_cv(self, z: Tensor, r: Tensor, s: Tensor, settings: list[float | None]) -> None:
@@ -525,8 +544,16 @@ class FourierGate(SoftmaxGate):
         cv_max_iter: int = 10,
         seed: int = 0,
     ) -> None:
-        super().__init__(n_features, n_experts, l2=l2, max_iter=max_iter, l2_grid=l2_grid,
-                         n_folds=n_folds, cv_max_iter=cv_max_iter, seed=seed)
+        super().__init__(
+            n_features,
+            n_experts,
+            l2=l2,
+            max_iter=max_iter,
+            l2_grid=l2_grid,
+            n_folds=n_folds,
+            cv_max_iter=cv_max_iter,
+            seed=seed,
+        )
         self.n_random_features = check_count("n_random_features", n_random_features)
         if isinstance(lengthscale, str):
             if lengthscale not in ("median", "cv"):
@@ -539,8 +566,9 @@ class FourierGate(SoftmaxGate):
             check_positive("lengthscale", lengthscale)
             initial = float(lengthscale)
         self.lengthscale: float | str = lengthscale if isinstance(lengthscale, str) else initial
-        self.lengthscale_factors = _check_grid("lengthscale_factors", lengthscale_factors,
-                                               allow_zero=False)
+        self.lengthscale_factors = _check_grid(
+            "lengthscale_factors", lengthscale_factors, allow_zero=False
+        )
         g = torch.Generator().manual_seed(self.seed)
         k = self.n_random_features
         self.register_buffer(
@@ -600,8 +628,15 @@ _OPTIONS: dict[str, tuple[type[SoftmaxGate], tuple[str, ...]]] = {
     "linear": (SoftmaxGate, ("max_iter", "l2_grid", "n_folds", "cv_max_iter")),
     "fourier": (
         FourierGate,
-        ("max_iter", "l2_grid", "n_folds", "cv_max_iter", "n_random_features", "lengthscale",
-         "lengthscale_factors"),
+        (
+            "max_iter",
+            "l2_grid",
+            "n_folds",
+            "cv_max_iter",
+            "n_random_features",
+            "lengthscale",
+            "lengthscale_factors",
+        ),
     ),
 }
 

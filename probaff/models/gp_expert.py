@@ -109,7 +109,7 @@ class _BatchedExactGP(gpytorch.models.ExactGP):
             lengthscale_prior=lengthscale_prior,
         )
 
-    def forward(self, x: Tensor) -> MultivariateNormal:  # type: ignore[override]
+    def forward(self, x: Tensor) -> MultivariateNormal:
         """Prior over the `E` outputs at `x: (n, D)` (or `(E, n, D)`), batch `(E,)`."""
         x = x.expand(self.n_outputs, *x.shape[-2:])
         return MultivariateNormal(self.mean_module(x), self.covar_module(x))

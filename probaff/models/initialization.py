@@ -69,8 +69,9 @@ def _gate_block(x_gate: np.ndarray, seed: int) -> np.ndarray:
     return z
 
 
-def _gmm_responsibilities(z: np.ndarray, n_components: int, *, n_init: int, seed: int,
-                          weights: np.ndarray | None = None) -> Tensor:
+def _gmm_responsibilities(
+    z: np.ndarray, n_components: int, *, n_init: int, seed: int, weights: np.ndarray | None = None
+) -> Tensor:
     """Responsibilities `(N, K)` of a full-covariance Gaussian mixture fitted to `z`.
 
     With `weights`, the mixture is fitted to the rows whose weight is at least half the
@@ -79,16 +80,23 @@ def _gmm_responsibilities(z: np.ndarray, n_components: int, *, n_init: int, seed
     fit_rows = z if weights is None else z[weights >= 0.5 * weights.max()]
     if len(fit_rows) < n_components:
         fit_rows = z
-    gmm = GaussianMixture(n_components=n_components, covariance_type="full", n_init=n_init,
-                          random_state=seed, reg_covar=1e-4, max_iter=200)
+    gmm = GaussianMixture(
+        n_components=n_components,
+        covariance_type="full",
+        n_init=n_init,
+        random_state=seed,
+        reg_covar=1e-4,
+        max_iter=200,
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         gmm.fit(fit_rows)
     return torch.as_tensor(gmm.predict_proba(z), dtype=torch.float64)
 
 
-def initial_responsibilities(init: str, x_gate: Tensor, Y: Tensor, n_experts: int, *,
-                             n_init: int = 5, seed: int = 0) -> Tensor:
+def initial_responsibilities(
+    init: str, x_gate: Tensor, Y: Tensor, n_experts: int, *, n_init: int = 5, seed: int = 0
+) -> Tensor:
     """Responsibilities of a cold start (``"effects"`` or ``"joint"``).
 
     Args:
@@ -119,8 +127,16 @@ def initial_responsibilities(init: str, x_gate: Tensor, Y: Tensor, n_experts: in
     return _gmm_responsibilities(z, n_experts, n_init=n_init, seed=seed)
 
 
-def split_responsibilities(resp: Tensor, expert: int, x_gate: Tensor, residuals: Tensor, *,
-                           into: int | None = None, seed: int = 0, n_init: int = 3) -> Tensor:
+def split_responsibilities(
+    resp: Tensor,
+    expert: int,
+    x_gate: Tensor,
+    residuals: Tensor,
+    *,
+    into: int | None = None,
+    seed: int = 0,
+    n_init: int = 3,
+) -> Tensor:
     """Split one expert's responsibilities between it and a new (or an emptied) expert.
 
     The expert's samples are divided by a two-component Gaussian mixture on their
@@ -144,8 +160,7 @@ def split_responsibilities(resp: Tensor, expert: int, x_gate: Tensor, residuals:
         Responsibilities, `(N, M + 1)`, or `(N, M)` with `into`.
     """
     w = resp[:, expert].numpy()
-    z = np.concatenate([_gate_block(x_gate.numpy(), seed), _standardise(residuals.numpy())],
-                       axis=1)
+    z = np.concatenate([_gate_block(x_gate.numpy(), seed), _standardise(residuals.numpy())], axis=1)
     q = _gmm_responsibilities(z, 2, n_init=n_init, seed=seed, weights=w)
     if into is None:
         out = torch.cat([resp, torch.zeros(resp.shape[0], 1, dtype=resp.dtype)], dim=1)

@@ -10,10 +10,14 @@ from gpytorch.priors import Prior
 __all__ = ["ard_se_kernel"]
 
 
-def ard_se_kernel(n_features: int, batch: torch.Size, *,
-                  lengthscale_bounds: tuple[float, float],
-                  outputscale_bounds: tuple[float, float],
-                  lengthscale_prior: Prior | None = None) -> ScaleKernel:
+def ard_se_kernel(
+    n_features: int,
+    batch: torch.Size,
+    *,
+    lengthscale_bounds: tuple[float, float],
+    outputscale_bounds: tuple[float, float],
+    lengthscale_prior: Prior | None = None,
+) -> ScaleKernel:
     """``theta0 exp(-1/2 sum_d (x_d - x'_d)^2 / l_d^2)`` with one length scale per feature.
 
     Args:

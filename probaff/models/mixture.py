@@ -7,19 +7,14 @@ from typing import Any
 
 import torch
 from torch import Tensor
-from torch.distributions import Categorical, Independent, MixtureSameFamily, Normal
+from torch.distributions import Normal
 
 from probaff._checks import check_count
 from probaff.errors import InputError, NotFittedError
 from probaff.models._tensors import as_matrix
-from probaff.models.columns import (
-    FeatureGroups,
-    FeatureSpec,
-    check_mixture_args,
-    resolve_features,
-    resolve_groups,
-)
-from probaff.models.gate import GATE_KINDS, SoftmaxGate, make_gate
+from probaff.models.columns import FeatureGroups, FeatureSpec
+from probaff.models.gate import GATE_KINDS, make_gate
+from probaff.models.gated import ExpertList, GatedMixture, gated_probs, mixture_distribution
 from probaff.models.gp_expert import GPExpert, noise_floor_vector
 
 __all__ = ["MixtureOfGPExperts", "gated_probs", "mixture_distribution", "training_data"]
@@ -28,13 +23,6 @@ __all__ = ["MixtureOfGPExperts", "gated_probs", "mixture_distribution", "trainin
 _AUTO_NOISE_FLOOR = 0.01
 
 _NOT_FITTED = "MixtureOfGPExperts is not fitted; call probaff.models.fit_em(model, X, Y) first."
-
-
-def _plain(spec: FeatureSpec) -> str | list[str] | list[int] | None:
-    """A copy of a feature selection made only of builtins (for saving)."""
-    if spec is None or isinstance(spec, str):
-        return spec
-    return [s if isinstance(s, str) else int(s) for s in spec]  # type: ignore[misc,return-value]
 
 
 def training_data(X: Any, Y: Any, n_experts: int) -> tuple[Tensor, Tensor]:
@@ -66,40 +54,7 @@ def training_data(X: Any, Y: Any, n_experts: int) -> tuple[Tensor, Tensor]:
     return x, y
 
 
-def mixture_distribution(probs: Tensor, components: Normal) -> MixtureSameFamily:
-    """Per-sample mixture of independent normals.
-
-    Args:
-        probs: Mixture weights, rows summing to 1, `(N, M)`.
-        components: Normals with loc and scale `(N, M, E)`.
-
-    Returns:
-        Batch shape `(N,)`, event shape `(E,)`.
-    """
-    return MixtureSameFamily(Categorical(probs=probs), Independent(components, 1))
-
-
-def gated_probs(probs: Tensor, gating: str) -> Tensor:
-    """Mixture weights for a gating mode: the gate's probabilities or their one-hot argmax.
-
-    Args:
-        probs: Gate probabilities, `(N, M)`.
-        gating: ``"soft"`` (the probabilities) or ``"hard"`` (the most probable expert).
-
-    Returns:
-        Mixture weights, `(N, M)`.
-
-    Raises:
-        InputError: For an unknown `gating`.
-    """
-    if gating == "soft":
-        return probs
-    if gating == "hard":
-        return torch.nn.functional.one_hot(probs.argmax(1), probs.shape[1]).to(probs.dtype)
-    raise InputError(f"gating must be 'soft' or 'hard', got {gating!r}.")
-
-
-class MixtureOfGPExperts(torch.nn.Module):
+class MixtureOfGPExperts(GatedMixture[GPExpert]):
     r"""Mixture of `M` GP experts: :math:`p(e \mid f) = \sum_j g_j(f_g)\, p_j(e \mid f_e)`.
 
     The gate :math:`g` is a `SoftmaxGate` on the gate columns `f_g`; each expert :math:`p_j`
@@ -131,6 +86,8 @@ class MixtureOfGPExperts(torch.nn.Module):
         InputError: If a selection names an unknown group or `n_experts` is not positive.
     """
 
+    not_fitted_message = _NOT_FITTED
+
     def __init__(
         self,
         n_experts: int,
@@ -144,53 +101,47 @@ class MixtureOfGPExperts(torch.nn.Module):
         lengthscale_prior: bool = False,
         noise_floor: float | Sequence[float] | str | None = "auto",
     ) -> None:
-        super().__init__()
-        self.n_experts = check_mixture_args(n_experts, groups, gate_features, expert_features,
-                                            gate_l2)
+        super().__init__(
+            n_experts,
+            groups=groups,
+            gate_features=gate_features,
+            expert_features=expert_features,
+            gate_l2=gate_l2,
+        )
         check_count("gp_max_iter", gp_max_iter)
         if isinstance(noise_floor, str) and noise_floor != "auto":
             raise InputError(
                 f"noise_floor must be 'auto', None, or standard deviations, got {noise_floor!r}."
             )
         if not isinstance(noise_floor, str):
-            noise_floor_vector(noise_floor, 1 if noise_floor is None else
-                               torch.as_tensor(noise_floor).numel())
-        self.noise_floor = (noise_floor if noise_floor is None or isinstance(noise_floor, str)
-                            else [float(v) for v in torch.as_tensor(noise_floor).flatten()])
-        self.groups = dict(groups or {})
-        self.gate_features = gate_features
-        self.expert_features = expert_features
+            noise_floor_vector(
+                noise_floor, 1 if noise_floor is None else torch.as_tensor(noise_floor).numel()
+            )
+        self.noise_floor = (
+            noise_floor
+            if noise_floor is None or isinstance(noise_floor, str)
+            else [float(v) for v in torch.as_tensor(noise_floor).flatten()]
+        )
         if gate not in GATE_KINDS:
             raise InputError(f"gate must be one of {list(GATE_KINDS)}, got {gate!r}.")
         self.gate_kind = gate
-        self.gate_l2: float | str = gate_l2 if isinstance(gate_l2, str) else float(gate_l2)
         self.gp_max_iter = int(gp_max_iter)
         self.lengthscale_prior = bool(lengthscale_prior)
-        self.n_features: int | None = None
-        self.n_outputs: int | None = None
-        self.gate_columns: list[int] = []
-        self.expert_columns: list[int] = []
-        self.gate: SoftmaxGate | None = None
-        self.experts = torch.nn.ModuleList()
         self.train_X: Tensor | None = None
         self.train_Y: Tensor | None = None
-        self.train_weights: Tensor | None = None
+        self._train_weights: Tensor | None = None
 
     # ----------------------------------------------------------------- config
     def config(self) -> dict[str, Any]:
         """Constructor arguments as builtins; groups are resolved once `n_features` is known."""
-        groups: dict[str, Any] = (
-            resolve_groups(self.groups, self.n_features)
-            if self.n_features is not None
-            else {k: v if isinstance(v, slice) else list(v) for k, v in self.groups.items()}
-        )
+        base = super().config()
         return {
-            "n_experts": self.n_experts,
-            "groups": groups,
-            "gate_features": _plain(self.gate_features),
-            "expert_features": _plain(self.expert_features),
+            "n_experts": base["n_experts"],
+            "groups": base["groups"],
+            "gate_features": base["gate_features"],
+            "expert_features": base["expert_features"],
             "gate": self.gate_kind,
-            "gate_l2": self.gate_l2,
+            "gate_l2": base["gate_l2"],
             "gp_max_iter": self.gp_max_iter,
             "lengthscale_prior": self.lengthscale_prior,
             "noise_floor": self.noise_floor,
@@ -202,18 +153,19 @@ class MixtureOfGPExperts(torch.nn.Module):
         return (
             self.gate is not None
             and bool(self.gate.fitted)
-            and all(e.is_fitted for e in self.experts)  # type: ignore[attr-defined]
+            and all(e.is_fitted for e in self.experts)
         )
 
-    def _built_gate(self) -> SoftmaxGate:
-        if self.gate is None:
-            raise NotFittedError(_NOT_FITTED)
-        return self.gate
+    @property
+    def train_weights(self) -> Tensor:
+        """Every expert's sample weights of the last fit, `(N, M)`.
 
-    def check_fitted(self) -> None:
-        """Raise `NotFittedError` unless the mixture has been fitted."""
-        if not self.is_fitted:
+        Raises:
+            NotFittedError: Before the experts were given training data.
+        """
+        if self._train_weights is None:
             raise NotFittedError(_NOT_FITTED)
+        return self._train_weights
 
     def build(self, n_features: int, n_outputs: int, noise_floor: Tensor | None = None) -> None:
         """Resolve the feature selections and create a fresh gate and fresh experts.
@@ -228,19 +180,17 @@ class MixtureOfGPExperts(torch.nn.Module):
                 resolves it from the training data).
         """
         if noise_floor is None:
-            noise_floor = (torch.zeros(n_outputs, dtype=torch.float64)
-                           if self.noise_floor is None or isinstance(self.noise_floor, str)
-                           else noise_floor_vector(self.noise_floor, n_outputs))
-        self.gate_columns = resolve_features(
-            "gate_features", self.gate_features, self.groups, n_features
+            noise_floor = (
+                torch.zeros(n_outputs, dtype=torch.float64)
+                if self.noise_floor is None or isinstance(self.noise_floor, str)
+                else noise_floor_vector(self.noise_floor, n_outputs)
+            )
+        self.resolve_columns(n_features)
+        self.n_outputs = int(n_outputs)
+        self.gate = make_gate(
+            self.gate_kind, len(self.gate_columns), self.n_experts, l2=self.gate_l2
         )
-        self.expert_columns = resolve_features(
-            "expert_features", self.expert_features, self.groups, n_features
-        )
-        self.n_features, self.n_outputs = int(n_features), int(n_outputs)
-        self.gate = make_gate(self.gate_kind, len(self.gate_columns), self.n_experts,
-                              l2=self.gate_l2)
-        self.experts = torch.nn.ModuleList(
+        self.experts = ExpertList(
             GPExpert(
                 len(self.expert_columns),
                 n_outputs,
@@ -252,11 +202,6 @@ class MixtureOfGPExperts(torch.nn.Module):
         )
 
     # ---------------------------------------------------------------- inputs
-    def _features(self, X: Any) -> Tensor:
-        if self.n_features is None:
-            raise NotFittedError(_NOT_FITTED)
-        return as_matrix("features X", X, n_cols=self.n_features)
-
     def check_data(self, X: Any, Y: Any) -> tuple[Tensor, Tensor]:
         """Validate a training set and (re)build the model for its sizes.
 
@@ -296,7 +241,7 @@ class MixtureOfGPExperts(torch.nn.Module):
         """
         x_e = X[:, self.expert_columns]
         for j, expert in enumerate(self.experts):
-            expert.fit(x_e, Y, weights[:, j], max_iter=max_iter)  # type: ignore[operator]
+            expert.fit(x_e, Y, weights[:, j], max_iter=max_iter)
         self._set_train_data(X, Y, weights)
 
     def condition(self, X: Tensor, Y: Tensor, weights: Tensor) -> None:
@@ -309,14 +254,13 @@ class MixtureOfGPExperts(torch.nn.Module):
         """
         x_e = X[:, self.expert_columns]
         for j, expert in enumerate(self.experts):
-            expert.condition(x_e, Y, weights[:, j])  # type: ignore[operator]
+            expert.condition(x_e, Y, weights[:, j])
         self._set_train_data(X, Y, weights)
 
     def _set_train_data(self, X: Tensor, Y: Tensor, weights: Tensor) -> None:
-        self.train_X, self.train_Y, self.train_weights = X, Y, weights.clone()
+        self.train_X, self.train_Y, self._train_weights = X, Y, weights.clone()
 
-    def fit_gate(self, X: Tensor, responsibilities: Tensor, *, reuse_choice: bool = False
-                 ) -> None:
+    def fit_gate(self, X: Tensor, responsibilities: Tensor, *, reuse_choice: bool = False) -> None:
         """Refit the gate to soft targets (the gate's half of the M-step).
 
         Args:
@@ -324,23 +268,9 @@ class MixtureOfGPExperts(torch.nn.Module):
             responsibilities: Rows summing to 1, `(N, M)`.
             reuse_choice: Keep the gate's cross-validated penalty from its last fit.
         """
-        self._built_gate().fit(X[:, self.gate_columns], responsibilities,
-                               reuse_choice=reuse_choice)
+        self.built_gate().fit(X[:, self.gate_columns], responsibilities, reuse_choice=reuse_choice)
 
     # ------------------------------------------------------------ prediction
-    def gate_probs(self, X: Any) -> Tensor:
-        """Gate probabilities `p(m = j | f)`.
-
-        Args:
-            X: Features, `(N, D)`.
-
-        Returns:
-            Rows summing to 1, `(N, M)`.
-        """
-        self.check_fitted()
-        x = self._features(X)
-        return self._built_gate().predict_proba(x[:, self.gate_columns])
-
     def expert_predictions(self, X: Any, *, include_noise: bool = True) -> Normal:
         """Every expert's predictive distribution.
 
@@ -351,32 +281,11 @@ class MixtureOfGPExperts(torch.nn.Module):
         Returns:
             Normals with loc and scale `(N, M, E)`.
         """
-        self.check_fitted()
-        x = self._features(X)[:, self.expert_columns]
-        preds = [e.predict(x, include_noise=include_noise) for e in self.experts]  # type: ignore[operator]
+        x = self.features(X)[:, self.expert_columns]
+        preds = [e.predict(x, include_noise=include_noise) for e in self.experts]
         return Normal(
             torch.stack([p.loc for p in preds], dim=1), torch.stack([p.scale for p in preds], dim=1)
         )
-
-    def predict(self, X: Any, *, gating: str = "soft") -> MixtureSameFamily:
-        """Predictive distribution of the effects, one mixture per sample.
-
-        Args:
-            X: Features, `(N, D)`.
-            gating: ``"soft"`` (default) weights every expert by its gate probability (the
-                model's predictive distribution); ``"hard"`` uses only the most probable
-                expert of each sample (a one-component mixture, for comparison with models
-                that pick one expert).
-
-        Returns:
-            Mixture over `M` of independent normals over `E`: batch shape `(N,)`,
-            event shape `(E,)`, with `mean`, `variance`, `sample()` and `log_prob(Y)`.
-
-        Raises:
-            InputError: For an unknown `gating`.
-        """
-        return mixture_distribution(gated_probs(self.gate_probs(X), gating),
-                                    self.expert_predictions(X))
 
     def log_joint(self, X: Any, Y: Any) -> Tensor:
         """`log p(m = j | f_i) + log p_j(e_i | f_i)` for every sample and expert.
@@ -388,10 +297,9 @@ class MixtureOfGPExperts(torch.nn.Module):
         Returns:
             Log joint densities, `(N, M)`.
         """
-        self.check_fitted()
-        x = self._features(X)
+        x = self.features(X)
         y = as_matrix("effects Y", Y, n_rows=x.shape[0], n_cols=self.n_outputs)
-        log_gate = self._built_gate().log_proba(x[:, self.gate_columns])
+        log_gate = self.built_gate().log_proba(x[:, self.gate_columns])
         log_lik = self.expert_predictions(x).log_prob(y[:, None, :]).sum(-1)
         return log_gate + log_lik
 
@@ -405,7 +313,7 @@ class MixtureOfGPExperts(torch.nn.Module):
         Returns:
             Log joint densities `log p(m = j | f_i) + log p_j(e_i | f_i, D_-i)`, `(N, M)`.
         """
-        log_gate = self._built_gate().log_proba(X[:, self.gate_columns])
+        log_gate = self.built_gate().log_proba(X[:, self.gate_columns])
         return log_gate + self.loo_log_lik(X, Y)
 
     def loo_log_lik(self, X: Tensor, Y: Tensor) -> Tensor:
@@ -427,13 +335,13 @@ class MixtureOfGPExperts(torch.nn.Module):
             `log p_j(e_i | f_i, D_-i)`, `(N, M)`.
         """
         self.check_fitted()
-        if self.train_weights is None or self.train_weights.shape[0] != X.shape[0]:
+        if self._train_weights is None or self._train_weights.shape[0] != X.shape[0]:
             raise InputError("loo_log_lik needs the training set the mixture was fitted on.")
         pred = self.expert_predictions(X)
         loc, scale = pred.loc.clone(), pred.scale.clone()
         for j, expert in enumerate(self.experts):
             held = self.train_weights[:, j] > 0
-            loo = expert.loo_predict()  # type: ignore[operator]
+            loo = expert.loo_predict()
             loc[held, j] = loo.loc
             scale[held, j] = loo.scale
         return Normal(loc, scale).log_prob(Y[:, None, :]).sum(-1)
@@ -445,4 +353,4 @@ class MixtureOfGPExperts(torch.nn.Module):
             One `(E, D_e)` tensor per expert, columns ordered as `expert_columns`.
         """
         self.check_fitted()
-        return [e.lengthscales for e in self.experts]  # type: ignore[attr-defined,misc]
+        return [e.lengthscales for e in self.experts]

@@ -111,11 +111,14 @@ def softmax_regimes(n: int, *, seed: int = 0) -> tuple[Tensor, Tensor, Tensor]:
     probs = torch.softmax(40.0 * (x[:, :2] @ directions.T), dim=1)
     labels = torch.multinomial(probs, 1, generator=g)[:, 0]
     a, b = x[:, 2], x[:, 3]
-    means = torch.stack([
-        torch.stack([torch.sin(2 * a), 0.5 * b], dim=1),
-        torch.stack([0.8 * b, torch.cos(2 * a)], dim=1),
-        torch.stack([-torch.sin(2 * a), -0.5 * b], dim=1),
-    ], dim=1)
+    means = torch.stack(
+        [
+            torch.stack([torch.sin(2 * a), 0.5 * b], dim=1),
+            torch.stack([0.8 * b, torch.cos(2 * a)], dim=1),
+            torch.stack([-torch.sin(2 * a), -0.5 * b], dim=1),
+        ],
+        dim=1,
+    )
     noise = torch.tensor([0.05, 0.1, 0.15], dtype=torch.float64)
     eps = torch.randn(n, 2, generator=g, dtype=torch.float64)
     rows = torch.arange(n)

@@ -10,10 +10,7 @@ Monte Carlo noise is the minibatch.
 
 from __future__ import annotations
 
-import contextlib
 import math
-from collections.abc import Iterator
-from dataclasses import dataclass, field
 from typing import Any
 
 import gpytorch
@@ -22,33 +19,22 @@ import pyro.distributions as dist
 import torch
 from gpytorch.means import ConstantMean
 from gpytorch.variational import CholeskyVariationalDistribution, VariationalStrategy
-from pyro.infer import SVI, TraceEnum_ELBO, config_enumerate
+from pyro.infer import config_enumerate
 from pyro.ops.indexing import Vindex
 from torch import Tensor
-from torch.distributions import MixtureSameFamily, Normal
+from torch.distributions import Normal
 
-from probaff._checks import check_count, check_positive, check_probability
-from probaff.errors import InputError, NotFittedError
+from probaff._checks import check_count
+from probaff.errors import NotFittedError
 from probaff.models._scaling import Standardizer
-from probaff.models._tensors import as_matrix
-from probaff.models.columns import (
-    FeatureGroups,
-    FeatureSpec,
-    check_mixture_args,
-    resolve_features,
-)
-from probaff.models.em import fit_em
+from probaff.models.columns import FeatureGroups, FeatureSpec
 from probaff.models.gate import SoftmaxGate
-from probaff.models.initialization import check_initialization, initial_responsibilities
+from probaff.models.gated import ExpertList, GatedMixture
 from probaff.models.kernels import ard_se_kernel
-from probaff.models.mixture import (
-    MixtureOfGPExperts,
-    gated_probs,
-    mixture_distribution,
-    training_data,
-)
+from probaff.models.mixture import MixtureOfGPExperts
 
-__all__ = ["SVGPExpert", "SVIHistory", "VariationalMixtureOfGPExperts", "fit_svi"]
+# `SVIHistory` and `fit_svi` are re-exported lazily from `probaff.models.svi` (`__getattr__`).
+__all__ = ["SVGPExpert", "SVIHistory", "VariationalMixtureOfGPExperts", "fit_svi"]  # noqa: F822
 
 _NOT_FITTED = (
     "VariationalMixtureOfGPExperts is not fitted; call probaff.models.vi.fit_svi(model, X, Y) "
@@ -102,7 +88,7 @@ class SVGPExpert(gpytorch.models.ApproximateGP):
             variational.chol_variational_covar.copy_(std * eye.expand_as(k_uu))
             strategy.variational_params_initialized.fill_(1)
 
-    def forward(self, x: Tensor) -> gpytorch.distributions.MultivariateNormal:  # type: ignore[override]
+    def forward(self, x: Tensor) -> gpytorch.distributions.MultivariateNormal:
         """Prior over the `E` outputs at `x: (..., n, D)`, batch `(E,)`."""
         return gpytorch.distributions.MultivariateNormal(self.mean_module(x), self.covar_module(x))
 
@@ -132,29 +118,7 @@ class SVGPExpert(gpytorch.models.ApproximateGP):
         return q.mean.transpose(-1, -2), q.variance.clamp_min(0.0).transpose(-1, -2)
 
 
-@contextlib.contextmanager
-def _default_dtype(dtype: torch.dtype) -> Iterator[None]:
-    """Pyro creates some tensors with the default dtype; match the model's within a block."""
-    previous = torch.get_default_dtype()
-    torch.set_default_dtype(dtype)
-    try:
-        yield
-    finally:
-        torch.set_default_dtype(previous)
-
-
-@dataclass
-class SVIHistory:
-    """Record of one SVI fit.
-
-    Attributes:
-        loss: Negative ELBO estimate (per training sample) of every step.
-    """
-
-    loss: list[float] = field(default_factory=list)
-
-
-class VariationalMixtureOfGPExperts(torch.nn.Module):
+class VariationalMixtureOfGPExperts(GatedMixture[SVGPExpert]):
     r"""Mixture of `M` sparse GP experts with a softmax gate, fitted by `fit_svi`.
 
     Generative model, for sample `i`: :math:`m_i \sim \mathrm{Categorical}(\mathrm{softmax}
@@ -172,6 +136,8 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
             ``"cv"`` to choose it by cross-validation when the gate is initialised.
     """
 
+    not_fitted_message = _NOT_FITTED
+
     def __init__(
         self,
         n_experts: int,
@@ -182,28 +148,64 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
         n_inducing: int = 32,
         gate_l2: float | str = 1e-3,
     ) -> None:
-        super().__init__()
-        self.n_experts = check_mixture_args(n_experts, groups, gate_features, expert_features,
-                                            gate_l2)
+        super().__init__(
+            n_experts,
+            groups=groups,
+            gate_features=gate_features,
+            expert_features=expert_features,
+            gate_l2=gate_l2,
+        )
         check_count("n_inducing", n_inducing)
-        self.groups = dict(groups or {})
-        self.gate_features = gate_features
-        self.expert_features = expert_features
         self.n_inducing = int(n_inducing)
-        self.gate_l2: float | str = gate_l2 if isinstance(gate_l2, str) else float(gate_l2)
-        self.n_features: int | None = None
-        self.gate_columns: list[int] = []
-        self.expert_columns: list[int] = []
-        self.gate: SoftmaxGate | None = None
-        self.experts = torch.nn.ModuleList()
         self.x_scaler: Standardizer | None = None
         self.y_scaler: Standardizer | None = None
         self.raw_noise = torch.nn.Parameter(torch.zeros(0, dtype=torch.float64))
         self.fitted = False
 
     # ----------------------------------------------------------------- setup
-    def build(self, x: Tensor, y: Tensor, resp: Tensor,
-              exact: MixtureOfGPExperts | None = None) -> None:
+    def config(self) -> dict[str, Any]:
+        """Constructor arguments as builtins; groups are resolved once `n_features` is known."""
+        return {**super().config(), "n_inducing": self.n_inducing}
+
+    @property
+    def is_fitted(self) -> bool:
+        """Whether `fit_svi` has completed on this model (or it was loaded fitted)."""
+        return bool(self.fitted) and self.gate is not None and len(self.experts) > 0
+
+    def build_empty(self, n_features: int, n_outputs: int, n_inducing: int) -> None:
+        """Create gate, experts, noise and scalers of the given sizes, with placeholder values.
+
+        Used by `probaff.models.load`, which then loads a saved state dict into them.
+
+        Args:
+            n_features: Columns `D` of the feature matrix.
+            n_outputs: Effect dimensions `E`.
+            n_inducing: Inducing points per expert `K` (at most the training-set size).
+        """
+        self.resolve_columns(n_features)
+        self.n_outputs = int(n_outputs)
+        d_e = len(self.expert_columns)
+        self.x_scaler = Standardizer(d_e)
+        self.y_scaler = Standardizer(self.n_outputs)
+        self.gate = SoftmaxGate(len(self.gate_columns), self.n_experts, l2=self.gate_l2)
+        inducing = torch.zeros(self.n_outputs, int(n_inducing), d_e, dtype=torch.float64)
+        self.experts = ExpertList(
+            SVGPExpert(inducing.clone()).double() for _ in range(self.n_experts)
+        )
+        self.raw_noise = torch.nn.Parameter(
+            torch.zeros(self.n_experts, self.n_outputs, dtype=torch.float64)
+        )
+
+    @property
+    def inducing_size(self) -> int:
+        """Inducing points per expert of the built model `K` (0 before it is built)."""
+        if len(self.experts) == 0:
+            return 0
+        return int(self.experts[0].variational_strategy.inducing_points.shape[-2])
+
+    def build(
+        self, x: Tensor, y: Tensor, resp: Tensor, exact: MixtureOfGPExperts | None = None
+    ) -> None:
         """Create gate, experts and noise, initialised from responsibilities.
 
         The gate is fitted to `resp`; expert `j` places its inducing points on the
@@ -221,11 +223,8 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
         """
         n, d = x.shape
         e = y.shape[1]
-        self.n_features = d
-        self.gate_columns = resolve_features("gate_features", self.gate_features, self.groups, d)
-        self.expert_columns = resolve_features(
-            "expert_features", self.expert_features, self.groups, d
-        )
+        self.resolve_columns(d)
+        self.n_outputs = int(e)
         self.x_scaler = Standardizer(len(self.expert_columns)).fit(x[:, self.expert_columns])
         self.y_scaler = Standardizer(e).fit(y)
         self.gate = SoftmaxGate(len(self.gate_columns), self.n_experts, l2=self.gate_l2)
@@ -244,15 +243,16 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
                 expert.initialize_variational(t[top].T - mean[:, None])
                 noise.append((0.1 * (w @ (t - mean).square())).clamp_min(1e-4))
             else:
-                noise.append(self._start_from(expert, exact.experts[j],
-                                              x[top][:, self.expert_columns]))
+                noise.append(
+                    self._start_from(expert, exact.experts[j], x[top][:, self.expert_columns])
+                )
             experts.append(expert)
-        self.experts = torch.nn.ModuleList(experts)
+        self.experts = ExpertList(experts)
         self.raw_noise = torch.nn.Parameter(torch.stack(noise).log())
 
     def _start_from(self, expert: SVGPExpert, source: Any, x_top: Tensor) -> Tensor:
         """Copy an exact expert into `expert`; return its noise in standardised units `(E,)`."""
-        x_scaler, y_scaler = self._scalers()
+        x_scaler, y_scaler = self.scalers()
         x_ratio = source.x_scaler.std / x_scaler.std[None, :]  # (1, D) per input
         y_ratio = (source.y_scaler.std / y_scaler.std).square()  # (E,)
         kernel = expert.covar_module
@@ -263,7 +263,7 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
             outputscale = source.gp.covar_module.outputscale.detach() * y_ratio
             kernel.outputscale = outputscale.clamp(1e-4 * 1.01, 1e4 * 0.99)
             constant = source.gp.mean_module.constant.detach()
-            mean = (constant * source.y_scaler.std + source.y_scaler.mean - y_scaler.mean)
+            mean = constant * source.y_scaler.std + source.y_scaler.mean - y_scaler.mean
             mean = mean / y_scaler.std
             expert.mean_module.constant.data.copy_(mean)
             values = y_scaler(source.predict(x_top, include_noise=False).loc).T
@@ -294,7 +294,7 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
         """
         out = []
         for j, expert in enumerate(self.experts):
-            mean, var = expert.moments(x_e)  # type: ignore[operator]
+            mean, var = expert.moments(x_e)
             noise = self.noise[j]
             ll = -0.5 * (torch.log(2 * math.pi * noise) + ((y - mean).square() + var) / noise)
             out.append(ll.sum(-1))
@@ -309,11 +309,11 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
         its expert `m`, which `TraceEnum_ELBO` enumerates.
         """
         pyro.module("mixture", self)
-        gate = self._built_gate()
+        gate = self.built_gate()
         n = x_g.shape[0]
         pyro.factor("gate.l2", -0.5 * gate.l2_ * n * gate.weight.square().sum())
         for j, expert in enumerate(self.experts):
-            pyro.factor(f"expert{j}.kl", -expert.kl_divergence().sum())  # type: ignore[operator]
+            pyro.factor(f"expert{j}.kl", -expert.kl_divergence().sum())
         with pyro.plate("data", n, subsample=idx):
             ell = self.expected_log_lik(x_e[idx], y[idx])
             m = pyro.sample("m", dist.Categorical(logits=gate.logits(x_g[idx])))
@@ -327,158 +327,38 @@ class VariationalMixtureOfGPExperts(torch.nn.Module):
         """
 
     # ------------------------------------------------------------ prediction
-    def _built_gate(self) -> SoftmaxGate:
-        if self.gate is None:
-            raise NotFittedError(_NOT_FITTED)
-        return self.gate
+    def scalers(self) -> tuple[Standardizer, Standardizer]:
+        """The standardisers of the expert inputs `(D_e,)` and of the effects `(E,)`.
 
-    def _scalers(self) -> tuple[Standardizer, Standardizer]:
+        Raises:
+            NotFittedError: Before the model was built by `fit_svi` (or `load`).
+        """
         if self.x_scaler is None or self.y_scaler is None:
             raise NotFittedError(_NOT_FITTED)
         return self.x_scaler, self.y_scaler
 
-    def _features(self, X: Any) -> Tensor:
-        if not self.fitted or self.n_features is None:
-            raise NotFittedError(_NOT_FITTED)
-        return as_matrix("features X", X, n_cols=self.n_features)
-
-    def gate_probs(self, X: Any) -> Tensor:
-        """Gate probabilities `p(m = j | f)`, `(N, M)`."""
-        x = self._features(X)
-        return self._built_gate().predict_proba(x[:, self.gate_columns])
+    _scalers = scalers
 
     def expert_predictions(self, X: Any) -> Normal:
         """Every expert's predictive distribution (noise included), loc and scale `(N, M, E)`."""
-        x = self._features(X)
-        x_scaler, y_scaler = self._scalers()
+        x = self.features(X)
+        x_scaler, y_scaler = self.scalers()
         z = x_scaler(x[:, self.expert_columns])
         self.eval()
         locs, scales = [], []
         with torch.no_grad():
             for j, expert in enumerate(self.experts):
-                post = expert(z.expand(expert.n_outputs, *z.shape))  # type: ignore[operator]
+                post = expert(z.expand(expert.n_outputs, *z.shape))
                 var = post.variance.T + self.noise[j]
                 locs.append(post.mean.T * y_scaler.std + y_scaler.mean)
                 scales.append(var.sqrt() * y_scaler.std)
         return Normal(torch.stack(locs, dim=1), torch.stack(scales, dim=1))
 
-    def predict(self, X: Any, *, gating: str = "soft") -> MixtureSameFamily:
-        """Predictive mixture per sample: batch shape `(N,)`, event shape `(E,)`.
 
-        Args:
-            X: Features, `(N, D)`.
-            gating: ``"soft"`` (gate-weighted mixture) or ``"hard"`` (most probable expert).
-        """
-        return mixture_distribution(gated_probs(self.gate_probs(X), gating),
-                                    self.expert_predictions(X))
+def __getattr__(name: str) -> Any:
+    """`fit_svi` and `SVIHistory` live in `probaff.models.svi`; import them lazily from there."""
+    if name in ("SVIHistory", "fit_svi"):
+        from probaff.models import svi
 
-
-def _start(model: VariationalMixtureOfGPExperts, x: Tensor, y: Tensor,
-           init: str | Tensor | MixtureOfGPExperts, *,
-           n_init: int, seed: int, init_rows: int
-           ) -> tuple[Tensor, MixtureOfGPExperts | None]:
-    """Starting responsibilities `(N, M)` of `fit_svi`, and the exact mixture behind them."""
-    m = model.n_experts
-    if isinstance(init, MixtureOfGPExperts):
-        if init.n_experts != m or not init.is_fitted:
-            raise InputError(
-                f"init must be a fitted MixtureOfGPExperts with {m} experts; fit it with "
-                "probaff.models.fit_em first."
-            )
-        return torch.softmax(init.log_joint(x, y), dim=1), init
-    if isinstance(init, Tensor):
-        resp = as_matrix("init responsibilities", init, n_rows=x.shape[0], n_cols=m)
-        check_probability("init responsibilities", resp)
-        return resp / resp.sum(1, keepdim=True).clamp_min(1e-300), None
-    check_initialization(init)
-    gate_cols = resolve_features("gate_features", model.gate_features, model.groups, x.shape[1])
-    if init in ("effects", "joint"):
-        return initial_responsibilities(init, x[:, gate_cols], y, m, n_init=n_init,
-                                        seed=seed), None
-    rows = torch.randperm(x.shape[0], generator=torch.Generator().manual_seed(seed))[:init_rows]
-    exact = MixtureOfGPExperts(m, groups=model.groups, gate_features=model.gate_features,
-                               expert_features=model.expert_features, lengthscale_prior=True)
-    fit_em(exact, x[rows], y[rows], init=init, n_init=n_init, seed=seed)
-    return torch.softmax(exact.log_joint(x, y), dim=1), exact
-
-
-def fit_svi(
-    model: VariationalMixtureOfGPExperts,
-    X: Any,
-    Y: Any,
-    *,
-    n_steps: int = 1500,
-    batch_size: int = 64,
-    lr: float = 0.02,
-    n_init: int = 5,
-    seed: int = 0,
-    init: str | Tensor | MixtureOfGPExperts = "auto",
-    init_rows: int = 400,
-) -> SVIHistory:
-    """Fit a variational mixture of GP experts by minibatch SVI.
-
-    The model is initialised from responsibilities (`init`), then trained with
-    `pyro.infer.SVI` on `TraceEnum_ELBO`, which sums out every sample's expert assignment;
-    Adam with step size `lr`. Parameters live in a private Pyro parameter-store scope, and
-    the global random state is left untouched.
-
-    Initialisations are those of `probaff.models.fit_em`: ``"effects"`` and ``"joint"``
-    take the responsibilities of that Gaussian mixture; ``"grow"`` and ``"auto"`` fit an
-    exact mixture by EM with that `init` on at most `init_rows` rows (a seeded random
-    subset) and start from its responsibilities on every row and from its experts (their
-    hyperparameters, and q(u) on their predictive means); a fitted `MixtureOfGPExperts`
-    with the same experts and expert columns is such a start already made; a tensor
-    `(N, M)` gives the responsibilities directly.
-
-    Args:
-        model: The mixture to fit (rebuilt for the data).
-        X: Features, `(N, D)`.
-        Y: Effects, `(N, E)`.
-        n_steps: SVI steps.
-        batch_size: Minibatch size (capped at `N`).
-        lr: Adam step size.
-        n_init: Restarts of the initial Gaussian mixture.
-        seed: Seed of the initialisation and the minibatches.
-        init: ``"auto"`` (default), ``"grow"``, ``"effects"``, ``"joint"``, a fitted
-            `MixtureOfGPExperts`, or responsibilities `(N, M)`.
-        init_rows: Rows of the exact EM fit behind ``"grow"`` and ``"auto"``.
-
-    Returns:
-        The per-step losses.
-
-    Raises:
-        InputError: For NaN/inf, empty or mismatched inputs, more experts than samples, an
-            unknown `init`, or a non-integer count.
-    """
-    check_count("n_steps", n_steps)
-    check_count("batch_size", batch_size)
-    check_positive("lr", lr)
-    n_init = check_count("n_init", n_init)
-    init_rows = check_count("init_rows", init_rows)
-    x, y = training_data(X, Y, model.n_experts)
-    resp, exact = _start(model, x, y, init, n_init=n_init, seed=seed, init_rows=init_rows)
-    model.fitted = False
-    model.build(x, y, resp, exact)
-    x_scaler, y_scaler = model._scalers()
-    x_g = x[:, model.gate_columns]
-    x_e = x_scaler(x[:, model.expert_columns])
-    t = y_scaler(y)
-    n = x.shape[0]
-    b = min(int(batch_size), n)
-    history = SVIHistory()
-    generator = torch.Generator().manual_seed(seed)
-    model.train()
-    with torch.random.fork_rng(), pyro.get_param_store().scope(), _default_dtype(torch.float64):
-        torch.manual_seed(seed)
-        svi = SVI(
-            model.model,
-            model.guide,
-            pyro.optim.Adam({"lr": float(lr)}),
-            loss=TraceEnum_ELBO(max_plate_nesting=1),
-        )
-        for _ in range(int(n_steps)):
-            idx = torch.randperm(n, generator=generator)[:b]
-            history.loss.append(svi.step(x_g, x_e, t, idx) / n)
-    model.eval()
-    model.fitted = True
-    return history
+        return getattr(svi, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -6,10 +6,20 @@ Modules:
 """
 
 from probaff.perception.exploration import Exploration, explore, grid_distances
-from probaff.perception.occupancy import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
+from probaff.perception.occupancy import FREE_SPACE, OCCUPIED, UNKNOWN, OccupancyGrid
+
+
+def __getattr__(name: str) -> object:
+    """Deprecated aliases (PEP 562)."""
+    if name == "FREE":
+        from probaff.perception import occupancy
+
+        return occupancy.FREE
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
-    "FREE",
+    "FREE_SPACE",
     "OCCUPIED",
     "UNKNOWN",
     "Exploration",

@@ -20,7 +20,7 @@ import numpy as np
 from probaff._checks import check_shape
 from probaff.errors import InputError
 from probaff.grid import DIRECTION_OFFSETS
-from probaff.perception.occupancy import FREE, UNKNOWN, OccupancyGrid
+from probaff.perception.occupancy import FREE_SPACE, UNKNOWN, OccupancyGrid
 from probaff.sim.config import WarehouseSpec
 from probaff.sim.depth import DepthSensor
 from probaff.sim.warehouse import WarehouseMap
@@ -85,9 +85,14 @@ def _touches_unknown(states: np.ndarray) -> np.ndarray:
     return out
 
 
-def explore(spec: WarehouseSpec, m: WarehouseMap, start: tuple[int, int] | np.ndarray,
-            rng: np.random.Generator, resolution: float = 0.25,
-            free_fraction: float = 0.75) -> Exploration:
+def explore(
+    spec: WarehouseSpec,
+    m: WarehouseMap,
+    start: tuple[int, int] | np.ndarray,
+    rng: np.random.Generator,
+    resolution: float = 0.25,
+    free_fraction: float = 0.75,
+) -> Exploration:
     """Explore a map from a start cell until no reachable frontier remains.
 
     Args:
@@ -126,7 +131,7 @@ def explore(spec: WarehouseSpec, m: WarehouseMap, start: tuple[int, int] | np.nd
         cells.append(here)
         scanned[here] = True
         states = grid.cell_states(free_fraction)
-        dist = grid_distances(states == FREE, here)
+        dist = grid_distances(states == FREE_SPACE, here)
         goals = (dist >= 0) & ~scanned & _touches_unknown(states)
         if not goals.any():
             break
@@ -134,5 +139,6 @@ def explore(spec: WarehouseSpec, m: WarehouseMap, start: tuple[int, int] | np.nd
         flat = int(np.argmin(cost))
         here = (flat // m.shape[1], flat % m.shape[1])
         length += int(dist[here])
-    return Exploration(grid=grid, points=np.concatenate(clouds), cells=np.array(cells),
-                       path_length=length)
+    return Exploration(
+        grid=grid, points=np.concatenate(clouds), cells=np.array(cells), path_length=length
+    )

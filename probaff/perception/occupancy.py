@@ -17,6 +17,8 @@ than passed, and free otherwise.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from probaff._checks import check_count, check_finite, check_positive, check_shape
@@ -24,9 +26,22 @@ from probaff.errors import InputError
 from probaff.grid import DIRECTION_OFFSETS
 from probaff.sim.depth import DepthScan
 
-__all__ = ["FREE", "OCCUPIED", "UNKNOWN", "OccupancyGrid"]
+__all__ = ["FREE_SPACE", "OCCUPIED", "UNKNOWN", "OccupancyGrid"]
 
-UNKNOWN, FREE, OCCUPIED = 0, 1, 2  # sub-cell and cell states
+UNKNOWN, FREE_SPACE, OCCUPIED = 0, 1, 2  # sub-cell and cell states
+
+
+def __getattr__(name: str) -> object:
+    """Deprecated aliases (PEP 562)."""
+    if name == "FREE":
+        warnings.warn(
+            "probaff.perception.occupancy.FREE is deprecated; use FREE_SPACE (FREE "
+            "in probaff.maps means an unclamped variable).",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return FREE_SPACE
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _next_to(mask: np.ndarray) -> np.ndarray:
@@ -58,8 +73,14 @@ class OccupancyGrid:
             resolution that does not divide the cell.
     """
 
-    def __init__(self, shape: tuple[int, int], cell_size: float = 1.0, resolution: float = 0.25,
-                 margin: float = 0.04, hit_offset: float = 0.02) -> None:
+    def __init__(
+        self,
+        shape: tuple[int, int],
+        cell_size: float = 1.0,
+        resolution: float = 0.25,
+        margin: float = 0.04,
+        hit_offset: float = 0.02,
+    ) -> None:
         check_positive("cell_size", cell_size)
         check_positive("resolution", resolution)
         check_positive("margin", margin, allow_zero=True)
@@ -85,7 +106,7 @@ class OccupancyGrid:
     @property
     def fine_shape(self) -> tuple[int, int]:
         """``(rows k, cols k)`` of the sub-cell array."""
-        return self.passes.shape  # type: ignore[return-value]
+        return self.passes.shape
 
     def _grid_coords(self, xy: np.ndarray) -> np.ndarray:
         """Continuous ``(column, row)`` sub-cell coordinates (..., 2) of world xy (..., 2)."""
@@ -121,8 +142,7 @@ class OccupancyGrid:
     def _inside_indices(self, colrow: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Row and column index arrays of the integer ``(column, row)`` (N, 2) inside the grid."""
         n_i, n_j = self.fine_shape
-        ok = ((colrow[:, 0] >= 0) & (colrow[:, 0] < n_j) & (colrow[:, 1] >= 0)
-              & (colrow[:, 1] < n_i))
+        ok = (colrow[:, 0] >= 0) & (colrow[:, 0] < n_j) & (colrow[:, 1] >= 0) & (colrow[:, 1] < n_i)
         return colrow[ok, 1], colrow[ok, 0]
 
     def _trace(self, origin: np.ndarray, unit: np.ndarray, length: np.ndarray) -> None:
@@ -147,8 +167,7 @@ class OccupancyGrid:
             with np.errstate(divide="ignore", invalid="ignore"):
                 t = (lines - g0[axis]) / va
             crossings.append(np.where((va != 0) & (t < length[:, None]), t, np.inf))
-        t = np.sort(np.concatenate([np.zeros((len(length), 1)), *crossings,
-                                    length[:, None]], 1), 1)
+        t = np.sort(np.concatenate([np.zeros((len(length), 1)), *crossings, length[:, None]], 1), 1)
         a, b = t[:, :-1], t[:, 1:]
         seg = np.isfinite(b) & (b > a)
         ray, k = np.nonzero(seg)
@@ -160,9 +179,9 @@ class OccupancyGrid:
 
     @property
     def state(self) -> np.ndarray:
-        """(rows k, cols k) int8 sub-cell states: `UNKNOWN`, `FREE` or `OCCUPIED`."""
+        """(rows k, cols k) int8 sub-cell states: `UNKNOWN`, `FREE_SPACE` or `OCCUPIED`."""
         out = np.full(self.fine_shape, UNKNOWN, dtype=np.int8)
-        out[self.passes > 0] = FREE
+        out[self.passes > 0] = FREE_SPACE
         out[self.hits > self.passes] = OCCUPIED
         return out
 
@@ -175,7 +194,7 @@ class OccupancyGrid:
         rows, cols = self.shape
         k = self.per_cell
         blocks = self.state.reshape(rows, k, cols, k)
-        return np.stack([(blocks == s).mean((1, 3)) for s in (FREE, OCCUPIED, UNKNOWN)], -1)
+        return np.stack([(blocks == s).mean((1, 3)) for s in (FREE_SPACE, OCCUPIED, UNKNOWN)], -1)
 
     def cell_states(self, free_fraction: float = 0.75) -> np.ndarray:
         """Per warehouse cell state.
@@ -187,11 +206,11 @@ class OccupancyGrid:
             free_fraction: Share of free sub-cells that makes a cell known free.
 
         Returns:
-            (rows, cols) int8 of `UNKNOWN`, `FREE` or `OCCUPIED`.
+            (rows, cols) int8 of `UNKNOWN`, `FREE_SPACE` or `OCCUPIED`.
         """
         f = self.cell_fractions()
         out = np.full(self.shape, UNKNOWN, dtype=np.int8)
-        out[(f[..., 1] == 0.0) & (f[..., 0] >= free_fraction)] = FREE
+        out[(f[..., 1] == 0.0) & (f[..., 0] >= free_fraction)] = FREE_SPACE
         out[f[..., 1] > 0.0] = OCCUPIED
         return out
 
@@ -202,7 +221,7 @@ class OccupancyGrid:
             (rows k, cols k) bool.
         """
         st = self.state
-        return (st == FREE) & _next_to(st == UNKNOWN)
+        return (st == FREE_SPACE) & _next_to(st == UNKNOWN)
 
     def cell_frontier(self, free_fraction: float = 0.75) -> np.ndarray:
         """Warehouse cells known free with a 4-neighbour of unknown state inside the map.
@@ -214,4 +233,4 @@ class OccupancyGrid:
             (rows, cols) bool.
         """
         st = self.cell_states(free_fraction)
-        return (st == FREE) & _next_to(st == UNKNOWN)
+        return (st == FREE_SPACE) & _next_to(st == UNKNOWN)

@@ -200,8 +200,9 @@ class Arm:
         """Number of IK waypoints (ends included) along a push of `distance` metres."""
         return max(2, math.ceil(distance / self.spec.waypoint_spacing) + 1)
 
-    def solve_pushes(self, start_xy: torch.Tensor, yaw: torch.Tensor, distance: float
-                     ) -> PushPathIK:
+    def solve_pushes(
+        self, start_xy: torch.Tensor, yaw: torch.Tensor, distance: float
+    ) -> PushPathIK:
         """IK for straight top-down pushes, batched over pushes.
 
         The start poses are solved from the default seeds; each later waypoint is solved for all
@@ -221,8 +222,9 @@ class Arm:
         start_xy, yaw = start_xy.to(_DTYPE), yaw.to(_DTYPE)
         B, K, h = start_xy.shape[0], self.waypoint_count(distance), self.spec.push_height
         if B == 0:
-            return PushPathIK(torch.zeros(0, K, self.dof, dtype=_DTYPE),
-                              torch.zeros(0, dtype=torch.bool))
+            return PushPathIK(
+                torch.zeros(0, K, self.dof, dtype=_DTYPE), torch.zeros(0, dtype=torch.bool)
+            )
         start = self.ik(topdown_pose(start_xy, yaw, h))
         s = torch.linspace(0.0, distance, K, dtype=_DTYPE)
         d = torch.stack([torch.cos(yaw), torch.sin(yaw)], dim=-1)  # (B, 2)
@@ -232,8 +234,10 @@ class Arm:
             rows = ok.nonzero()[:, 0]
             if rows.numel() == 0:
                 break
-            nxt = self.ik(topdown_pose(start_xy[rows] + s[k] * d[rows], yaw[rows], h),
-                          q[rows, k - 1][:, None, :])
+            nxt = self.ik(
+                topdown_pose(start_xy[rows] + s[k] * d[rows], yaw[rows], h),
+                q[rows, k - 1][:, None, :],
+            )
             q[rows, k] = nxt.q
             ok[rows] = nxt.converged
         jump = (q[:, 1:] - q[:, :-1]).abs().amax(dim=(1, 2))
@@ -271,12 +275,16 @@ class Arm:
         check_shape("yaw", yaw, (xy.shape[0],))
         if xy.shape[0] == 0:
             return torch.zeros(0, dtype=torch.bool)
-        return self.ik(topdown_pose(xy.to(_DTYPE), yaw.to(_DTYPE), self.spec.push_height)
-                       ).converged
+        return self.ik(topdown_pose(xy.to(_DTYPE), yaw.to(_DTYPE), self.spec.push_height)).converged
 
-    def reachable_mask(self, x_range: tuple[float, float], y_range: tuple[float, float],
-                       resolution: float = 0.02, n_yaws: int = 4, require: str = "any"
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def reachable_mask(
+        self,
+        x_range: tuple[float, float],
+        y_range: tuple[float, float],
+        resolution: float = 0.02,
+        n_yaws: int = 4,
+        require: str = "any",
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Reachable region of a rectangle of the table at push height, from the chain.
 
         A grid point counts as reachable when the tool can point down there with ``any`` (or
@@ -298,8 +306,9 @@ class Arm:
         n_yaws = check_count("n_yaws", n_yaws)
         if require not in ("any", "all"):
             raise InputError(f"require must be 'any' or 'all', got {require!r}.")
-        return _reachable_mask_cached(self, tuple(x_range), tuple(y_range), float(resolution),
-                                      n_yaws, require)
+        return _reachable_mask_cached(
+            self, tuple(x_range), tuple(y_range), float(resolution), n_yaws, require
+        )
 
     def require_reachable(self, xy: torch.Tensor, yaw: torch.Tensor) -> None:
         """Raise `UnreachablePoseError` if any of the poses cannot be reached.
@@ -322,16 +331,22 @@ class Arm:
 
 
 @lru_cache(maxsize=16)
-def _reachable_mask_cached(arm: Arm, x_range: tuple[float, float], y_range: tuple[float, float],
-                           resolution: float, n_yaws: int, require: str
-                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _reachable_mask_cached(
+    arm: Arm,
+    x_range: tuple[float, float],
+    y_range: tuple[float, float],
+    resolution: float,
+    n_yaws: int,
+    require: str,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     xs = np.arange(x_range[0], x_range[1] + 1e-9, resolution)
     ys = np.arange(y_range[0], y_range[1] + 1e-9, resolution)
     gx, gy = np.meshgrid(xs, ys)
     pts = torch.as_tensor(np.stack([gx.ravel(), gy.ravel()], -1), dtype=_DTYPE)
     yaws = torch.linspace(-math.pi, math.pi, n_yaws + 1, dtype=_DTYPE)[:-1]
-    ok = torch.stack([arm.reachable(pts, torch.full((len(pts),), float(a), dtype=_DTYPE))
-                      for a in yaws], dim=-1)
+    ok = torch.stack(
+        [arm.reachable(pts, torch.full((len(pts),), float(a), dtype=_DTYPE)) for a in yaws], dim=-1
+    )
     reach = ok.any(-1) if require == "any" else ok.all(-1)
     return reach.numpy().reshape(gy.shape), xs, ys
 

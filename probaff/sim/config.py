@@ -16,7 +16,7 @@ from typing import Any
 
 import yaml
 
-from probaff._checks import check_count
+from probaff._checks import check_count, check_positive
 from probaff.errors import ConfigError, InputError
 
 __all__ = [
@@ -96,8 +96,45 @@ def _count(where: str, value: Any, *, minimum: int = 1) -> int:
         raise ConfigError(str(exc)) from None
 
 
-def _count_field(w: str, where: str, table: dict[str, Any], key: str, *, minimum: int = 1
-                 ) -> int:
+def _check_spec(
+    spec: object,
+    *,
+    positive: tuple[str, ...] = (),
+    nonneg: tuple[str, ...] = (),
+    counts: tuple[str, ...] = (),
+) -> None:
+    """Check the physical fields of a spec built in code, before any reaches pymunk.
+
+    The loaders check the world files field by field; this repeats the range checks for a spec
+    made or changed directly (e.g. with `dataclasses.replace`), where a negative mass or
+    friction would otherwise abort the process inside Chipmunk.
+
+    Args:
+        spec: The dataclass instance.
+        positive: Fields that must be finite numbers > 0 (a pair or tuple: each entry).
+        nonneg: Fields that must be finite numbers >= 0.
+        counts: Fields that must be positive integers.
+
+    Raises:
+        ConfigError: Naming the first bad field, e.g. ``ObjectSpec.mass``.
+    """
+    kind = type(spec).__name__
+    try:
+        for names, allow_zero in ((positive, False), (nonneg, True)):
+            for name in names:
+                value = getattr(spec, name)
+                if isinstance(value, (tuple, list)):
+                    for i, v in enumerate(value):
+                        check_positive(f"{kind}.{name}[{i}]", v, allow_zero=allow_zero)
+                else:
+                    check_positive(f"{kind}.{name}", value, allow_zero=allow_zero)
+        for name in counts:
+            check_count(f"{kind}.{name}", getattr(spec, name))
+    except InputError as exc:
+        raise ConfigError(str(exc)) from None
+
+
+def _count_field(w: str, where: str, table: dict[str, Any], key: str, *, minimum: int = 1) -> int:
     """The count ``table[key]`` of section `where` of file `w`, validated by `_count`."""
     return _count(f"{w}:{where}.{key}", _take(f"{w}:{where}", table, key), minimum=minimum)
 
@@ -115,8 +152,10 @@ def _range(where: str, value: Any, *, nonneg: bool = False, positive: bool = Fal
 def _pair(where: str, value: Any) -> tuple[float, float]:
     if not isinstance(value, (list, tuple)) or len(value) != 2:
         raise ConfigError(f"{where} must be a pair of positive numbers, got {value!r}.")
-    return (_number(f"{where}[0]", value[0], positive=True),
-            _number(f"{where}[1]", value[1], positive=True))
+    return (
+        _number(f"{where}[0]", value[0], positive=True),
+        _number(f"{where}[1]", value[1], positive=True),
+    )
 
 
 def _take(where: str, raw: dict[str, Any], key: str) -> Any:
@@ -163,6 +202,26 @@ class ObjectSpec:
     ground_friction: float
     contact_friction: float
 
+    def __post_init__(self) -> None:
+        if self.shape not in ("box", "circle"):
+            raise ConfigError(
+                f"ObjectSpec.shape of {self.name!r} must be 'box' or 'circle', got {self.shape!r}."
+            )
+        if not isinstance(self.size, (tuple, list)) or len(self.size) != 2:
+            raise ConfigError(
+                f"ObjectSpec.size of {self.name!r} must be a (length, width) pair, got "
+                f"{self.size!r}."
+            )
+        _check_spec(
+            self,
+            positive=("size", "height", "mass"),
+            nonneg=("ground_friction", "contact_friction"),
+        )
+        _check_spec(
+            self,
+            **({"positive": ("radius",)} if self.shape == "circle" else {"nonneg": ("radius",)}),
+        )
+
     @property
     def bounding_radius(self) -> float:
         """Radius (m) of the smallest origin-centred circle that holds the footprint."""
@@ -196,6 +255,20 @@ class GripperSpec:
     max_speed: float
     contact_friction: float
 
+    def __post_init__(self) -> None:
+        _check_spec(
+            self,
+            positive=(
+                "finger_radius",
+                "push_opening",
+                "mass",
+                "max_force",
+                "max_torque",
+                "max_speed",
+            ),
+            nonneg=("contact_friction",),
+        )
+
 
 @dataclass(frozen=True)
 class PhysicsSpec:
@@ -207,6 +280,14 @@ class PhysicsSpec:
     iterations: int
     collision_slop: float
     friction_grid: int
+
+    def __post_init__(self) -> None:
+        _check_spec(
+            self,
+            positive=("gravity", "control_rate"),
+            nonneg=("collision_slop",),
+            counts=("substeps", "iterations", "friction_grid"),
+        )
 
 
 @dataclass(frozen=True)
@@ -221,6 +302,17 @@ class TabletopSpec:
     push_acceleration: float
     settle_time: float
     record_rate: float
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.table_size, (tuple, list)) or len(self.table_size) != 2:
+            raise ConfigError(
+                f"TabletopSpec.table_size must be a (length, width) pair, got {self.table_size!r}."
+            )
+        _check_spec(
+            self,
+            positive=("table_size", "push_speed", "push_acceleration", "record_rate"),
+            nonneg=("settle_time",),
+        )
 
 
 @dataclass(frozen=True)
@@ -311,6 +403,29 @@ class WarehouseSpec:
     friction_grid: int
     collision_slop: float
 
+    def __post_init__(self) -> None:
+        _check_spec(
+            self,
+            positive=(
+                "cell_size",
+                "box_size",
+                "box_height",
+                "box_mass",
+                "box_ground_friction",
+                "wall_height",
+                "wall_thickness",
+                "robot_radius",
+                "robot_max_force",
+                "robot_speed",
+                "robot_acceleration",
+                "sensor_height",
+                "sensor_range",
+                "control_rate",
+            ),
+            nonneg=("box_contact_friction", "sensor_noise", "collision_slop"),
+            counts=("sensor_azimuths", "substeps", "iterations", "friction_grid"),
+        )
+
 
 def _load_root(path: Path | None, default: str) -> tuple[dict[str, Any], str, Path]:
     """``(mapping, file name for messages, path)`` of a world file."""
@@ -325,8 +440,7 @@ def load_warehouse(path: Path | None = None) -> WarehouseSpec:
         path: Another warehouse file; defaults to the one in `worlds_dir()`.
     """
     raw, w, _ = _load_root(path, "warehouse.yaml")
-    _no_extra(w, raw, {"grid", "cell_size", "boxes", "box", "wall", "robot", "sensor",
-                       "physics"})
+    _no_extra(w, raw, {"grid", "cell_size", "boxes", "box", "wall", "robot", "sensor", "physics"})
     grid = _take(w, raw, "grid")
     if not isinstance(grid, list) or len(grid) != 2:
         raise ConfigError(f"{w}:grid must be [rows, cols], integers >= 2, got {grid!r}.")
@@ -389,17 +503,23 @@ def _catalogue_cached(path: str) -> dict[str, ObjectSpec]:
         e = _mapping(where, entry)
         shape = _take(where, e, "shape")
         if shape == "box":
-            _no_extra(where, e, {"shape", "size", "height", "mass", "ground_friction",
-                                 "contact_friction"})
+            _no_extra(
+                where, e, {"shape", "size", "height", "mass", "ground_friction", "contact_friction"}
+            )
             size_raw = _take(where, e, "size")
             if not isinstance(size_raw, list) or len(size_raw) != 2:
                 raise ConfigError(f"{where}.size must be [length, width], got {size_raw!r}.")
-            size = (_number(f"{where}.size[0]", size_raw[0], positive=True),
-                    _number(f"{where}.size[1]", size_raw[1], positive=True))
+            size = (
+                _number(f"{where}.size[0]", size_raw[0], positive=True),
+                _number(f"{where}.size[1]", size_raw[1], positive=True),
+            )
             radius = 0.0
         elif shape == "circle":
-            _no_extra(where, e, {"shape", "radius", "height", "mass", "ground_friction",
-                                 "contact_friction"})
+            _no_extra(
+                where,
+                e,
+                {"shape", "radius", "height", "mass", "ground_friction", "contact_friction"},
+            )
             radius = _number(f"{where}.radius", _take(where, e, "radius"), positive=True)
             size = (2 * radius, 2 * radius)
         else:
@@ -411,10 +531,12 @@ def _catalogue_cached(path: str) -> dict[str, ObjectSpec]:
             radius=radius,
             height=_number(f"{where}.height", _take(where, e, "height"), positive=True),
             mass=_number(f"{where}.mass", _take(where, e, "mass"), positive=True),
-            ground_friction=_number(f"{where}.ground_friction", _take(where, e, "ground_friction"),
-                                    nonneg=True),
-            contact_friction=_number(f"{where}.contact_friction",
-                                     _take(where, e, "contact_friction"), nonneg=True),
+            ground_friction=_number(
+                f"{where}.ground_friction", _take(where, e, "ground_friction"), nonneg=True
+            ),
+            contact_friction=_number(
+                f"{where}.contact_friction", _take(where, e, "contact_friction"), nonneg=True
+            ),
         )
     if not out:
         raise ConfigError(f"{p} defines no objects.")
@@ -495,8 +617,9 @@ def list_scenes() -> list[str]:
     return sorted(p.stem for p in (worlds_dir() / "scenes").glob("*.yaml"))
 
 
-def _placement(where: str, raw: Any, catalogue: dict[str, ObjectSpec], first: bool
-               ) -> PlacementSpec:
+def _placement(
+    where: str, raw: Any, catalogue: dict[str, ObjectSpec], first: bool
+) -> PlacementSpec:
     e = _mapping(where, raw)
     _no_extra(where, e, {"choices", "x", "y", "along", "lateral", "yaw"})
     choices = _take(where, e, "choices")
@@ -513,12 +636,20 @@ def _placement(where: str, raw: Any, catalogue: dict[str, ObjectSpec], first: bo
             raise ConfigError(
                 f"{where}: the first object is placed by world x/y, not along/lateral."
             )
-        return PlacementSpec(tuple(choices), x=_range(f"{where}.x", _take(where, e, "x")),
-                             y=_range(f"{where}.y", _take(where, e, "y")), yaw=yaw)
+        return PlacementSpec(
+            tuple(choices),
+            x=_range(f"{where}.x", _take(where, e, "x")),
+            y=_range(f"{where}.y", _take(where, e, "y")),
+            yaw=yaw,
+        )
     if "x" in e or "y" in e:
         raise ConfigError(f"{where}: later objects are placed by along/lateral in the push frame.")
-    return PlacementSpec(tuple(choices), along=_range(f"{where}.along", _take(where, e, "along")),
-                         lateral=_range(f"{where}.lateral", _take(where, e, "lateral")), yaw=yaw)
+    return PlacementSpec(
+        tuple(choices),
+        along=_range(f"{where}.along", _take(where, e, "along")),
+        lateral=_range(f"{where}.lateral", _take(where, e, "lateral")),
+        yaw=yaw,
+    )
 
 
 def load_scene(name: str) -> SceneSpec:
@@ -540,19 +671,22 @@ def load_scene(name: str) -> SceneSpec:
     objs = _take(w, raw, "objects")
     if not isinstance(objs, list) or not objs:
         raise ConfigError(f"{w}: objects must be a non-empty list.")
-    placements = tuple(_placement(f"{w}:objects[{i}]", o, catalogue, i == 0)
-                       for i, o in enumerate(objs))
+    placements = tuple(
+        _placement(f"{w}:objects[{i}]", o, catalogue, i == 0) for i, o in enumerate(objs)
+    )
     walls = []
     for i, wr in enumerate(raw.get("walls") or []):
         ww = f"{w}:walls[{i}]"
         we = _mapping(ww, wr)
         _no_extra(ww, we, {"along", "lateral", "length", "angle"})
-        walls.append(WallSpec(
-            along=_range(f"{ww}.along", _take(ww, we, "along")),
-            lateral=_range(f"{ww}.lateral", _take(ww, we, "lateral")),
-            length=_number(f"{ww}.length", _take(ww, we, "length"), positive=True),
-            angle=_range(f"{ww}.angle", we.get("angle", [0.0, 0.0])),
-        ))
+        walls.append(
+            WallSpec(
+                along=_range(f"{ww}.along", _take(ww, we, "along")),
+                lateral=_range(f"{ww}.lateral", _take(ww, we, "lateral")),
+                length=_number(f"{ww}.length", _take(ww, we, "length"), positive=True),
+                angle=_range(f"{ww}.angle", we.get("angle", [0.0, 0.0])),
+            )
+        )
     pr = _mapping(f"{w}:push", _take(w, raw, "push"))
     _no_extra(f"{w}:push", pr, {"target", "distance", "direction", "lateral_offset", "start_gap"})
     target = _count(f"{w}:push.target", pr.get("target", 0), minimum=0)
@@ -563,14 +697,17 @@ def load_scene(name: str) -> SceneSpec:
         distance=_field(w, "push", pr, "distance", positive=True),
         direction=_range(f"{w}:push.direction", _take(f"{w}:push", pr, "direction")),
         lateral_offset=_range(f"{w}:push.lateral_offset", pr.get("lateral_offset", [0.0, 0.0])),
-        start_gap=_range(f"{w}:push.start_gap", _take(f"{w}:push", pr, "start_gap"),
-                         nonneg=True),
+        start_gap=_range(f"{w}:push.start_gap", _take(f"{w}:push", pr, "start_gap"), nonneg=True),
     )
     rnd = _mapping(f"{w}:randomise", raw.get("randomise") or {})
-    _no_extra(f"{w}:randomise", rnd, {"ground_friction_scale", "contact_friction_scale",
-                                      "mass_scale", "support_load_variation"})
-    variation = _number(f"{w}:randomise.support_load_variation",
-                        rnd.get("support_load_variation", 0.0), nonneg=True)
+    _no_extra(
+        f"{w}:randomise",
+        rnd,
+        {"ground_friction_scale", "contact_friction_scale", "mass_scale", "support_load_variation"},
+    )
+    variation = _number(
+        f"{w}:randomise.support_load_variation", rnd.get("support_load_variation", 0.0), nonneg=True
+    )
     if variation >= 1.0:
         raise ConfigError(f"{w}:randomise.support_load_variation must be < 1, got {variation}.")
     return SceneSpec(
@@ -579,12 +716,18 @@ def load_scene(name: str) -> SceneSpec:
         objects=placements,
         walls=tuple(walls),
         push=push,
-        ground_friction_scale=_range(f"{w}:randomise.ground_friction_scale",
-                                     rnd.get("ground_friction_scale", [1.0, 1.0]), positive=True),
-        contact_friction_scale=_range(f"{w}:randomise.contact_friction_scale",
-                                      rnd.get("contact_friction_scale", [1.0, 1.0]),
-                                      positive=True),
-        mass_scale=_range(f"{w}:randomise.mass_scale", rnd.get("mass_scale", [1.0, 1.0]),
-                          positive=True),
+        ground_friction_scale=_range(
+            f"{w}:randomise.ground_friction_scale",
+            rnd.get("ground_friction_scale", [1.0, 1.0]),
+            positive=True,
+        ),
+        contact_friction_scale=_range(
+            f"{w}:randomise.contact_friction_scale",
+            rnd.get("contact_friction_scale", [1.0, 1.0]),
+            positive=True,
+        ),
+        mass_scale=_range(
+            f"{w}:randomise.mass_scale", rnd.get("mass_scale", [1.0, 1.0]), positive=True
+        ),
         support_load_variation=variation,
     )

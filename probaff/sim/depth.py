@@ -73,8 +73,9 @@ def obstacle_bounds(spec: WarehouseSpec, m: WarehouseMap) -> tuple[np.ndarray, n
     return np.concatenate([box_lo, wall_lo]), np.concatenate([box_hi, wall_hi])
 
 
-def first_entry(origin: np.ndarray, directions: np.ndarray, lo: np.ndarray, hi: np.ndarray
-                ) -> np.ndarray:
+def first_entry(
+    origin: np.ndarray, directions: np.ndarray, lo: np.ndarray, hi: np.ndarray
+) -> np.ndarray:
     """Distance along each ray to the first axis-aligned box it enters (slab method).
 
     All rays are tested against all boxes at once. A box that holds the origin does not count.
@@ -121,11 +122,12 @@ class DepthSensor:
         self.azimuths = 2.0 * np.pi * np.arange(n_az) / n_az
         el = np.deg2rad(np.asarray(spec.sensor_elevations, dtype=float))
         az = self.azimuths[:, None]
-        self._rays = np.stack(np.broadcast_arrays(np.cos(el) * np.cos(az),
-                                                  np.cos(el) * np.sin(az), np.sin(el)),
-                              -1).reshape(-1, 3)  # (A E, 3) unit directions, azimuth-major
-        self._flat = np.column_stack([np.cos(self.azimuths), np.sin(self.azimuths),
-                                      np.zeros(n_az)])  # (A, 3) horizontal rays
+        self._rays = np.stack(
+            np.broadcast_arrays(np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)), -1
+        ).reshape(-1, 3)  # (A E, 3) unit directions, azimuth-major
+        self._flat = np.column_stack(
+            [np.cos(self.azimuths), np.sin(self.azimuths), np.zeros(n_az)]
+        )  # (A, 3) horizontal rays
         sin_el = np.broadcast_to(np.sin(el), (n_az, len(el))).ravel()
         with np.errstate(divide="ignore"):
             floor = np.where(sin_el < 0, spec.sensor_height / -sin_el, np.inf)
@@ -189,5 +191,6 @@ class DepthSensor:
         noisy = np.maximum(t_flat + spec.sensor_noise * rng.standard_normal(t_flat.shape), 0.0)
         r_flat = np.where(hits, noisy, spec.sensor_range)
         ends = xy + r_flat[:, None] * self._flat[:, :2]
-        return DepthScan(points=points, origin=origin, azimuths=self.azimuths.copy(), ends=ends,
-                         hits=hits)
+        return DepthScan(
+            points=points, origin=origin, azimuths=self.azimuths.copy(), ends=ends, hits=hits
+        )

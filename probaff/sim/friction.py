@@ -18,16 +18,28 @@ from collections.abc import Callable
 import numpy as np
 import pymunk
 
-__all__ = ["add_sliding_body"]
+from probaff._checks import check_finite, check_positive, check_shape
+from probaff.errors import InputError
+
+__all__ = ["Part", "add_sliding_body"]
 
 _CORE_MASS_FRACTION = 0.2
 
 
-def add_sliding_body(space: pymunk.Space, mass: float,
-                     make_shape: Callable[[pymunk.Body], pymunk.Shape],
-                     pose: tuple[float, float, float], support: np.ndarray,
-                     weights: np.ndarray, mu: float, gravity: float
-                     ) -> tuple[pymunk.Body, list[object]]:
+Part = pymunk.Body | pymunk.Shape | pymunk.Constraint
+"""Anything added to a pymunk space."""
+
+
+def add_sliding_body(
+    space: pymunk.Space,
+    mass: float,
+    make_shape: Callable[[pymunk.Body], pymunk.Shape],
+    pose: tuple[float, float, float],
+    support: np.ndarray,
+    weights: np.ndarray,
+    mu: float,
+    gravity: float,
+) -> tuple[pymunk.Body, list[Part]]:
     """Add a sliding body to `space`.
 
     Args:
@@ -44,9 +56,31 @@ def add_sliding_body(space: pymunk.Space, mass: float,
     Returns:
         ``(core, parts)``: the core body, and every body, shape and joint added (to remove the
         body again).
+
+    Raises:
+        InputError: For a mass or gravity <= 0, a negative or non-finite friction, pose,
+            support point or weight, or a weight count other than the support points';
+            checked before anything is added to `space`.
     """
+    check_positive("mass", mass)
+    check_positive("mu", mu, allow_zero=True)
+    check_positive("gravity", gravity)
+    check_shape("pose", np.asarray(pose, dtype=float), (3,))
+    check_finite("pose", np.asarray(pose, dtype=float))
+    support = np.asarray(support, dtype=float)
+    weights = np.asarray(weights, dtype=float)
+    check_shape("support", support, (None, 2))
+    check_finite("support", support)
+    check_finite("weights", weights)
+    if len(support) == 0:
+        raise InputError("support is empty; give at least one (x, y) support point.")
     if len(weights) != len(support):
-        raise ValueError(f"{len(weights)} support weights for {len(support)} support points.")
+        raise InputError(
+            f"{len(weights)} support weights for {len(support)} support points; build the "
+            "weights for friction_points(obj, world.physics.friction_grid)."
+        )
+    if weights.min() < 0:
+        raise InputError(f"weights must be >= 0 (relative normal loads), got {weights.min()}.")
     m_core = _CORE_MASS_FRACTION * mass
     m_foot = (mass - m_core) / len(support)
     core = pymunk.Body()
@@ -54,7 +88,7 @@ def add_sliding_body(space: pymunk.Space, mass: float,
     shape.mass = m_core
     core.position = (float(pose[0]), float(pose[1]))
     core.angle = float(pose[2])
-    added: list[object] = [core, shape]
+    added: list[Part] = [core, shape]
     limit = mu * mass * gravity / len(support)
     for p, w in zip(support, weights, strict=True):
         local = (float(p[0]), float(p[1]))

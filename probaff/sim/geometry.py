@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from probaff._checks import check_count
+from probaff._checks import check_count, check_finite, check_shape
 from probaff.sim.config import ObjectSpec
 
 __all__ = [
@@ -114,6 +114,16 @@ def push_frame_effect(before: np.ndarray, after: np.ndarray, push_yaw: float) ->
 
     Returns:
         (K, 3) ``(Delta y_p, Delta z_p, Delta theta_p)`` in metres and radians.
+
+    Raises:
+        InputError: If `before` or `after` is not a finite (K, 3) array (the same K), or
+            `push_yaw` is not finite: a NaN pose would otherwise give a NaN effect silently.
     """
+    before, after = np.asarray(before, dtype=float), np.asarray(after, dtype=float)
+    check_shape("before", before, (None, 3))
+    check_shape("after", after, (before.shape[0], 3))
+    check_finite("before", before)
+    check_finite("after", after)
+    check_finite("push_yaw", push_yaw)
     d = to_push_frame(after[:, :2], before[:, :2], push_yaw)
     return np.concatenate([d, (after[:, 2] - before[:, 2])[:, None]], axis=-1)

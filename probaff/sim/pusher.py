@@ -12,6 +12,8 @@ from collections.abc import Callable
 import numpy as np
 import pymunk
 
+from probaff._checks import check_finite, check_positive, check_shape
+
 __all__ = ["TrackedPusher"]
 
 
@@ -28,11 +30,35 @@ class TrackedPusher:
         max_torque: Torque limit (N m).
         max_speed: Fastest correction of a tracking error (m/s).
         max_spin: Fastest correction of a heading error (rad/s).
+
+    Raises:
+        InputError: For a non-finite (3,) `pose` or a mass, moment, limit or speed that is not
+            a finite number > 0, before anything is added to `space`.
     """
 
-    def __init__(self, space: pymunk.Space, pose: np.ndarray, mass: float, moment: float,
-                 make_shapes: Callable[[pymunk.Body], list[pymunk.Shape]], max_force: float,
-                 max_torque: float, max_speed: float, max_spin: float = 4.0) -> None:
+    def __init__(
+        self,
+        space: pymunk.Space,
+        pose: np.ndarray,
+        mass: float,
+        moment: float,
+        make_shapes: Callable[[pymunk.Body], list[pymunk.Shape]],
+        max_force: float,
+        max_torque: float,
+        max_speed: float,
+        max_spin: float = 4.0,
+    ) -> None:
+        check_shape("pose", np.asarray(pose, dtype=float), (3,))
+        check_finite("pose", np.asarray(pose, dtype=float))
+        for name, value in (
+            ("mass", mass),
+            ("moment", moment),
+            ("max_force", max_force),
+            ("max_torque", max_torque),
+            ("max_speed", max_speed),
+            ("max_spin", max_spin),
+        ):
+            check_positive(name, value)
         self.control = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
         self.control.position = (float(pose[0]), float(pose[1]))
         self.control.angle = float(pose[2])

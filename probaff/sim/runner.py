@@ -9,8 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from probaff._checks import check_count
-from probaff.errors import ConfigError, UnreachablePoseError
+from probaff._checks import check_count, check_finite, check_shape
+from probaff.errors import ConfigError, InputError, UnreachablePoseError
 from probaff.sim.arm import Arm, load_arm
 from probaff.sim.config import SceneSpec, TabletopSpec, load_catalogue, load_scene, load_tabletop
 from probaff.sim.sampling import sample_scene
@@ -21,8 +21,9 @@ __all__ = ["PushSample", "PushSimulator", "straight_path", "trapezoid_progress"]
 _MAX_DRAWS_PER_SAMPLE = 200
 
 
-def trapezoid_progress(distance: float, speed: float, acceleration: float, rate: float
-                       ) -> np.ndarray:
+def trapezoid_progress(
+    distance: float, speed: float, acceleration: float, rate: float
+) -> np.ndarray:
     """Fraction of a straight move covered at each control tick, with a trapezoidal speed.
 
     The speed ramps up at constant acceleration, cruises and ramps down, as an arm's
@@ -47,14 +48,18 @@ def trapezoid_progress(distance: float, speed: float, acceleration: float, rate:
     s = np.where(
         t < t_ramp,
         0.5 * acceleration * t**2,
-        np.where(t < total - t_ramp, d_ramp + speed * (t - t_ramp),
-                 distance - 0.5 * acceleration * (total - t) ** 2),
+        np.where(
+            t < total - t_ramp,
+            d_ramp + speed * (t - t_ramp),
+            distance - 0.5 * acceleration * (total - t) ** 2,
+        ),
     )
     return s / distance
 
 
-def straight_path(world: TabletopSpec, start_xy: np.ndarray, yaw: float, distance: float
-                  ) -> np.ndarray:
+def straight_path(
+    world: TabletopSpec, start_xy: np.ndarray, yaw: float, distance: float
+) -> np.ndarray:
     """An ideal straight hand path with the world's speed profile, without the arm.
 
     `PushSimulator` commands the FK of the arm's joint trajectory instead; this ideal path
@@ -69,10 +74,13 @@ def straight_path(world: TabletopSpec, start_xy: np.ndarray, yaw: float, distanc
     Returns:
         (T_c, 3) world ``(x, y, yaw)`` of the hand per control tick.
     """
-    s = distance * trapezoid_progress(distance, world.push_speed, world.push_acceleration,
-                                      world.physics.control_rate)
-    return np.stack([start_xy[0] + s * math.cos(yaw), start_xy[1] + s * math.sin(yaw),
-                     np.full_like(s, yaw)], axis=-1)
+    s = distance * trapezoid_progress(
+        distance, world.push_speed, world.push_acceleration, world.physics.control_rate
+    )
+    return np.stack(
+        [start_xy[0] + s * math.cos(yaw), start_xy[1] + s * math.sin(yaw), np.full_like(s, yaw)],
+        axis=-1,
+    )
 
 
 @dataclass(frozen=True)
@@ -104,8 +112,13 @@ class PushSimulator:
         self.catalogue = load_catalogue()
         self.arm: Arm = load_arm(self.world.arm)
         self.progress = torch.as_tensor(
-            trapezoid_progress(self.scene.push.distance, self.world.push_speed,
-                               self.world.push_acceleration, self.world.physics.control_rate))
+            trapezoid_progress(
+                self.scene.push.distance,
+                self.world.push_speed,
+                self.world.push_acceleration,
+                self.world.physics.control_rate,
+            )
+        )
 
     def hand_paths(self, scenes: list[SceneInstance]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Solve IK for a batch of pushes and trace the hand along each.
@@ -133,9 +146,26 @@ class PushSimulator:
             One sample per scene, in order.
 
         Raises:
+            InputError: If `scenes` is not a non-empty list of `SceneInstance`, or one holds
+                an invalid push start, yaw or physical parameter (named by its index).
             UnreachablePoseError: Naming the first push the arm cannot execute.
         """
-        ok, q, path = self.hand_paths(scenes)
+        if not isinstance(scenes, (list, tuple)) or not scenes:
+            raise InputError(
+                f"scenes must be a non-empty list of SceneInstance, got {scenes!r}; wrap a "
+                "single scene in a list."
+            )
+        for i, s in enumerate(scenes):
+            if not isinstance(s, SceneInstance):
+                raise InputError(
+                    f"scenes[{i}] must be a SceneInstance (see sample_scene or "
+                    f"SceneInstance.nominal), got {type(s).__name__}."
+                )
+            check_shape(f"scenes[{i}].push_origin", s.push_origin, (2,))
+            check_finite(f"scenes[{i}].push_origin (the push start)", s.push_origin)
+            check_finite(f"scenes[{i}].push_yaw", s.push_yaw)
+            s.validate()
+        ok, q, path = self.hand_paths(list(scenes))
         if not ok.all():
             i = int(np.flatnonzero(~ok)[0])
             x, y = scenes[i].push_origin
@@ -144,8 +174,9 @@ class PushSimulator:
                 f"d_p={self.scene.push.distance} m) leaves the arm's reachable workspace; "
                 "start it closer to the arm or push towards it (see Arm.reachable_mask())."
             )
-        return [PushSample(s, simulate_push(self.world, s, path[i]), q[i])
-                for i, s in enumerate(scenes)]
+        return [
+            PushSample(s, simulate_push(self.world, s, path[i]), q[i]) for i, s in enumerate(scenes)
+        ]
 
     def run(self, n: int, rng: np.random.Generator) -> Iterator[PushSample]:
         """Draw and simulate `n` valid, reachable pushes.
@@ -157,14 +188,25 @@ class PushSimulator:
             n: Number of pushes (an integer >= 0).
             rng: Source of randomness.
 
-        Yields:
-            `n` samples, in order.
+        Returns:
+            An iterator over `n` samples, in order; `n` and `rng` are checked at once, the
+            pushes are drawn and simulated as it is consumed.
 
         Raises:
-            InputError: If `n` is not an integer >= 0.
+            InputError: At the call, if `n` is not an integer >= 0 or `rng` is not a
+                `numpy.random.Generator`.
             ConfigError: If valid, reachable pushes are too rare to draw.
         """
-        n = check_count("n", n, minimum=0)
+        n = check_count("n", n, minimum=0)  # here, not when the first sample is asked for
+        if not isinstance(rng, np.random.Generator):
+            raise InputError(
+                f"rng must be a numpy.random.Generator (np.random.default_rng(seed)), got "
+                f"{type(rng).__name__}."
+            )
+        return self._run(n, rng)
+
+    def _run(self, n: int, rng: np.random.Generator) -> Iterator[PushSample]:
+        """The generator behind `run`, for a validated `n`."""
         done, draws = 0, 0
         while done < n:
             want = n - done

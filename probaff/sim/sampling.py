@@ -20,8 +20,9 @@ def _uniform(rng: np.random.Generator, r: tuple[float, float]) -> float:
     return float(r[0]) if r[0] == r[1] else float(rng.uniform(r[0], r[1]))
 
 
-def _shape_at(space: pymunk.Space, obj: ObjectSpec, x: float, y: float, theta: float
-              ) -> pymunk.Shape:
+def _shape_at(
+    space: pymunk.Space, obj: ObjectSpec, x: float, y: float, theta: float
+) -> pymunk.Shape:
     body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
     body.position, body.angle = (x, y), theta
     if obj.shape == "circle":
@@ -32,8 +33,12 @@ def _shape_at(space: pymunk.Space, obj: ObjectSpec, x: float, y: float, theta: f
     return shape
 
 
-def sample_scene(scene: SceneSpec, catalogue: dict[str, ObjectSpec], world: TabletopSpec,
-                 rng: np.random.Generator) -> SceneInstance | None:
+def sample_scene(
+    scene: SceneSpec,
+    catalogue: dict[str, ObjectSpec],
+    world: TabletopSpec,
+    rng: np.random.Generator,
+) -> SceneInstance | None:
     """Draw one scene and push, or ``None`` if the draw is physically invalid.
 
     A draw is invalid when an object's centre is off the table or two bodies (objects, walls,
@@ -79,14 +84,18 @@ def sample_scene(scene: SceneSpec, catalogue: dict[str, ObjectSpec], world: Tabl
     K = len(objs)
     mass = np.array([o.mass for o in objs]) * rng.uniform(*scene.mass_scale, size=K)
     mu_g = np.array([o.ground_friction for o in objs]) * rng.uniform(
-        *scene.ground_friction_scale, size=K)
+        *scene.ground_friction_scale, size=K
+    )
     mu_c = np.array([o.contact_friction for o in objs]) * rng.uniform(
-        *scene.contact_friction_scale, size=K)
+        *scene.contact_friction_scale, size=K
+    )
     v = scene.support_load_variation
     weights = []
     for o in objs:
-        w = rng.uniform(1.0 - v, 1.0 + v, size=len(friction_points(o, world.physics.friction_grid)))
-        weights.append(w / w.mean())
+        load = rng.uniform(
+            1.0 - v, 1.0 + v, size=len(friction_points(o, world.physics.friction_grid))
+        )
+        weights.append(load / load.mean())
 
     hx, hy = 0.5 * world.table_size[0], 0.5 * world.table_size[1]
     if any(abs(p[0]) > hx or abs(p[1]) > hy for p in poses):
@@ -97,7 +106,8 @@ def sample_scene(scene: SceneSpec, catalogue: dict[str, ObjectSpec], world: Tabl
     hand_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
     hand_body.position, hand_body.angle = (float(start[0]), float(start[1])), phi
     hand = pymunk.Poly.create_box(
-        hand_body, (2 * g.finger_radius, g.push_opening + 2 * g.finger_radius), radius=_CLEARANCE)
+        hand_body, (2 * g.finger_radius, g.push_opening + 2 * g.finger_radius), radius=_CLEARANCE
+    )
     space.add(hand_body, hand)
     for x0, y0, x1, y1 in walls:
         space.add(pymunk.Segment(space.static_body, (x0, y0), (x1, y1), 0.01 + _CLEARANCE))

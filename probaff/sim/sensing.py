@@ -33,8 +33,9 @@ class Scan:
     table_points: np.ndarray
 
 
-def _box_surface(obj: ObjectSpec, n: int, rng: np.random.Generator
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def _box_surface(
+    obj: ObjectSpec, n: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
     lx, ly, h = obj.size[0], obj.size[1], obj.height
     areas = np.array([lx * ly, ly * h, ly * h, lx * h, lx * h])
     face = rng.choice(5, size=n, p=areas / areas.sum())
@@ -57,8 +58,9 @@ def _box_surface(obj: ObjectSpec, n: int, rng: np.random.Generator
     return pts, nrm
 
 
-def _circle_surface(obj: ObjectSpec, n: int, rng: np.random.Generator
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def _circle_surface(
+    obj: ObjectSpec, n: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
     r, h = obj.radius, obj.height
     top_area, side_area = math.pi * r * r, 2 * math.pi * r * h
     top = rng.random(n) < top_area / (top_area + side_area)
@@ -66,13 +68,15 @@ def _circle_surface(obj: ObjectSpec, n: int, rng: np.random.Generator
     rad = np.where(top, r * np.sqrt(rng.random(n)), r)
     z = np.where(top, h, rng.random(n) * h)
     pts = np.stack([rad * np.cos(a), rad * np.sin(a), z], -1)
-    nrm = np.where(top[:, None], np.array([0.0, 0.0, 1.0]),
-                   np.stack([np.cos(a), np.sin(a), np.zeros(n)], -1))
+    nrm = np.where(
+        top[:, None], np.array([0.0, 0.0, 1.0]), np.stack([np.cos(a), np.sin(a), np.zeros(n)], -1)
+    )
     return pts, nrm
 
 
-def object_cloud(obj: ObjectSpec, pose: np.ndarray, n_points: int, noise: float,
-                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def object_cloud(
+    obj: ObjectSpec, pose: np.ndarray, n_points: int, noise: float, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
     """Sample a point cloud of one object.
 
     Args:
@@ -108,10 +112,13 @@ def _inside(obj: ObjectSpec, pose: np.ndarray, xy: np.ndarray) -> np.ndarray:
     return (np.abs(lx) <= 0.5 * obj.size[0]) & (np.abs(ly) <= 0.5 * obj.size[1])
 
 
-def table_cloud(table_size: tuple[float, float], spacing: float, noise: float,
-                rng: np.random.Generator,
-                occluders: list[tuple[ObjectSpec, np.ndarray]] = ()  # type: ignore[assignment]
-                ) -> np.ndarray:
+def table_cloud(
+    table_size: tuple[float, float],
+    spacing: float,
+    noise: float,
+    rng: np.random.Generator,
+    occluders: list[tuple[ObjectSpec, np.ndarray]] = (),  # type: ignore[assignment]
+) -> np.ndarray:
     """Sample the visible table top on a jittered grid.
 
     Args:
@@ -137,9 +144,15 @@ def table_cloud(table_size: tuple[float, float], spacing: float, noise: float,
     return pts + rng.normal(0.0, noise, pts.shape) if noise > 0 else pts
 
 
-def scan_scene(objects: tuple[ObjectSpec, ...], poses: np.ndarray,
-               table_size: tuple[float, float], rng: np.random.Generator,
-               n_points: int = 256, noise: float = 0.002, table_spacing: float = 0.02) -> Scan:
+def scan_scene(
+    objects: tuple[ObjectSpec, ...],
+    poses: np.ndarray,
+    table_size: tuple[float, float],
+    rng: np.random.Generator,
+    n_points: int = 256,
+    noise: float = 0.002,
+    table_spacing: float = 0.02,
+) -> Scan:
     """Scan a whole scene: every object and the uncovered table.
 
     Args:
@@ -159,11 +172,11 @@ def scan_scene(objects: tuple[ObjectSpec, ...], poses: np.ndarray,
             out of range.
     """
     n_points = check_count("n_points", n_points)
-    clouds = [object_cloud(o, p, n_points, noise, rng)
-              for o, p in zip(objects, poses, strict=True)]
+    clouds = [object_cloud(o, p, n_points, noise, rng) for o, p in zip(objects, poses, strict=True)]
     return Scan(
         object_points=np.stack([c[0] for c in clouds]),
         object_normals=np.stack([c[1] for c in clouds]),
-        table_points=table_cloud(table_size, table_spacing, noise, rng,
-                                 list(zip(objects, poses, strict=True))),
+        table_points=table_cloud(
+            table_size, table_spacing, noise, rng, list(zip(objects, poses, strict=True))
+        ),
     )

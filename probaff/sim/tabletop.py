@@ -16,9 +16,10 @@ from dataclasses import dataclass
 import numpy as np
 import pymunk
 
-from probaff._checks import check_count
+from probaff._checks import check_count, check_finite, check_positive, check_shape
+from probaff.errors import InputError
 from probaff.sim.config import ObjectSpec, TabletopSpec
-from probaff.sim.friction import add_sliding_body
+from probaff.sim.friction import Part, add_sliding_body
 from probaff.sim.geometry import friction_points, push_frame_effect
 from probaff.sim.pusher import TrackedPusher
 
@@ -59,10 +60,98 @@ class SceneInstance:
     push_yaw: float
     push_distance: float
 
+    def __post_init__(self) -> None:
+        objects = tuple(self.objects) if isinstance(self.objects, (tuple, list)) else ()
+        if not objects or not all(isinstance(o, ObjectSpec) for o in objects):
+            raise InputError(
+                "SceneInstance.objects must be a non-empty tuple of ObjectSpec (from "
+                f"load_catalogue()), got {self.objects!r}."
+            )
+        object.__setattr__(self, "objects", objects)
+        for name in (
+            "poses",
+            "mass",
+            "ground_friction",
+            "contact_friction",
+            "walls",
+            "push_origin",
+        ):
+            try:
+                value = np.asarray(getattr(self, name), dtype=float)
+            except (TypeError, ValueError):
+                raise InputError(
+                    f"SceneInstance.{name} must be a numeric array, got {getattr(self, name)!r}."
+                ) from None
+            object.__setattr__(self, name, value)
+        if not isinstance(self.support_weights, (tuple, list)):
+            raise InputError(
+                "SceneInstance.support_weights must be a tuple of one (P_k,) array per object, "
+                f"got {type(self.support_weights).__name__}."
+            )
+        object.__setattr__(
+            self, "support_weights", tuple(np.asarray(w, dtype=float) for w in self.support_weights)
+        )
+        self.validate()
+
+    def validate(self) -> None:
+        """Check every physical parameter, so that nothing invalid reaches pymunk.
+
+        Runs on construction, and again before a push is simulated (the arrays are mutable).
+
+        Raises:
+            InputError: Naming the field, for a wrong shape, a NaN or infinite value, a mass
+                or push distance <= 0, a negative friction or support load.
+        """
+        K = len(self.objects)
+        for name, shape in (
+            ("poses", (K, 3)),
+            ("mass", (K,)),
+            ("ground_friction", (K,)),
+            ("contact_friction", (K,)),
+            ("walls", (None, 4)),
+            ("push_origin", (2,)),
+        ):
+            check_shape(f"SceneInstance.{name}", getattr(self, name), shape)
+            check_finite(f"SceneInstance.{name}", getattr(self, name))
+        for k in range(K):
+            check_positive(f"SceneInstance.mass[{k}]", float(self.mass[k]))
+            check_positive(
+                f"SceneInstance.ground_friction[{k}]",
+                float(self.ground_friction[k]),
+                allow_zero=True,
+            )
+            check_positive(
+                f"SceneInstance.contact_friction[{k}]",
+                float(self.contact_friction[k]),
+                allow_zero=True,
+            )
+        if len(self.support_weights) != K:
+            raise InputError(
+                f"SceneInstance.support_weights has {len(self.support_weights)} entries for {K} "
+                "objects; give one (P_k,) array of relative loads per object."
+            )
+        for k, w in enumerate(self.support_weights):
+            check_shape(f"SceneInstance.support_weights[{k}]", w, (None,))
+            check_finite(f"SceneInstance.support_weights[{k}]", w)
+            if len(w) == 0 or w.min() < 0:
+                raise InputError(
+                    f"SceneInstance.support_weights[{k}] must be a non-empty array of loads "
+                    ">= 0 (mean 1); build it with np.ones(len(friction_points(obj, grid)))."
+                )
+        check_finite("SceneInstance.push_yaw", self.push_yaw)
+        check_positive("SceneInstance.push_distance", self.push_distance)
+
     @classmethod
-    def nominal(cls, objects: tuple[ObjectSpec, ...] | list[ObjectSpec], poses: np.ndarray,
-                push_origin: np.ndarray, push_yaw: float, push_distance: float,
-                friction_grid: int, walls: np.ndarray | None = None) -> SceneInstance:
+    def nominal(
+        cls,
+        objects: tuple[ObjectSpec, ...] | list[ObjectSpec],
+        poses: np.ndarray,
+        push_origin: np.ndarray,
+        push_yaw: float,
+        push_distance: float,
+        friction_grid: int,
+        walls: np.ndarray | None = None,
+    ) -> SceneInstance:
         """A scene with the catalogue's nominal masses and frictions and uniform pressure.
 
         Args:
@@ -81,17 +170,22 @@ class SceneInstance:
         objects = tuple(objects)
         return cls(
             objects=objects,
-            poses=np.asarray(poses, dtype=float).reshape(len(objects), 3),
+            poses=_rows_of_three(poses, len(objects)),
             mass=np.array([o.mass for o in objects]),
             ground_friction=np.array([o.ground_friction for o in objects]),
             contact_friction=np.array([o.contact_friction for o in objects]),
-            support_weights=tuple(np.ones(len(friction_points(o, friction_grid)))
-                                  for o in objects),
+            support_weights=tuple(np.ones(len(friction_points(o, friction_grid))) for o in objects),
             walls=np.zeros((0, 4)) if walls is None else np.asarray(walls, float).reshape(-1, 4),
             push_origin=np.asarray(push_origin, dtype=float),
             push_yaw=float(push_yaw),
             push_distance=float(push_distance),
         )
+
+
+def _rows_of_three(poses: np.ndarray, k: int) -> np.ndarray:
+    """`poses` as (k, 3) when it holds 3 k numbers; otherwise unchanged, for the shape check."""
+    arr = np.asarray(poses, dtype=float)
+    return arr.reshape(k, 3) if arr.size == 3 * k else arr
 
 
 @dataclass(frozen=True)
@@ -134,8 +228,9 @@ def _object_shape(body: pymunk.Body, obj: ObjectSpec) -> pymunk.Shape:
     return pymunk.Poly.create_box(body, obj.size)
 
 
-def _add_object(space: pymunk.Space, obj: ObjectSpec, scene: SceneInstance, k: int, grid: int,
-                gravity: float) -> tuple[pymunk.Body, list[object]]:
+def _add_object(
+    space: pymunk.Space, obj: ObjectSpec, scene: SceneInstance, k: int, grid: int, gravity: float
+) -> tuple[pymunk.Body, list[Part]]:
     """Add object `k` as a sliding body with friction spread over its footprint."""
 
     def make_shape(core: pymunk.Body) -> pymunk.Shape:
@@ -145,9 +240,16 @@ def _add_object(space: pymunk.Space, obj: ObjectSpec, scene: SceneInstance, k: i
         shape.collision_type = _OBJECT0 + k
         return shape
 
-    return add_sliding_body(space, float(scene.mass[k]), make_shape, tuple(scene.poses[k]),
-                            friction_points(obj, grid), scene.support_weights[k],
-                            float(scene.ground_friction[k]), gravity)
+    return add_sliding_body(
+        space,
+        float(scene.mass[k]),
+        make_shape,
+        tuple(scene.poses[k]),
+        friction_points(obj, grid),
+        scene.support_weights[k],
+        float(scene.ground_friction[k]),
+        gravity,
+    )
 
 
 class _Contacts:
@@ -177,8 +279,7 @@ def _pose(body: pymunk.Body) -> tuple[float, float, float]:
     return (body.position.x, body.position.y, body.angle)
 
 
-def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarray
-                  ) -> PushOutcome:
+def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarray) -> PushOutcome:
     """Run one push in a fresh pymunk space.
 
     Args:
@@ -190,7 +291,18 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
 
     Returns:
         The push's outcome.
+
+    Raises:
+        InputError: If `scene` holds an invalid physical parameter (see
+            `SceneInstance.validate`), or `hand_path` is not a finite (T_c, 3) array with
+            T_c >= 1.
     """
+    scene.validate()
+    hand_path = np.asarray(hand_path, dtype=float)
+    check_shape("hand_path", hand_path, (None, 3))
+    if len(hand_path) == 0:
+        raise InputError("hand_path is empty; give at least one (x, y, yaw) control tick.")
+    check_finite("hand_path", hand_path)
     phys, grip = world.physics, world.gripper
     space = pymunk.Space()
     space.gravity = (0.0, 0.0)
@@ -200,15 +312,16 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
     space.on_collision(None, None, begin=contacts.begin)
 
     bodies: list[pymunk.Body] = []
-    parts: list[list[object]] = []  # everything to remove when an object falls off the table
+    parts: list[list[Part]] = []  # everything to remove when an object falls off the table
     for k, obj in enumerate(scene.objects):
         body, extra = _add_object(space, obj, scene, k, phys.friction_grid, phys.gravity)
         bodies.append(body)
         parts.append(extra)
 
     for x0, y0, x1, y1 in scene.walls:
-        seg = pymunk.Segment(space.static_body, (float(x0), float(y0)), (float(x1), float(y1)),
-                             _WALL_RADIUS)
+        seg = pymunk.Segment(
+            space.static_body, (float(x0), float(y0)), (float(x1), float(y1)), _WALL_RADIUS
+        )
         seg.friction = math.sqrt(_WALL_FRICTION)
         seg.collision_type = _WALL
         space.add(seg)
@@ -216,7 +329,7 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
     half = 0.5 * grip.push_opening
 
     def make_fingers(hand: pymunk.Body) -> list[pymunk.Shape]:
-        fingers = []
+        fingers: list[pymunk.Shape] = []
         for side in (-1.0, 1.0):
             f = pymunk.Circle(hand, grip.finger_radius, (0.0, side * half))
             f.friction = math.sqrt(grip.contact_friction)
@@ -224,10 +337,16 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
             fingers.append(f)
         return fingers
 
-    pusher = TrackedPusher(space, hand_path[0], grip.mass,
-                           pymunk.moment_for_box(grip.mass, (2 * grip.finger_radius,
-                                                             grip.push_opening)),
-                           make_fingers, grip.max_force, grip.max_torque, grip.max_speed)
+    pusher = TrackedPusher(
+        space,
+        hand_path[0],
+        grip.mass,
+        pymunk.moment_for_box(grip.mass, (2 * grip.finger_radius, grip.push_opening)),
+        make_fingers,
+        grip.max_force,
+        grip.max_torque,
+        grip.max_speed,
+    )
     hand = pusher.body
 
     rate = phys.control_rate

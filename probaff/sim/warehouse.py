@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import pymunk
 
-from probaff._checks import check_count
+from probaff._checks import check_count, check_positive
 from probaff.errors import ConfigError, InputError
 from probaff.grid import DIRECTION_NAMES, DIRECTION_OFFSETS
 from probaff.sim.config import WarehouseSpec
@@ -26,8 +26,27 @@ from probaff.sim.friction import add_sliding_body
 from probaff.sim.pusher import TrackedPusher
 from probaff.sim.runner import trapezoid_progress
 
+
+def __getattr__(name: str) -> object:
+    """Deprecated alias ``DIRECTIONS`` of `probaff.grid.DIRECTION_OFFSETS`.
+
+    ``probaff.maps.DIRECTIONS`` is the tuple of direction names; this offset array shared its
+    name, so it is now reached only under its own name.
+    """
+    if name == "DIRECTIONS":
+        import warnings
+
+        warnings.warn(
+            "probaff.sim.warehouse.DIRECTIONS is deprecated; use "
+            "probaff.grid.DIRECTION_OFFSETS (the (d_row, d_col) offsets) instead.",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return DIRECTION_OFFSETS
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 __all__ = [
-    "DIRECTIONS",
     "DIRECTION_NAMES",
     "BoxPush",
     "WarehouseMap",
@@ -37,7 +56,6 @@ __all__ = [
     "rule_affordances",
 ]
 
-DIRECTIONS = DIRECTION_OFFSETS  # (d_row, d_col) per direction, in DIRECTION_NAMES order
 _PUSHED_FRACTION = 0.8  # a push succeeds when the box travels this fraction of a cell
 
 
@@ -59,10 +77,12 @@ class WarehouseMap:
             raise InputError(f"occupancy must be a 2-D bool array, got {occ.dtype} {occ.shape}.")
         if min(occ.shape) < 2:
             raise InputError(f"a warehouse needs at least 2 x 2 cells, got {occ.shape}.")
+        check_positive("cell_size", self.cell_size)
 
     @classmethod
-    def from_boxes(cls, shape: tuple[int, int], boxes: list[tuple[int, int]],
-                   cell_size: float = 1.0) -> WarehouseMap:
+    def from_boxes(
+        cls, shape: tuple[int, int], boxes: list[tuple[int, int]], cell_size: float = 1.0
+    ) -> WarehouseMap:
         """A map from a list of box cells.
 
         Args:
@@ -88,7 +108,7 @@ class WarehouseMap:
     @property
     def shape(self) -> tuple[int, int]:
         """``(rows, cols)``."""
-        return self.occupancy.shape  # type: ignore[return-value]
+        return self.occupancy.shape
 
     @property
     def boxes(self) -> np.ndarray:
@@ -112,13 +132,17 @@ class WarehouseMap:
     def inside(self, cells: np.ndarray) -> np.ndarray:
         """(...,) whether ``(row, col)`` (..., 2) lie inside the walls."""
         cells = np.asarray(cells)
-        return ((cells[..., 0] >= 0) & (cells[..., 0] < self.shape[0]) & (cells[..., 1] >= 0)
-                & (cells[..., 1] < self.shape[1]))
+        return (
+            (cells[..., 0] >= 0)
+            & (cells[..., 0] < self.shape[0])
+            & (cells[..., 1] >= 0)
+            & (cells[..., 1] < self.shape[1])
+        )
 
     def moved(self, cell: tuple[int, int], direction: int) -> WarehouseMap:
         """The map after the box at `cell` moved one cell in `direction`."""
         r, c = cell
-        dr, dc = DIRECTIONS[direction]
+        dr, dc = DIRECTION_OFFSETS[direction]
         occ = self.occupancy.copy()
         if not occ[r, c]:
             raise InputError(f"no box at cell ({r}, {c}) to move.")
@@ -128,9 +152,12 @@ class WarehouseMap:
         return WarehouseMap(occ, self.cell_size)
 
 
-def generate_map(spec: WarehouseSpec, rng: np.random.Generator,
-                 shape: tuple[int, int] | None = None,
-                 n_boxes: tuple[int, int] | None = None) -> WarehouseMap:
+def generate_map(
+    spec: WarehouseSpec,
+    rng: np.random.Generator,
+    shape: tuple[int, int] | None = None,
+    n_boxes: tuple[int, int] | None = None,
+) -> WarehouseMap:
     """A random warehouse map.
 
     Args:
@@ -149,8 +176,10 @@ def generate_map(spec: WarehouseSpec, rng: np.random.Generator,
         ConfigError: If the boxes cannot fit with one cell left free.
     """
     rows, cols = shape or (spec.rows, spec.cols)
-    rows, cols = (check_count("shape[0]", rows, minimum=2),
-                  check_count("shape[1]", cols, minimum=2))
+    rows, cols = (
+        check_count("shape[0]", rows, minimum=2),
+        check_count("shape[1]", cols, minimum=2),
+    )
     if n_boxes is None:
         scale = rows * cols / (spec.rows * spec.cols)
         n_boxes = (round(spec.boxes[0] * scale), round(spec.boxes[1] * scale))
@@ -177,8 +206,8 @@ def rule_affordances(m: WarehouseMap) -> np.ndarray:
     padded = np.ones((rows + 2, cols + 2), dtype=bool)  # the walls count as occupied
     padded[1:-1, 1:-1] = m.occupancy
     out = np.zeros((rows, cols, 4), dtype=bool)
-    for k, (dr, dc) in enumerate(DIRECTIONS):
-        beyond = padded[1 + dr: 1 + dr + rows, 1 + dc: 1 + dc + cols]
+    for k, (dr, dc) in enumerate(DIRECTION_OFFSETS):
+        beyond = padded[1 + dr : 1 + dr + rows, 1 + dc : 1 + dc + cols]
         out[..., k] = m.occupancy & ~beyond
     return out
 
@@ -213,8 +242,13 @@ def _box_support(spec: WarehouseSpec) -> np.ndarray:
     return np.stack([gx.ravel(), gy.ravel()], -1)
 
 
-def push_box(spec: WarehouseSpec, m: WarehouseMap, cell: tuple[int, int], direction: int,
-             neighbourhood: int = 2) -> BoxPush:
+def push_box(
+    spec: WarehouseSpec,
+    m: WarehouseMap,
+    cell: tuple[int, int],
+    direction: int,
+    neighbourhood: int = 2,
+) -> BoxPush:
     """Push the box at `cell` one cell in `direction` with the robot, in pymunk.
 
     The robot starts on the far side of the box, touching it, and drives one cell length with
@@ -241,9 +275,10 @@ def push_box(spec: WarehouseSpec, m: WarehouseMap, cell: tuple[int, int], direct
     r, c = cell
     if not m.inside(np.array(cell)) or not m.occupancy[r, c]:
         raise InputError(f"there is no box at cell {cell} to push.")
-    if not 0 <= direction < 4:
-        raise InputError(f"direction must be 0..3 ({DIRECTION_NAMES}), got {direction}.")
-    dr, dc = DIRECTIONS[direction]
+    if isinstance(direction, (bool, str)) or direction not in range(4):
+        raise InputError(f"direction must be 0..3 ({DIRECTION_NAMES}), got {direction!r}.")
+    direction = int(direction)
+    dr, dc = DIRECTION_OFFSETS[direction]
     d = np.array([dc, -dr], dtype=float)  # world unit vector of the push
     s = spec.cell_size
     space = pymunk.Space()
@@ -263,8 +298,16 @@ def push_box(spec: WarehouseSpec, m: WarehouseMap, cell: tuple[int, int], direct
             shape.friction = math.sqrt(spec.box_contact_friction)
             return shape
 
-        body, _ = add_sliding_body(space, spec.box_mass, make_shape, (*centre, 0.0), support,
-                                   ones, spec.box_ground_friction, 9.81)
+        body, _ = add_sliding_body(
+            space,
+            spec.box_mass,
+            make_shape,
+            (*centre, 0.0),
+            support,
+            ones,
+            spec.box_ground_friction,
+            9.81,
+        )
         if (rr, cc) == (r, c):
             pushed = body
         else:
@@ -273,8 +316,12 @@ def push_box(spec: WarehouseSpec, m: WarehouseMap, cell: tuple[int, int], direct
     rows, cols = m.shape
     t = 0.5 * spec.wall_thickness
     W, H = cols * s, rows * s
-    for a, b in (((-t, -t), (W + t, -t)), ((W + t, -t), (W + t, H + t)),
-                 ((W + t, H + t), (-t, H + t)), ((-t, H + t), (-t, -t))):
+    for a, b in (
+        ((-t, -t), (W + t, -t)),
+        ((W + t, -t), (W + t, H + t)),
+        ((W + t, H + t), (-t, H + t)),
+        ((-t, H + t), (-t, -t)),
+    ):
         if _segment_distance(start, np.array(a), np.array(b)) < spec.robot_radius + t:
             continue  # the robot stands where this wall is: it measures the box, not access
         seg = pymunk.Segment(space.static_body, a, b, t)
@@ -288,9 +335,16 @@ def push_box(spec: WarehouseSpec, m: WarehouseMap, cell: tuple[int, int], direct
         disc.friction = 0.5
         return [disc]
 
-    robot = TrackedPusher(space, np.array([*start, yaw]), 80.0,
-                          pymunk.moment_for_circle(80.0, 0, spec.robot_radius), make_robot,
-                          spec.robot_max_force, 200.0, spec.robot_speed)
+    robot = TrackedPusher(
+        space,
+        np.array([*start, yaw]),
+        80.0,
+        pymunk.moment_for_circle(80.0, 0, spec.robot_radius),
+        make_robot,
+        spec.robot_max_force,
+        200.0,
+        spec.robot_speed,
+    )
     prog = s * trapezoid_progress(s, spec.robot_speed, spec.robot_acceleration, spec.control_rate)
     settle = int(0.3 * spec.control_rate)
     prog = np.concatenate([prog, np.full(settle, prog[-1])])

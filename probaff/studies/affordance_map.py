@@ -4,9 +4,10 @@
 (generated from an independent seed stream, so disjoint from the training maps), explores it
 from a random free cell and runs the manipulation loop twice from that same exploration: once
 with the information-gain policy on the MRF and once with the exhaustive nearest-box baseline
-(`probaff.maps.loop`). Each test map is one resumable task (`run_tasks`); its result lands in
-``out/tasks/`` as JSON, keyed by the map index and a fingerprint of every setting that shapes
-the results, so a rerun recomputes only missing maps and never mixes settings.
+(`probaff.planning.manipulation_loop`). Each test map is one resumable task (`run_tasks`); its
+result lands in ``out/tasks/`` as JSON, keyed by the map index and a fingerprint of every
+setting that shapes the results, so a rerun recomputes only missing maps and never mixes
+settings. The MRF's settings are one `MRFParams` (``config.mrf``).
 
 A loop that stops early keeps its last state: the curves carry its last values to
 ``max_steps``. Outputs in ``out/`` (all written atomically): ``entropy.csv`` (per policy and
@@ -21,13 +22,11 @@ every believed box that truly is a box and has a prediction, threshold 0.5.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-import json
 import math
 import os
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import InitVar, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -38,19 +37,20 @@ from probaff._dask import check_workers
 from probaff._io import atomic_write_text
 from probaff._threads import torch_threads
 from probaff.errors import InputError
+from probaff.eval.fingerprint import config_fingerprint
 from probaff.eval.map_figures import plot_loop_steps, plot_mrf_smoothing, plot_step_curves
 from probaff.eval.tasks import ResultStore, run_tasks
 from probaff.grid import DIRECTION_NAMES
-from probaff.maps.classifier import AffordanceClassifier, collect_voxels
-from probaff.maps.graph import check_coupling
-from probaff.maps.loop import POLICIES, LoopSnapshot, ManipulationLoop
-from probaff.maps.planner import check_alpha
+from probaff.maps.options import MRFParams
 from probaff.perception.exploration import explore
+from probaff.planning.classifier import AffordanceClassifier, collect_voxels
+from probaff.planning.manipulation_loop import POLICIES, LoopSnapshot, ManipulationLoop
 from probaff.sim.config import WarehouseSpec, load_warehouse
 from probaff.sim.warehouse import WarehouseMap, generate_map, rule_affordances
 
 __all__ = [
     "NOISY_SENSOR",
+    "RUN_ONLY",
     "AffordanceMapConfig",
     "demo",
     "map_task",
@@ -76,11 +76,11 @@ class AffordanceMapConfig:
         n_maps: Test maps.
         seed: Seed of the training maps, the test maps, the starts and all sensor noise.
         train_maps: Maps the classifier is trained on.
-        alpha: Weight of the reward in ``G = alpha R - (1 - alpha) C``.
-        coupling: Ising strength ``J`` of the MRF.
-        symmetry_coupling: ``J_sym`` of the MRF's symmetry factors, or None.
-        along_coupling: Ising strength between neighbours along a direction, or None for
-            `coupling` (the thesis's choice).
+        mrf: The MRF's couplings ``J``, ``J_sym``, ``J_along`` and the reward weight
+            ``alpha`` of ``G = alpha R - (1 - alpha) C`` (validated by `MRFParams`). The
+            keywords ``alpha``, ``coupling``, ``symmetry_coupling`` and ``along_coupling``
+            are accepted by the constructor as shorthands that replace those fields of
+            `mrf`, and are readable as properties.
         max_steps: Most pushes per map and policy.
         out: Output folder.
         workers: 0 runs in this process; K > 0 or None uses a local Dask cluster.
@@ -94,10 +94,7 @@ class AffordanceMapConfig:
     n_maps: int = 20
     seed: int = 0
     train_maps: int = 20
-    alpha: float = 0.8
-    coupling: float = 0.4
-    symmetry_coupling: float | None = None
-    along_coupling: float | None = None
+    mrf: MRFParams = field(default_factory=MRFParams)
     max_steps: int = 20
     out: str = "results/affordance_map"
     workers: int | None = 0
@@ -105,6 +102,33 @@ class AffordanceMapConfig:
     progress: bool = True
     sensor_noise: float | None = None
     stop_at_no_gain: bool = True
+    alpha: InitVar[float | None] = None
+    coupling: InitVar[float | None] = None
+    symmetry_coupling: InitVar[float | None] = None
+    along_coupling: InitVar[float | None] = None
+
+    def __post_init__(
+        self,
+        alpha: float | None,
+        coupling: float | None,
+        symmetry_coupling: float | None,
+        along_coupling: float | None,
+    ) -> None:
+        """Fold the shorthand MRF keywords into `mrf` (validated there, once)."""
+        given = {
+            k: v
+            for k, v in (
+                ("alpha", alpha),
+                ("coupling", coupling),
+                ("symmetry_coupling", symmetry_coupling),
+                ("along_coupling", along_coupling),
+            )
+            if v is not None
+        }
+        if not isinstance(self.mrf, MRFParams):
+            raise InputError(f"mrf must be an MRFParams, got {type(self.mrf).__name__}.")
+        if given:
+            object.__setattr__(self, "mrf", dataclasses.replace(self.mrf, **given))
 
     def validate(self) -> AffordanceMapConfig:
         """Check the settings and return them with their counts as builtin ints.
@@ -121,39 +145,57 @@ class AffordanceMapConfig:
         train_maps = check_count("train_maps", self.train_maps)
         max_steps = check_count("max_steps", self.max_steps, minimum=0)
         seed = check_count("seed", self.seed, minimum=0)
-        check_alpha(self.alpha)
-        check_coupling("coupling", self.coupling)
-        if self.symmetry_coupling is not None:
-            check_coupling("symmetry_coupling", self.symmetry_coupling)
-        if self.along_coupling is not None:
-            check_coupling("along_coupling", self.along_coupling)
         if self.sensor_noise is not None and not (
-                math.isfinite(self.sensor_noise) and self.sensor_noise >= 0):
+            math.isfinite(self.sensor_noise) and self.sensor_noise >= 0
+        ):
             raise InputError(f"sensor_noise must be a number >= 0, got {self.sensor_noise!r}.")
         workers = check_workers(self.workers)
-        return dataclasses.replace(self, n_maps=n_maps, train_maps=train_maps,
-                                   max_steps=max_steps, seed=seed, workers=workers)
+        return dataclasses.replace(
+            self,
+            n_maps=n_maps,
+            train_maps=train_maps,
+            max_steps=max_steps,
+            seed=seed,
+            workers=workers,
+        )
 
     def fingerprint(self) -> str:
-        """Short hash of every setting that changes a map's result (not `n_maps` or `out`)."""
-        keys = ("seed", "train_maps", "alpha", "coupling", "symmetry_coupling", "max_steps",
-                "sensor_noise", "stop_at_no_gain")
-        settings = {k: getattr(self, k) for k in keys}
-        if self.along_coupling is not None:  # absent: the fingerprints of earlier runs hold
-            settings["along_coupling"] = self.along_coupling
-        text = json.dumps(settings, sort_keys=True)
-        return hashlib.sha256(text.encode()).hexdigest()[:10]
+        """Short hash of every setting that changes a map's result (see `RUN_ONLY`)."""
+        return config_fingerprint(self, exclude=RUN_ONLY, version=2)
+
+
+RUN_ONLY = frozenset({"n_maps", "out", "workers", "scheduler", "progress"})
+"""Fields of `AffordanceMapConfig` that do not change any map's result (each map's result is
+keyed by its index, so more maps only add results)."""
+
+
+def _mrf_property(name: str) -> property:
+    """A read-only view of ``config.mrf.<name>`` under the old flat field name."""
+    return property(
+        lambda self: getattr(self.mrf, name), doc=f"Shorthand for ``mrf.{name}`` (see `MRFParams`)."
+    )
+
+
+# The InitVar defaults are class attributes; replace them by views of `mrf` once the
+# dataclass machinery has built __init__ (which keeps None as the keywords' default).
+for _name in ("alpha", "coupling", "symmetry_coupling", "along_coupling"):
+    setattr(AffordanceMapConfig, _name, _mrf_property(_name))
+del _name
 
 
 def world(sensor_noise: float | None = None) -> WarehouseSpec:
     """The warehouse world, with the sensor's range noise replaced if given."""
     spec = load_warehouse()
-    return spec if sensor_noise is None else dataclasses.replace(spec,
-                                                                 sensor_noise=float(sensor_noise))
+    return (
+        spec
+        if sensor_noise is None
+        else dataclasses.replace(spec, sensor_noise=float(sensor_noise))
+    )
 
 
-def train_classifier(spec: WarehouseSpec, n_maps: int, seed: int
-                     ) -> tuple[AffordanceClassifier, dict[str, Any]]:
+def train_classifier(
+    spec: WarehouseSpec, n_maps: int, seed: int
+) -> tuple[AffordanceClassifier, dict[str, Any]]:
     """Train the classifier on generated, explored training maps.
 
     Args:
@@ -171,8 +213,13 @@ def train_classifier(spec: WarehouseSpec, n_maps: int, seed: int
     seed = check_count("seed", seed, minimum=0)
     data = collect_voxels(spec, n_maps, np.random.default_rng((seed, _STREAM_TRAIN)))
     model = AffordanceClassifier().fit(data.features, data.labels)
-    info = {"maps": n_maps, "voxels": len(data.features), "boxes": data.n_boxes,
-            "unseen_boxes": data.unseen_boxes, "positives": data.labels.sum(0).tolist()}
+    info = {
+        "maps": n_maps,
+        "voxels": len(data.features),
+        "boxes": data.n_boxes,
+        "unseen_boxes": data.unseen_boxes,
+        "positives": data.labels.sum(0).tolist(),
+    }
     return model, info
 
 
@@ -189,26 +236,36 @@ def _confusion(unary: np.ndarray, believed: np.ndarray, m: WarehouseMap) -> dict
     cells = believed & m.occupancy & np.isfinite(unary).all(-1)
     pred = unary[cells] >= 0.5
     truth = rule_affordances(m)[cells]
-    return {"tp": (pred & truth).sum(0).tolist(), "fp": (pred & ~truth).sum(0).tolist(),
-            "fn": (~pred & truth).sum(0).tolist(), "tn": (~pred & ~truth).sum(0).tolist()}
+    return {
+        "tp": (pred & truth).sum(0).tolist(),
+        "fp": (pred & ~truth).sum(0).tolist(),
+        "fn": (~pred & truth).sum(0).tolist(),
+        "tn": (~pred & ~truth).sum(0).tolist(),
+    }
 
 
 def _snapshot_json(shot: LoopSnapshot) -> dict[str, Any]:
-    return {"occupancy": np.asarray(shot.occupancy, dtype=bool).tolist(),
-            "pushability": _grid_json(shot.pushability), "robot": list(shot.robot),
-            "push": None if shot.push is None else list(shot.push), "entropy": shot.entropy}
+    return {
+        "occupancy": np.asarray(shot.occupancy, dtype=bool).tolist(),
+        "pushability": _grid_json(shot.pushability),
+        "robot": list(shot.robot),
+        "push": None if shot.push is None else list(shot.push),
+        "entropy": shot.entropy,
+    }
 
 
-def map_task(spec: WarehouseSpec, classifier: AffordanceClassifier, index: int,
-             settings: dict[str, Any]) -> dict[str, Any]:
+def map_task(
+    spec: WarehouseSpec, classifier: AffordanceClassifier, index: int, settings: dict[str, Any]
+) -> dict[str, Any]:
     """Explore one test map and run both policies on it.
 
     Args:
         spec: The warehouse world.
         classifier: The trained classifier.
         index: Test map index (an integer >= 0).
-        settings: ``seed``, ``alpha``, ``coupling``, ``symmetry_coupling``, ``max_steps`` and
-            ``stop_at_no_gain``.
+        settings: ``seed``, ``max_steps``, ``stop_at_no_gain`` and the `MRFParams` fields
+            (``alpha``, ``coupling``, ``symmetry_coupling``, ``along_coupling``) flat, so that
+            the task's arguments stay JSON-like; a missing or None field keeps its default.
 
     Returns:
         A JSON-ready result: the map, its exploration, the classifier's confusion counts, each
@@ -221,6 +278,13 @@ def map_task(spec: WarehouseSpec, classifier: AffordanceClassifier, index: int,
     index = check_count("index", index, minimum=0)
     seed = check_count("seed", settings["seed"], minimum=0)
     max_steps = check_count("max_steps", settings["max_steps"], minimum=0)
+    mrf_params = MRFParams(
+        **{
+            f.name: settings[f.name]
+            for f in dataclasses.fields(MRFParams)
+            if settings.get(f.name) is not None
+        }
+    )
     with torch_threads(1):  # one core per task, and reproducible reductions
         t0 = time.perf_counter()
         rng = np.random.default_rng((seed, _STREAM_TEST, index))
@@ -229,30 +293,42 @@ def map_task(spec: WarehouseSpec, classifier: AffordanceClassifier, index: int,
         start = free[rng.integers(len(free))]
         run_ex = explore(spec, m, start, rng)
         out: dict[str, Any] = {
-            "index": index, "boxes": m.boxes.tolist(), "shape": list(m.shape),
-            "start": start.tolist(), "scans": len(run_ex.cells),
-            "exploration_length": run_ex.path_length, "policies": {},
+            "index": index,
+            "boxes": m.boxes.tolist(),
+            "shape": list(m.shape),
+            "start": start.tolist(),
+            "scans": len(run_ex.cells),
+            "exploration_length": run_ex.path_length,
+            "policies": {},
         }
         for k, policy in enumerate(POLICIES):
-            loop = ManipulationLoop(spec, m, run_ex, classifier, policy=policy,
-                                    alpha=settings["alpha"], coupling=settings["coupling"],
-                                    symmetry_coupling=settings["symmetry_coupling"],
-                                    along_coupling=settings.get("along_coupling"),
-                                    rng=np.random.default_rng((seed, _STREAM_LOOP, index, k)),
-                                    stop_at_no_gain=settings["stop_at_no_gain"])
+            loop = ManipulationLoop(
+                spec,
+                m,
+                run_ex,
+                classifier,
+                policy=policy,
+                mrf=mrf_params,
+                rng=np.random.default_rng((seed, _STREAM_LOOP, index, k)),
+                stop_at_no_gain=settings["stop_at_no_gain"],
+            )
             if policy == "information_gain":
                 mrf = loop.graphs()[1]
                 out["classifier"] = _confusion(loop.unary, loop.believed, m)
                 out["figure"] = {
                     "occupancy": loop.believed.tolist(),
-                    "unary": _grid_json(np.where(loop.believed[..., None],
-                                                 loop.unary_probabilities(), np.nan)),
+                    "unary": _grid_json(
+                        np.where(loop.believed[..., None], loop.unary_probabilities(), np.nan)
+                    ),
                     "mrf": _grid_json(mrf.to_map(loop.marginals(mrf)[:, 1]).numpy()),
                 }
-            result = loop.run(max_steps,
-                              snapshots=_SNAPSHOTS if policy == "information_gain" else 0)
-            out["policies"][policy] = {"steps": [s.to_dict() for s in result.steps],
-                                       "stop": result.stop}
+            result = loop.run(
+                max_steps, snapshots=_SNAPSHOTS if policy == "information_gain" else 0
+            )
+            out["policies"][policy] = {
+                "steps": [s.to_dict() for s in result.steps],
+                "stop": result.stop,
+            }
             if policy == "information_gain":
                 out["figure"]["snapshots"] = [_snapshot_json(s) for s in result.snapshots]
         out["seconds"] = time.perf_counter() - t0
@@ -263,10 +339,11 @@ def _curves(results: list[dict[str, Any]], policy: str, key: str, steps: int) ->
     """(n_maps, steps + 1) values of `key`, each map's last value carried to the end."""
     out = np.full((len(results), steps + 1), np.nan)
     for i, res in enumerate(results):
-        values = [np.nan if s[key] is None else float(s[key])
-                  for s in res["policies"][policy]["steps"]]
-        out[i, :len(values)] = values
-        out[i, len(values):] = values[-1]
+        values = [
+            np.nan if s[key] is None else float(s[key]) for s in res["policies"][policy]["steps"]
+        ]
+        out[i, : len(values)] = values
+        out[i, len(values) :] = values[-1]
     return out
 
 
@@ -282,8 +359,9 @@ def _precision_recall(results: list[dict[str, Any]]) -> tuple[np.ndarray, np.nda
     fp = np.sum([r["classifier"]["fp"] for r in results], 0).astype(float)
     fn = np.sum([r["classifier"]["fn"] for r in results], 0).astype(float)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(tp + fp > 0, tp / (tp + fp), 0.0), np.where(tp + fn > 0, tp / (tp + fn),
-                                                                   0.0)
+        return np.where(tp + fp > 0, tp / (tp + fp), 0.0), np.where(
+            tp + fn > 0, tp / (tp + fn), 0.0
+        )
 
 
 def _figure_map(results: list[dict[str, Any]]) -> dict[str, Any]:
@@ -292,12 +370,15 @@ def _figure_map(results: list[dict[str, Any]]) -> dict[str, Any]:
     return results[int(np.argmax(pushes))]
 
 
-def _write_figures(results: list[dict[str, Any]], curves: dict[str, dict[str, np.ndarray]],
-                   out: Path) -> dict[str, str]:
+def _write_figures(
+    results: list[dict[str, Any]], curves: dict[str, dict[str, np.ndarray]], out: Path
+) -> dict[str, str]:
     files = {}
-    for key, ylabel, name in (("entropy", "average map entropy (nats)", "entropy_vs_step.png"),
-                              ("accuracy", "map accuracy (MAP estimate)", "accuracy_vs_step.png"),
-                              ("distance", "distance travelled (cells)", "distance_vs_step.png")):
+    for key, ylabel, name in (
+        ("entropy", "average map entropy (nats)", "entropy_vs_step.png"),
+        ("accuracy", "map accuracy (MAP estimate)", "accuracy_vs_step.png"),
+        ("distance", "distance travelled (cells)", "distance_vs_step.png"),
+    ):
         title = f"{ylabel} over {len(results)} maps (mean, band: 1 std)"
         plot_step_curves({p: curves[p][key] for p in POLICIES}, ylabel, title, out / name)
         files[key] = os.fspath(out / name)
@@ -309,13 +390,19 @@ def _write_figures(results: list[dict[str, Any]], curves: dict[str, dict[str, np
     direction = int(np.nanargmax(np.nansum(np.abs(mrf - unary), (0, 1))))  # most smoothed
     plot_mrf_smoothing(occ, unary, mrf, direction, out / "mrf_smoothing.png")
     files["mrf_smoothing"] = os.fspath(out / "mrf_smoothing.png")
-    shots = [LoopSnapshot(occupancy=np.array(s["occupancy"], dtype=bool),
-                          pushability=np.array(s["pushability"], dtype=float),
-                          robot=(int(s["robot"][0]), int(s["robot"][1])),
-                          push=None if s["push"] is None else tuple(s["push"]),  # type: ignore[arg-type]
-                          entropy=float(s["entropy"])) for s in fig["snapshots"]]
-    plot_loop_steps(shots, out / "loop_steps.png",
-                    title=f"information-gain loop on test map {chosen['index']}")
+    shots = [
+        LoopSnapshot(
+            occupancy=np.array(s["occupancy"], dtype=bool),
+            pushability=np.array(s["pushability"], dtype=float),
+            robot=(int(s["robot"][0]), int(s["robot"][1])),
+            push=None if s["push"] is None else tuple(s["push"]),
+            entropy=float(s["entropy"]),
+        )
+        for s in fig["snapshots"]
+    ]
+    plot_loop_steps(
+        shots, out / "loop_steps.png", title=f"information-gain loop on test map {chosen['index']}"
+    )
     files["loop_steps"] = os.fspath(out / "loop_steps.png")
     return files
 
@@ -326,23 +413,30 @@ def _auc(curve: np.ndarray) -> float:
     return float(np.sum(0.5 * (c[1:] + c[:-1]))) if c.size > 1 else float(c.sum())
 
 
-def _summarise(config: AffordanceMapConfig, results: list[dict[str, Any]],
-               training: dict[str, Any] | None
-               ) -> tuple[dict[str, Any], str, dict[str, dict[str, np.ndarray]]]:
+def _summarise(
+    config: AffordanceMapConfig, results: list[dict[str, Any]], training: dict[str, Any] | None
+) -> tuple[dict[str, Any], str, dict[str, dict[str, np.ndarray]]]:
     """The summary numbers, the CSV text and the per-map curves of every policy."""
     steps = config.max_steps
-    curves = {p: {k: _curves(results, p, k, steps)
-                  for k in ("entropy", "entropy_mrf", "accuracy", "distance")}
-              for p in POLICIES}
+    curves = {
+        p: {
+            k: _curves(results, p, k, steps)
+            for k in ("entropy", "entropy_mrf", "accuracy", "distance")
+        }
+        for p in POLICIES
+    }
     precision, recall = _precision_recall(results)
-    csv = ["policy,step,entropy_mean,entropy_std,entropy_mrf_mean,entropy_mrf_std,"
-           "accuracy_mean,accuracy_std,distance_mean,distance_std,active_maps"]
+    csv = [
+        "policy,step,entropy_mean,entropy_std,entropy_mrf_mean,entropy_mrf_std,"
+        "accuracy_mean,accuracy_std,distance_mean,distance_std,active_maps"
+    ]
     means: dict[str, dict[str, np.ndarray]] = {}
     for p in POLICIES:
         stats = {k: _nan_stats(v) for k, v in curves[p].items()}
         means[p] = {k: s[0] for k, s in stats.items()}
-        active = np.array([[len(r["policies"][p]["steps"]) > t for t in range(steps + 1)]
-                           for r in results]).sum(0)
+        active = np.array(
+            [[len(r["policies"][p]["steps"]) > t for t in range(steps + 1)] for r in results]
+        ).sum(0)
         for t in range(steps + 1):
             row = [p, str(t)]
             for k in ("entropy", "entropy_mrf", "accuracy", "distance"):
@@ -350,8 +444,11 @@ def _summarise(config: AffordanceMapConfig, results: list[dict[str, Any]],
             csv.append(",".join([*row, str(int(active[t]))]))
     summary: dict[str, Any] = {
         "maps": len(results),
-        "classifier": {"precision": precision.tolist(), "recall": recall.tolist(),
-                       "training": training},
+        "classifier": {
+            "precision": precision.tolist(),
+            "recall": recall.tolist(),
+            "training": training,
+        },
         "policies": {},
     }
     for p in POLICIES:
@@ -367,10 +464,13 @@ def _summarise(config: AffordanceMapConfig, results: list[dict[str, Any]],
             "pushes_per_map": len(pushes) / len(results),
             "moved_share": (sum(bool(s["moved"]) for s in real) / len(real)) if real else None,
             "detection_agreement": (sum(s["moved"] == s["observed"] for s in real) / len(real))
-            if real else None,
+            if real
+            else None,
             "phantom_pushes": len(pushes) - len(real),
-            "stops": {reason: sum(r["policies"][p]["stop"] == reason for r in results)
-                      for reason in ("no_gain", "no_candidate", "max_steps")},
+            "stops": {
+                reason: sum(r["policies"][p]["stop"] == reason for r in results)
+                for reason in ("no_gain", "no_candidate", "max_steps")
+            },
         }
     summary["task_seconds"] = float(sum(r["seconds"] for r in results))
     return summary, "\n".join(csv) + "\n", curves
@@ -383,16 +483,20 @@ def _fmt(v: Any, digits: int = 3) -> str:
 def _markdown(config: AffordanceMapConfig, s: dict[str, Any], steps: int) -> str:
     ig, ex = s["policies"]["information_gain"], s["policies"]["exhaustive"]
     noise = "world file" if config.sensor_noise is None else f"{config.sensor_noise} m"
+    mrf = config.mrf
     lines = [
         "# Affordance map by interactive manipulation (chapter 3)",
         "",
         f"{s['maps']} test maps, classifier trained on {config.train_maps} other maps, seed "
-        f"{config.seed}; alpha = {config.alpha}, J = {config.coupling}, J_along = "
-        f"{config.along_coupling if config.along_coupling is not None else config.coupling}, "
+        f"{config.seed}; alpha = {mrf.alpha}, J = {mrf.coupling}, J_along = "
+        f"{mrf.along_coupling if mrf.along_coupling is not None else mrf.coupling}, "
         "J_sym = "
-        f"{config.symmetry_coupling}, at most {config.max_steps} pushes; sensor noise: {noise}; "
-        + ("the information-gain loop stops when every G < 0." if config.stop_at_no_gain else
-           "the information-gain loop keeps pushing its best candidate even when G < 0."),
+        f"{mrf.symmetry_coupling}, at most {config.max_steps} pushes; sensor noise: {noise}; "
+        + (
+            "the information-gain loop stops when every G < 0."
+            if config.stop_at_no_gain
+            else "the information-gain loop keeps pushing its best candidate even when G < 0."
+        ),
         "Entropies are whole-map sums of marginal entropies (nats). The information-gain policy "
         "is scored on the MRF; the exhaustive baseline on independent unaries (coupling 0); "
         "'H (MRF)' scores both on the MRF. A loop that stopped keeps its last state.",
@@ -403,8 +507,10 @@ def _markdown(config: AffordanceMapConfig, s: dict[str, Any], steps: int) -> str
         "|---|---|---|",
     ]
     for k, name in enumerate(DIRECTION_NAMES):
-        lines.append(f"| {name} | {100 * s['classifier']['precision'][k]:.1f} | "
-                     f"{100 * s['classifier']['recall'][k]:.1f} |")
+        lines.append(
+            f"| {name} | {100 * s['classifier']['precision'][k]:.1f} | "
+            f"{100 * s['classifier']['recall'][k]:.1f} |"
+        )
     lines += [
         "",
         "## Summary",
@@ -421,7 +527,8 @@ def _markdown(config: AffordanceMapConfig, s: dict[str, Any], steps: int) -> str
             f"{_fmt(d['accuracy'][0])} | {_fmt(d['accuracy'][-1])} | {_fmt(d['distance'][-1], 1)}"
             f" | {_fmt(d['pushes_per_map'], 1)} | {_fmt(d['moved_share'], 2)} | "
             f"{_fmt(d['detection_agreement'], 3)} | {st['no_gain']} / {st['no_candidate']} / "
-            f"{st['max_steps']} |")
+            f"{st['max_steps']} |"
+        )
     lines += [
         "",
         "## Per step (means over maps)",
@@ -435,7 +542,8 @@ def _markdown(config: AffordanceMapConfig, s: dict[str, Any], steps: int) -> str
             f"| {t} | {_fmt(ig['entropy'][t])} | {_fmt(ex['entropy'][t])} | "
             f"{_fmt(ig['entropy_mrf'][t])} | {_fmt(ex['entropy_mrf'][t])} | "
             f"{_fmt(ig['accuracy'][t])} | {_fmt(ex['accuracy'][t])} | "
-            f"{_fmt(ig['distance'][t], 1)} | {_fmt(ex['distance'][t], 1)} |")
+            f"{_fmt(ig['distance'][t], 1)} | {_fmt(ex['distance'][t], 1)} |"
+        )
     lines += ["", f"Task time (sum over maps): {s['task_seconds']:.1f} s."]
     if "runtime_s" in s:
         lines.append(f"Wall time of this run: {s['runtime_s']:.1f} s.")
@@ -465,20 +573,33 @@ def run(config: AffordanceMapConfig) -> dict[str, Any]:
     train_key = f"classifier-{fp}"
     classifier = None
     if missing:
-        classifier, training = train_classifier(spec, config.train_maps, config.seed)
-        store.save(train_key, training)
+        classifier, trained = train_classifier(spec, config.train_maps, config.seed)
+        store.save(train_key, trained)
     training = store.load(train_key) if store.done(train_key) else None
-    settings = {"seed": config.seed, "alpha": config.alpha, "coupling": config.coupling,
-                "symmetry_coupling": config.symmetry_coupling,
-                "along_coupling": config.along_coupling, "max_steps": config.max_steps,
-                "stop_at_no_gain": config.stop_at_no_gain}
-    results = run_tasks(map_task, [(k, (spec, classifier, i, settings))
-                                   for i, k in enumerate(keys)],
-                        store, workers=config.workers, scheduler=config.scheduler,
-                        progress=config.progress, desc="affordance maps")
+    mrf = config.mrf
+    settings = {
+        "seed": config.seed,
+        "alpha": mrf.alpha,
+        "coupling": mrf.coupling,
+        "symmetry_coupling": mrf.symmetry_coupling,
+        "along_coupling": mrf.along_coupling,
+        "max_steps": config.max_steps,
+        "stop_at_no_gain": config.stop_at_no_gain,
+    }
+    results = run_tasks(
+        map_task,
+        [(k, (spec, classifier, i, settings)) for i, k in enumerate(keys)],
+        store,
+        workers=config.workers,
+        scheduler=config.scheduler,
+        progress=config.progress,
+        desc="affordance maps",
+    )
     summary, csv, curves = _summarise(config, results, training)
-    files = {"entropy_csv": os.fspath(out / "entropy.csv"),
-             "summary": os.fspath(out / "summary.md")}
+    files = {
+        "entropy_csv": os.fspath(out / "entropy.csv"),
+        "summary": os.fspath(out / "summary.md"),
+    }
     atomic_write_text(out / "entropy.csv", csv)
     files.update(_write_figures(results, curves, out))
     summary["runtime_s"] = time.perf_counter() - t0
@@ -486,8 +607,12 @@ def run(config: AffordanceMapConfig) -> dict[str, Any]:
     return {"summary": summary, "files": files, "computed": missing}
 
 
-def demo(out_dir: str | os.PathLike[str], seed: int = 0, steps: int = 3,
-         sensor_noise: float | None = NOISY_SENSOR) -> dict[str, Any]:
+def demo(
+    out_dir: str | os.PathLike[str],
+    seed: int = 0,
+    steps: int = 3,
+    sensor_noise: float | None = NOISY_SENSOR,
+) -> dict[str, Any]:
     """Explore one small map, push a few boxes by information gain, and report the entropy.
 
     The map is 8 x 8 cells with 8 to 14 boxes; the classifier is trained on six other maps of
@@ -513,15 +638,23 @@ def demo(out_dir: str | os.PathLike[str], seed: int = 0, steps: int = 3,
     m = generate_map(spec, rng)
     free = np.argwhere(~m.occupancy)
     exploration = explore(spec, m, free[rng.integers(len(free))], rng)
-    loop = ManipulationLoop(spec, m, exploration, classifier,
-                            rng=np.random.default_rng((seed, _STREAM_LOOP, 0)))
+    loop = ManipulationLoop(
+        spec, m, exploration, classifier, rng=np.random.default_rng((seed, _STREAM_LOOP, 0))
+    )
     result = loop.run(steps, snapshots=steps + 1)
     figure = Path(out_dir) / "loop_steps.png"
     plot_loop_steps(result.snapshots, figure, title="information-gain loop on a small map")
     before, after = result.steps[0].entropy, result.steps[-1].entropy
     pushes = [list(s.push) for s in result.steps[1:] if s.push is not None]
-    print(f"map entropy before: {before:.3f} nats; after {len(pushes)} push(es): {after:.3f} "
-          f"nats (stop: {result.stop})")
+    print(
+        f"map entropy before: {before:.3f} nats; after {len(pushes)} push(es): {after:.3f} "
+        f"nats (stop: {result.stop})"
+    )
     print(f"figure: {os.fspath(figure)}")
-    return {"entropy_before": before, "entropy_after": after, "pushes": pushes,
-            "stop": result.stop, "figure": os.fspath(figure)}
+    return {
+        "entropy_before": before,
+        "entropy_after": after,
+        "pushes": pushes,
+        "stop": result.stop,
+        "figure": os.fspath(figure),
+    }

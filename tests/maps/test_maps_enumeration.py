@@ -19,8 +19,9 @@ from probaff.maps.evidence import as_evidence
 def test_enumeration_matches_gtsam_under_batched_evidence(make, symmetry):
     rng = np.random.default_rng(4)
     occ = make(rng)
-    g = AffordanceGraph(occ, rng.uniform(0.05, 0.95, (12, 12, 4)), coupling=0.4,
-                        symmetry_coupling=symmetry)
+    g = AffordanceGraph(
+        occ, rng.uniform(0.05, 0.95, (12, 12, 4)), coupling=0.4, symmetry_coupling=symmetry
+    )
     small = [k for k, c in enumerate(g.components) if c.size <= MAX_ENUMERATION_VARIABLES]
     clamp = rng.choice(g.num_variables, size=6, replace=False)
     ev, _ = as_evidence(single_variable_evidence(g.num_variables, clamp), (g.num_variables,))

@@ -88,7 +88,10 @@ def test_malformed_urdf_is_reported(tmp_path):
 
 
 def test_ik_rejects_nan(arm):
-    T = topdown_pose(torch.tensor([[float("nan"), 0.0]], dtype=torch.float64),
-                     torch.zeros(1, dtype=torch.float64), 0.02)
+    T = topdown_pose(
+        torch.tensor([[float("nan"), 0.0]], dtype=torch.float64),
+        torch.zeros(1, dtype=torch.float64),
+        0.02,
+    )
     with pytest.raises(ValueError, match="NaN"):
         arm.ik(T)

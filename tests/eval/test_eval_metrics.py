@@ -37,11 +37,14 @@ def test_mixture_coverage_is_calibrated_and_nlpd_matches_log_prob():
     # the sum of per-dimension NLPDs equals the joint NLPD only for independent dimensions;
     # check each marginal against a direct 1-D mixture
     for e in range(2):
-        comp = Normal(dist.component_distribution.base_dist.loc[..., e],
-                      dist.component_distribution.base_dist.scale[..., e])
+        comp = Normal(
+            dist.component_distribution.base_dist.loc[..., e],
+            dist.component_distribution.base_dist.scale[..., e],
+        )
         marg = MixtureSameFamily(dist.mixture_distribution, comp)
-        assert math.isclose(nlpd(dist, y)[e].item(), -marg.log_prob(y[:, e]).mean().item(),
-                            rel_tol=1e-12)
+        assert math.isclose(
+            nlpd(dist, y)[e].item(), -marg.log_prob(y[:, e]).mean().item(), rel_tol=1e-12
+        )
 
 
 def test_bad_targets():

@@ -112,8 +112,13 @@ def test_push_into_battery_stalls():
     battery, book = cat["battery"], cat["book"]
     world = _world()
     # book at the origin, battery right behind it along +x: the push is fully blocked
-    scene = _scene([book, battery], [[0.0, 0.0, 0.0], [0.12 + 0.13 + 0.005, 0.0, 0.0]],
-                   [-0.12 - 0.0105, 0.0], 0.0, 0.15)
+    scene = _scene(
+        [book, battery],
+        [[0.0, 0.0, 0.0], [0.12 + 0.13 + 0.005, 0.0, 0.0]],
+        [-0.12 - 0.0105, 0.0],
+        0.0,
+        0.15,
+    )
     out = simulate_push(world, scene, straight_path(world, scene.push_origin, 0.0, 0.15))
     assert np.abs(out.effect[1, :2]).max() < 2e-3  # the battery does not move
     assert abs(out.effect[0, 1]) < 0.01  # the book is stuck between hand and battery
@@ -124,8 +129,9 @@ def test_push_into_battery_stalls():
 
 def test_push_into_wall_stalls():
     world = _world()
-    scene = _scene([BOX], [[0.0, 0.0, 0.0]], [-0.1105, 0.0], 0.0, 0.15,
-                   walls=[[0.16, -0.2, 0.16, 0.2]])
+    scene = _scene(
+        [BOX], [[0.0, 0.0, 0.0]], [-0.1105, 0.0], 0.0, 0.15, walls=[[0.16, -0.2, 0.16, 0.2]]
+    )
     out = simulate_push(world, scene, straight_path(world, scene.push_origin, 0.0, 0.15))
     assert out.wall_contact[0]
     assert out.state_after[0, 0] + 0.1 < 0.16 - 0.01 + 3e-3  # stopped at the wall's face
@@ -135,8 +141,7 @@ def test_push_into_wall_stalls():
 def test_second_object_moves_only_when_hit():
     sim = PushSimulator("two_objects")
     samples = list(sim.run(60, np.random.default_rng(7)))
-    hit = np.array([s.outcome.object_contact[0, 1] or s.outcome.hand_contact[1]
-                    for s in samples])
+    hit = np.array([s.outcome.object_contact[0, 1] or s.outcome.hand_contact[1] for s in samples])
     moved = np.array([np.abs(s.outcome.effect[1]).max() for s in samples])
     assert (~hit).sum() > 5 and hit.sum() > 5
     assert moved[~hit].max() < 1e-4

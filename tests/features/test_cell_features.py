@@ -112,8 +112,7 @@ def test_bad_points(points):
         cell_features(points, OccupancyGrid((4, 4)))
 
 
-@pytest.mark.parametrize("kwargs", [{"min_points": 2}, {"n_layers": 0},
-                                    {"floor_height": -1.0}])
+@pytest.mark.parametrize("kwargs", [{"min_points": 2}, {"n_layers": 0}, {"floor_height": -1.0}])
 def test_bad_settings(kwargs):
     with pytest.raises(InputError):
         cell_features(np.zeros((5, 3)), OccupancyGrid((4, 4)), **kwargs)

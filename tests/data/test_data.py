@@ -15,8 +15,9 @@ CFG = GenerateConfig(scene="two_objects", n=20, seed=4, shard_size=8, cloud_poin
 
 
 def _files(root: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
-            if p.is_file()}
+    return {
+        str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()
+    }
 
 
 @pytest.fixture(scope="module")
@@ -135,8 +136,10 @@ def test_corrupt_manifest_and_wrong_version(reference, tmp_path):
         load_dataset(tmp_path)
 
 
-@pytest.mark.parametrize("field,value", [("n", 0), ("n", -5), ("shard_size", 0), ("seed", -1),
-                                         ("cloud_noise", float("nan"))])
+@pytest.mark.parametrize(
+    "field,value",
+    [("n", 0), ("n", -5), ("shard_size", 0), ("seed", -1), ("cloud_noise", float("nan"))],
+)
 def test_bad_generate_options(tmp_path, field, value):
     from dataclasses import replace
 
@@ -169,7 +172,8 @@ def test_dataset_validation():
 def test_existing_scheduler_gives_the_same_bytes(reference, tmp_path):
     from dask.distributed import LocalCluster
 
-    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster:
+    with LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
         generate(CFG, tmp_path / "sched", scheduler=cluster.scheduler_address, progress=False)
     assert _files(tmp_path / "sched") == _files(reference)

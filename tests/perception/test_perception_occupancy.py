@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from probaff.errors import InputError
-from probaff.perception import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
+from probaff.perception import FREE_SPACE, OCCUPIED, UNKNOWN, OccupancyGrid
 from probaff.sim.config import load_warehouse
 from probaff.sim.depth import DepthScan, DepthSensor
 from probaff.sim.warehouse import WarehouseMap
@@ -17,8 +17,13 @@ def spec():
 
 def _scan(origin, ends, hits):
     ends = np.asarray(ends, dtype=float)
-    return DepthScan(points=np.empty((0, 3)), origin=np.array([*origin, 1.0]),
-                     azimuths=np.zeros(len(ends)), ends=ends, hits=np.asarray(hits))
+    return DepthScan(
+        points=np.empty((0, 3)),
+        origin=np.array([*origin, 1.0]),
+        azimuths=np.zeros(len(ends)),
+        ends=ends,
+        hits=np.asarray(hits),
+    )
 
 
 def test_single_ray_marks_the_crossed_sub_cells():
@@ -26,7 +31,7 @@ def test_single_ray_marks_the_crossed_sub_cells():
     g.update(_scan([0.5, 0.5], [[2.52, 0.5]], [True]))
     st = g.state
     row = 14  # y = 0.5 lies in the second sub-cell row from the bottom
-    assert (st[row, 2:10] == FREE).all()  # x from 0.5 to 2.48 (stops 0.04 short)
+    assert (st[row, 2:10] == FREE_SPACE).all()  # x from 0.5 to 2.48 (stops 0.04 short)
     assert st[row, 10] == OCCUPIED  # the hit, 0.02 beyond 2.52
     assert (st[row, :2] == UNKNOWN).all() and (st[row, 11:] == UNKNOWN).all()
     assert (np.delete(st, row, 0) == UNKNOWN).all()
@@ -46,7 +51,7 @@ def test_majority_decides_and_misses_leave_no_hit():
     g.update(_scan([0.1, 1.1], [[1.9, 1.1]], [False]))
     g.update(_scan([0.1, 1.1], [[1.9, 1.1]], [False]))
     j = 6  # x in [1.5, 1.75)
-    assert g.hits[3, j] == 1 and g.passes[3, j] == 2 and g.state[3, j] == FREE
+    assert g.hits[3, j] == 1 and g.passes[3, j] == 2 and g.state[3, j] == FREE_SPACE
 
 
 def test_one_scan_of_one_box(spec):
@@ -58,12 +63,12 @@ def test_one_scan_of_one_box(spec):
     assert f.shape == (12, 12, 3)
     np.testing.assert_allclose(f.sum(-1), 1.0)
     states = g.cell_states()
-    assert states[6, 8] == OCCUPIED and states[6, 5] == FREE
+    assert states[6, 8] == OCCUPIED and states[6, 5] == FREE_SPACE
     assert states[6, 9] == UNKNOWN  # in the box's shadow
     assert f[6, 8, 1] > 0 and f[6, 8, 0] == 0.0  # the face seen, the inside never
     # cells along the walls are free, not occupied: wall hits fall outside the grid
     assert f[..., 1].sum() == f[6, 8, 1]
-    assert states[0, 5] == FREE and states[6, 0] == FREE
+    assert states[0, 5] == FREE_SPACE and states[6, 0] == FREE_SPACE
 
 
 def test_frontiers(spec):
@@ -74,15 +79,22 @@ def test_frontiers(spec):
     fr = g.frontier()
     assert fr.shape == g.fine_shape and fr.any()
     st = g.state
-    assert (st[fr] == FREE).all()
+    assert (st[fr] == FREE_SPACE).all()
     cell_fr = g.cell_frontier()
     assert cell_fr[5, 9] or cell_fr[7, 9]  # beside the shadow behind the box
     assert not cell_fr[6, 5]
 
 
-@pytest.mark.parametrize("kwargs", [{"resolution": 0.3}, {"resolution": 0.0},
-                                    {"cell_size": -1.0}, {"resolution": 2.0},
-                                    {"margin": float("nan")}])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"resolution": 0.3},
+        {"resolution": 0.0},
+        {"cell_size": -1.0},
+        {"resolution": 2.0},
+        {"margin": float("nan")},
+    ],
+)
 def test_bad_settings(kwargs):
     with pytest.raises(InputError):
         OccupancyGrid((4, 4), **kwargs)

@@ -67,11 +67,13 @@ def test_shapes_and_groups(two):
 def test_exact_turns_leave_all_features_unchanged(two, wall, angle):
     for ds in (two, wall):
         moved = _moved(ds, angle)
-        np.testing.assert_allclose(chapter5_features(moved).values,
-                                   chapter5_features(ds).values, atol=1e-9)
+        np.testing.assert_allclose(
+            chapter5_features(moved).values, chapter5_features(ds).values, atol=1e-9
+        )
         table = TableGeometry(yaw=angle, size=tuple(ds.meta["table_size"]))
-        np.testing.assert_allclose(chapter4_features(moved, table).values,
-                                   chapter4_features(ds).values, atol=1e-9)
+        np.testing.assert_allclose(
+            chapter4_features(moved, table).values, chapter4_features(ds).values, atol=1e-9
+        )
 
 
 def test_general_rigid_motion_leaves_continuous_features_unchanged(two):

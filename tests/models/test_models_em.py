@@ -17,6 +17,8 @@ from probaff.models.em import _copy_state, _objective
 from probaff.models.initialization import initial_responsibilities, split_responsibilities
 from probaff.models.synthetic import piecewise_1d, softmax_regimes
 
+pytestmark = pytest.mark.slow
+
 # Cheap settings for tests whose point is not the default's robustness.
 FAST = {"max_iter": 4, "warm_max_iter": 8, "gp_max_iter": 25}
 
@@ -43,13 +45,25 @@ def _assert_monotone(path, tol):
 
 def test_objective_never_falls_as_experts_are_added_on_chapter5_folds(tmp_path_factory):
     features, y = _ch5(tmp_path_factory)
-    template = MixtureOfGPExperts(1, groups=features.groups, gate_features=("f_o", "f_c"),
-                                  expert_features=("f_o", "f_c"), lengthscale_prior=True)
+    template = MixtureOfGPExperts(
+        1,
+        groups=features.groups,
+        gate_features=("f_o", "f_c"),
+        expert_features=("f_o", "f_c"),
+        lengthscale_prior=True,
+    )
     folds = np.array_split(np.random.default_rng(0).permutation(len(y)), 3)
     for test in folds:
         train = np.setdiff1d(np.arange(len(y)), test)
-        path = fit_em_path(template, features.values[train], y[train], range(1, 7),
-                           n_restarts=2, split_merge=1, **FAST)
+        path = fit_em_path(
+            template,
+            features.values[train],
+            y[train],
+            range(1, 7),
+            n_restarts=2,
+            split_merge=1,
+            **FAST,
+        )
         assert sorted(path) == [1, 2, 3, 4, 5, 6]
         _assert_monotone(path, tol=1e-6 * len(train))
         for m, (model, history) in path.items():
@@ -59,8 +73,9 @@ def test_objective_never_falls_as_experts_are_added_on_chapter5_folds(tmp_path_f
 
 def test_objective_never_falls_on_synthetic_regimes():
     x, y, _ = softmax_regimes(150, seed=2)
-    path = fit_em_path(MixtureOfGPExperts(1, gate_features=[0, 1]), x, y, range(1, 7),
-                       init="grow", **FAST)
+    path = fit_em_path(
+        MixtureOfGPExperts(1, gate_features=[0, 1]), x, y, range(1, 7), init="grow", **FAST
+    )
     _assert_monotone(path, tol=1e-6 * len(x))
     assert path[3][1].best > path[1][1].best + 0.5 * len(x)  # three regimes beat one GP
 
@@ -87,13 +102,15 @@ def test_default_em_finds_the_regimes_a_softmax_gate_decides():
     model = MixtureOfGPExperts(3, gate_features=[0, 1], lengthscale_prior=True)
     history = fit_em(model, x, y)
     assert history.best >= best_true - 0.02 * abs(best_true), (history.best, best_true)
-    ratio = ((model.predict(xt).mean - yt).square().mean(0).sqrt()
-             / (single.predict(xt).mean - yt).square().mean(0).sqrt())
+    ratio = (model.predict(xt).mean - yt).square().mean(0).sqrt() / (
+        single.predict(xt).mean - yt
+    ).square().mean(0).sqrt()
     assert float(ratio.mean()) <= 0.7, ratio
     # the thesis's start (a GMM on the effects) cannot see these regimes
     effects = MixtureOfGPExperts(3, gate_features=[0, 1], lengthscale_prior=True)
-    assert fit_em(effects, x, y, init="effects", n_restarts=1, split_merge=0).best < \
-        history.best - 0.1 * len(x)
+    assert fit_em(
+        effects, x, y, init="effects", n_restarts=1, split_merge=0
+    ).best < history.best - 0.1 * len(x)
 
 
 def test_named_initialisations_and_their_candidates():
@@ -127,11 +144,19 @@ def test_initial_responsibilities_and_split():
 
 def test_tempered_e_step_starts_soft_and_ends_at_beta_one():
     x, y, _ = piecewise_1d(90, seed=3)
-    plain = fit_em(MixtureOfGPExperts(3), x, y, init="effects", n_restarts=1, split_merge=0,
-                   **FAST)
-    annealed = fit_em(MixtureOfGPExperts(3), x, y, init="effects", n_restarts=1,
-                      split_merge=0, anneal=True, anneal_start=0.1, anneal_iter=3,
-                      **{**FAST, "max_iter": 6})
+    plain = fit_em(MixtureOfGPExperts(3), x, y, init="effects", n_restarts=1, split_merge=0, **FAST)
+    annealed = fit_em(
+        MixtureOfGPExperts(3),
+        x,
+        y,
+        init="effects",
+        n_restarts=1,
+        split_merge=0,
+        anneal=True,
+        anneal_start=0.1,
+        anneal_iter=3,
+        **{**FAST, "max_iter": 6},
+    )
     assert annealed.objective != plain.objective
     assert annealed.n_iter >= 4  # cannot converge while beta < 1
     with pytest.raises(InputError, match="anneal_start"):
@@ -141,8 +166,16 @@ def test_tempered_e_step_starts_soft_and_ends_at_beta_one():
 def test_collapsed_expert_takes_half_of_a_donor():
     x, y, _ = piecewise_1d(60, seed=4)
     with pytest.warns(RuntimeWarning, match="took samples from another expert"):
-        history = fit_em(MixtureOfGPExperts(3), x, y, init="effects", n_restarts=1,
-                         split_merge=0, min_size=22.0, **FAST)
+        history = fit_em(
+            MixtureOfGPExperts(3),
+            x,
+            y,
+            init="effects",
+            n_restarts=1,
+            split_merge=0,
+            min_size=22.0,
+            **FAST,
+        )
     assert history.splits or history.reseeded
     assert all(0 <= j < 3 and 0 <= d < 3 and j != d for _, j, d in history.splits)
 

@@ -7,12 +7,18 @@ import pytest
 import torch
 
 from probaff.errors import InputError
-from probaff.maps.classifier import AffordanceClassifier, collect_voxels
 from probaff.maps.entropy import map_entropy
 from probaff.maps.inference import affordance_marginals
-from probaff.maps.loop import ManipulationLoop, cloud_distance, detect_push
-from probaff.maps.planner import PushCandidate, plan_pushes
+from probaff.maps.options import MRFParams
 from probaff.perception.exploration import explore
+from probaff.planning.classifier import AffordanceClassifier, collect_voxels
+from probaff.planning.info_gain import PushCandidate, plan_pushes
+from probaff.planning.manipulation_loop import (
+    ManipulationLoop,
+    VerifiedPush,
+    cloud_distance,
+    detect_push,
+)
 from probaff.sim.config import load_warehouse
 from probaff.sim.depth import DepthSensor
 from probaff.sim.warehouse import WarehouseMap, push_box, rule_affordances
@@ -42,8 +48,10 @@ def test_cloud_distance():
     assert cloud_distance(a, np.empty((0, 3))) == np.inf
 
 
-@pytest.mark.parametrize("cell, direction", [((3, 0), 2), ((1, 1), 0), ((3, 3), 3),
-                                             ((3, 4), 2), ((5, 2), 0), ((1, 4), 1)])
+@pytest.mark.parametrize(
+    "cell, direction",
+    [((3, 0), 2), ((1, 1), 0), ((3, 3), 3), ((3, 4), 2), ((5, 2), 0), ((1, 4), 1)],
+)
 def test_change_detection_agrees_with_physics(world, cell, direction):
     m, _ = world
     truth = push_box(SPEC, m, cell, direction).moved
@@ -52,15 +60,15 @@ def test_change_detection_agrees_with_physics(world, cell, direction):
     access = np.asarray(cell) - np.array([[-1, 0], [1, 0], [0, -1], [0, 1]])[direction]
     position = m.cell_centre(access)
     observed = DepthSensor(SPEC, after).scan(position, np.random.default_rng(2)).points
-    moved, d_moved, d_still = detect_push(SPEC, m.occupancy, cell, direction, observed,
-                                          position)
+    moved, d_moved, d_still = detect_push(SPEC, m.occupancy, cell, direction, observed, position)
     assert moved == truth and min(d_moved, d_still) < 0.05 < max(d_moved, d_still)
 
 
 def test_loop_confirms_pushes_against_ground_truth(world, classifier):
     m, ex = world
-    loop = ManipulationLoop(SPEC, m, ex, classifier, policy="exhaustive",
-                            rng=np.random.default_rng(3))
+    loop = ManipulationLoop(
+        SPEC, m, ex, classifier, policy="exhaustive", rng=np.random.default_rng(3)
+    )
     assert (loop.believed == m.occupancy).all()
     result = loop.run(6)
     assert result.policy == "exhaustive" and len(result.steps) == 7
@@ -88,9 +96,11 @@ def test_evidence_is_invalidated_around_a_move(world, classifier):
     # Push (5, 2) up into (4, 2): a free cell. (3, 3) right stays valid; (3, 4) down points
     # into (4, 4), unchanged, and stays; a neighbour pointing into (4, 2) would go.
     loop.confirmed[(3, 2, 1)] = 1  # a (hypothetical) confirmation pointing into (4, 2)
-    push = PushCandidate(cell=(5, 2), direction=0, access=(6, 2), variable=-1, p=0.5,
-                         reward=0.0, cost=2, gain=0.0)
+    push = PushCandidate(
+        cell=(5, 2), direction=0, access=(6, 2), variable=-1, p=0.5, reward=0.0, cost=2, gain=0.0
+    )
     outcome = loop.execute(push)
+    assert isinstance(outcome, VerifiedPush)
     assert outcome.moved and outcome.observed and loop.true_map.occupancy[4, 2]
     assert loop.robot == (6, 2) and loop.distance == 2
     assert (3, 2, 1) not in loop.confirmed
@@ -98,8 +108,9 @@ def test_evidence_is_invalidated_around_a_move(world, classifier):
     assert loop.believed[4, 2] and not loop.believed[5, 2]
     assert not np.isnan(loop.unary[4, 2]).any()
     # A failed push is a lasting confirmation of "not pushable".
-    blocked = PushCandidate(cell=(3, 3), direction=3, access=(3, 2), variable=-1, p=0.5,
-                            reward=0.0, cost=3, gain=0.0)
+    blocked = PushCandidate(
+        cell=(3, 3), direction=3, access=(3, 2), variable=-1, p=0.5, reward=0.0, cost=3, gain=0.0
+    )
     out = loop.execute(blocked)
     assert not out.moved and not out.observed and loop.confirmed[(3, 3, 3)] == 0
 
@@ -108,7 +119,7 @@ def test_information_gain_loop_and_expected_entropy(world, classifier):
     m, ex = world
     loop = ManipulationLoop(SPEC, m, ex, classifier, rng=np.random.default_rng(5))
     mrf = loop.graphs()[1]
-    plan = plan_pushes(mrf, loop.passable, loop.robot, loop.evidence(mrf))
+    plan = plan_pushes(mrf, loop.travel_distances(), loop.evidence(mrf))
     assert plan.candidates and all(c.reward >= -1e-9 for c in plan.candidates)
     # Confirming the best push lowers the map entropy in expectation over its outcome.
     best = plan.best
@@ -123,8 +134,9 @@ def test_information_gain_loop_and_expected_entropy(world, classifier):
         assert s.observed == s.moved and s.gain is not None and s.gain >= 0
         assert s.reward is not None and s.cost is not None
     assert result.steps[0].entropy == pytest.approx(result.steps[0].entropy_mrf)
-    keep_going = ManipulationLoop(SPEC, m, ex, classifier, rng=np.random.default_rng(5),
-                                  stop_at_no_gain=False).run(3)
+    keep_going = ManipulationLoop(
+        SPEC, m, ex, classifier, rng=np.random.default_rng(5), stop_at_no_gain=False
+    ).run(3)
     assert len(keep_going.steps) == 4 and keep_going.stop == "max_steps"
     shot = result.snapshots[0]
     assert shot.pushability.shape == (7, 7, 4) and shot.push == result.steps[1].push[:3]
@@ -141,3 +153,28 @@ def test_bad_arguments(world, classifier):
         ManipulationLoop(SPEC, m, ex, AffordanceClassifier())
     with pytest.raises(InputError, match="max_steps"):
         ManipulationLoop(SPEC, m, ex, classifier).run(-1)
+
+
+def test_mrf_params_and_overrides(world, classifier):
+    m, ex = world
+    params = MRFParams(coupling=0.6, alpha=0.5, symmetry_coupling=0.2)
+    loop = ManipulationLoop(SPEC, m, ex, classifier, mrf=params)
+    assert loop.params == params and loop.coupling == 0.6 and loop.alpha == 0.5
+    assert loop.graphs()[1].symmetry_coupling == 0.2
+    tweaked = ManipulationLoop(SPEC, m, ex, classifier, mrf=params, alpha=0.9)
+    assert tweaked.params == MRFParams(coupling=0.6, alpha=0.9, symmetry_coupling=0.2)
+    with pytest.raises(InputError, match="coupling"):
+        ManipulationLoop(SPEC, m, ex, classifier, coupling=9.0)
+
+
+def test_old_loop_module_warns_and_aliases_the_renamed_outcome():
+    import importlib
+    import sys
+
+    from probaff.sim import tabletop
+
+    sys.modules.pop("probaff.maps.loop", None)
+    with pytest.warns(DeprecationWarning, match="probaff.maps.loop"):
+        old = importlib.import_module("probaff.maps.loop")
+    assert old.PushOutcome is VerifiedPush and old.ManipulationLoop is ManipulationLoop
+    assert VerifiedPush is not tabletop.PushOutcome

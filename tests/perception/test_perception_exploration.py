@@ -5,7 +5,7 @@ import pytest
 
 from probaff.errors import InputError
 from probaff.grid import DIRECTION_OFFSETS
-from probaff.perception import FREE, OCCUPIED, UNKNOWN, explore, grid_distances
+from probaff.perception import FREE_SPACE, OCCUPIED, UNKNOWN, explore, grid_distances
 from probaff.sim.config import load_warehouse
 from probaff.sim.warehouse import WarehouseMap, generate_map
 
@@ -18,8 +18,9 @@ def spec():
 def _next_to(mask):
     h, w = mask.shape
     padded = np.pad(mask, 1)
-    return np.any([padded[1 + dr: 1 + dr + h, 1 + dc: 1 + dc + w]
-                   for dr, dc in DIRECTION_OFFSETS], 0)
+    return np.any(
+        [padded[1 + dr : 1 + dr + h, 1 + dc : 1 + dc + w] for dr, dc in DIRECTION_OFFSETS], 0
+    )
 
 
 def test_grid_distances():
@@ -38,9 +39,9 @@ def test_every_reachable_cell_is_observed(spec, seed):
     run = explore(spec, m, start, rng)
     states = run.grid.cell_states()
     reach = grid_distances(~m.occupancy, tuple(start)) >= 0
-    assert (states[reach] == FREE).all()
+    assert (states[reach] == FREE_SPACE).all()
     assert (states[_next_to(reach) & m.occupancy] == OCCUPIED).all()
-    assert not (states[m.occupancy] == FREE).any()
+    assert not (states[m.occupancy] == FREE_SPACE).any()
     assert not (states[~m.occupancy] == OCCUPIED).any()
     # the robot only stood on reachable cells, starting at the start, one scan per cell
     np.testing.assert_array_equal(run.cells[0], start)
@@ -70,7 +71,7 @@ def test_enclosed_pockets_stay_unseen(spec):
     # every other free cell is known
     others = ~m.occupancy
     others[5, 5] = others[0, 0] = False
-    assert (states[others] == FREE).all()
+    assert (states[others] == FREE_SPACE).all()
 
 
 def test_a_box_hidden_from_the_start_is_found(spec):

@@ -1,4 +1,8 @@
-"""Information-gain push planning: scores against a per-candidate reference, reachability, alpha."""
+"""Information-gain push planning: scores against a per-candidate reference, reachability, alpha.
+
+The planner (`probaff.planning.info_gain`) takes travel distances; `travel_distances` and
+`plan_pushes_on_grid` compute them from a drivable grid and the robot's cell.
+"""
 
 import math
 
@@ -11,8 +15,10 @@ from probaff.grid import DIRECTION_OFFSETS
 from probaff.maps.entropy import map_entropy
 from probaff.maps.graph import AffordanceGraph
 from probaff.maps.inference import affordance_marginals
-from probaff.maps.planner import candidate_pushes, check_alpha, plan_pushes
+from probaff.maps.options import check_alpha
 from probaff.perception.exploration import grid_distances
+from probaff.planning.info_gain import candidate_pushes, plan_pushes
+from probaff.planning.manipulation_loop import plan_pushes_on_grid, travel_distances
 
 # 6 x 6 map: an L of three boxes, a pair, a lone box; column 4 of rows 0-2 is walled off by
 # boxes so that the top-right corner cannot be reached from the robot at (5, 0).
@@ -60,7 +66,7 @@ def test_scores_match_brute_force(symmetry):
     evidence = np.full(graph.num_variables, -1, dtype=np.int8)
     evidence[graph.variable(2, 2, "up")] = 0
     evidence[graph.variable(4, 4, "left")] = 1
-    plan = plan_pushes(graph, passable, ROBOT, evidence, alpha=0.8)
+    plan = plan_pushes(graph, travel_distances(passable, ROBOT), evidence, alpha=0.8)
     h, ref = _brute_force(graph, passable, ROBOT, evidence, 0.8)
     assert plan.entropy == pytest.approx(h, abs=1e-9)
     assert {c.variable for c in plan.candidates} == set(ref)
@@ -81,12 +87,13 @@ def test_unreachable_and_confirmed_candidates_are_excluded():
     evidence = np.full(graph.num_variables, -1, dtype=np.int8)
     confirmed = graph.variable(1, 1, "down")
     evidence[confirmed] = 0
-    cand = candidate_pushes(graph, passable, ROBOT, evidence)
+    cand = candidate_pushes(graph, travel_distances(passable, ROBOT), evidence)
     dist = grid_distances(passable, ROBOT)
     assert dist[0, 5] < 0 and dist[1, 5] < 0  # the walled-off corner
     assert confirmed not in cand.variables
-    for v, (r, c), d, (ar, ac), cost in zip(cand.variables, cand.cells, cand.directions,
-                                            cand.access, cand.costs, strict=True):
+    for v, (r, c), d, (ar, ac), cost in zip(
+        cand.variables, cand.cells, cand.directions, cand.access, cand.costs, strict=True
+    ):
         assert graph.variable(int(r), int(c), int(d)) == v
         assert (ar, ac) == (r - DIRECTION_OFFSETS[d][0], c - DIRECTION_OFFSETS[d][1])
         assert passable[ar, ac] and cost == dist[ar, ac] >= 0
@@ -99,27 +106,57 @@ def test_unreachable_and_confirmed_candidates_are_excluded():
     # With every free cell blocked except the robot's, nothing is reachable.
     only_here = np.zeros_like(passable)
     only_here[ROBOT] = True
-    assert len(candidate_pushes(graph, only_here, ROBOT)) == 0
+    assert len(candidate_pushes(graph, travel_distances(only_here, ROBOT))) == 0
+    # Distances are the planner's only view of the world: -1 everywhere means no candidate.
+    assert len(candidate_pushes(graph, np.full((6, 6), -1))) == 0
 
 
 def test_alpha_is_validated_and_weighs_reward_against_cost():
     graph = _graph(3)
     for bad in (-0.1, 1.5, math.nan, "a"):
         with pytest.raises(InputError, match="alpha"):
-            plan_pushes(graph, ~OCC, ROBOT, alpha=bad)
+            plan_pushes_on_grid(graph, ~OCC, ROBOT, alpha=bad)
         with pytest.raises(InputError, match="alpha"):
             check_alpha(bad)
-    only_cost = plan_pushes(graph, ~OCC, ROBOT, alpha=0.0)
+    only_cost = plan_pushes_on_grid(graph, ~OCC, ROBOT, alpha=0.0)
     assert all(c.gain == -c.cost for c in only_cost.candidates)
-    only_reward = plan_pushes(graph, ~OCC, ROBOT, alpha=1.0)
+    only_reward = plan_pushes_on_grid(graph, ~OCC, ROBOT, alpha=1.0)
     assert all(c.gain == pytest.approx(c.reward) for c in only_reward.candidates)
 
 
 def test_bad_inputs():
     graph = _graph(4)
     with pytest.raises(InputError, match="passable"):
-        plan_pushes(graph, np.ones((5, 5), dtype=bool), ROBOT)
+        plan_pushes_on_grid(graph, np.ones((5, 5), dtype=bool), ROBOT)
     with pytest.raises(InputError, match="robot"):
-        plan_pushes(graph, ~OCC, (9, 0))
+        plan_pushes_on_grid(graph, ~OCC, (9, 0))
     with pytest.raises(InputError, match="evidence"):
-        plan_pushes(graph, ~OCC, ROBOT, evidence=np.zeros(3))
+        plan_pushes_on_grid(graph, ~OCC, ROBOT, evidence=np.zeros(3))
+    with pytest.raises(InputError, match="distances has shape"):
+        plan_pushes(graph, np.zeros((5, 5), dtype=int))
+    with pytest.raises(InputError, match="integer path lengths"):
+        plan_pushes(graph, np.zeros((6, 6)))
+
+
+def test_grid_wrapper_matches_the_distance_planner():
+    graph = _graph(5)
+    on_grid = plan_pushes_on_grid(graph, ~OCC, ROBOT)
+    direct = plan_pushes(graph, travel_distances(~OCC, ROBOT))
+    assert on_grid.candidates == direct.candidates
+
+
+def test_old_planner_module_warns_and_keeps_its_signature():
+    import importlib
+    import sys
+
+    sys.modules.pop("probaff.maps.planner", None)
+    with pytest.warns(DeprecationWarning, match="probaff.maps.planner"):
+        old = importlib.import_module("probaff.maps.planner")
+    graph = _graph(6)
+    assert (
+        old.plan_pushes(graph, ~OCC, ROBOT).candidates
+        == plan_pushes_on_grid(graph, ~OCC, ROBOT).candidates
+    )
+    assert len(old.candidate_pushes(graph, ~OCC, ROBOT)) == len(
+        candidate_pushes(graph, travel_distances(~OCC, ROBOT))
+    )

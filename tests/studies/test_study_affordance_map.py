@@ -10,14 +10,24 @@ import pytest
 from probaff.errors import InputError
 from probaff.studies.affordance_map import AffordanceMapConfig, demo, run
 
-ROOT = Path(__file__).resolve().parents[1]
-FILES = ("entropy.csv", "summary.md", "entropy_vs_step.png", "accuracy_vs_step.png",
-         "distance_vs_step.png", "mrf_smoothing.png", "loop_steps.png")
+pytestmark = pytest.mark.slow
+
+ROOT = Path(__file__).resolve().parents[2]
+FILES = (
+    "entropy.csv",
+    "summary.md",
+    "entropy_vs_step.png",
+    "accuracy_vs_step.png",
+    "distance_vs_step.png",
+    "mrf_smoothing.png",
+    "loop_steps.png",
+)
 
 
 def test_run_writes_everything_and_resumes(tmp_path):
-    cfg = AffordanceMapConfig(n_maps=2, train_maps=2, max_steps=3, workers=0,
-                              out=str(tmp_path / "am"), progress=False)
+    cfg = AffordanceMapConfig(
+        n_maps=2, train_maps=2, max_steps=3, workers=0, out=str(tmp_path / "am"), progress=False
+    )
     first = run(cfg)
     assert first["computed"] == 2
     for name in FILES:
@@ -59,8 +69,7 @@ def test_demo(tmp_path, capsys):
 
 def test_script_smoke(tmp_path):
     out = tmp_path / "am"
-    cmd = [sys.executable, str(ROOT / "inference/affordance_map.py"), "--smoke", "--out",
-           str(out)]
+    cmd = [sys.executable, str(ROOT / "inference/affordance_map.py"), "--smoke", "--out", str(out)]
     proc = subprocess.run(cmd, capture_output=True, text=True, check=True)
     files = json.loads(proc.stdout)["files"]
     for name in FILES:

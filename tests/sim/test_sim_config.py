@@ -11,8 +11,16 @@ from probaff.sim.config import worlds_dir
 
 def test_catalogue_has_the_thesis_objects():
     cat = load_catalogue()
-    for name in ["cracker_box", "tool_box", "phone_box", "nut_container", "waterpot_lid",
-                 "wood_block", "book", "battery"]:
+    for name in [
+        "cracker_box",
+        "tool_box",
+        "phone_box",
+        "nut_container",
+        "waterpot_lid",
+        "wood_block",
+        "book",
+        "battery",
+    ]:
         assert name in cat
     assert cat["nut_container"].shape == "circle" and cat["waterpot_lid"].shape == "circle"
     assert cat["battery"].mass > 10 * cat["book"].mass

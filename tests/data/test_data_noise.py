@@ -22,16 +22,18 @@ from probaff.data import (
 from probaff.errors import DatasetError, InputError
 
 NOISE = PoseNoise()  # 3 mm, 1 degree
-CLEAN = GenerateConfig(scene="two_objects", n=48, seed=11, shard_size=16, cloud_points=16,
-                       trajectories=False)
+CLEAN = GenerateConfig(
+    scene="two_objects", n=48, seed=11, shard_size=16, cloud_points=16, trajectories=False
+)
 NOISY = replace(CLEAN, pose_noise=NOISE)
 OBSERVED = ("state_before", "state_after", "effect")
 PLAN_KEYS = {"scene", "n", "seed", "shard_size", "trajectories", "cloud_points", "cloud_noise"}
 
 
 def _files(root: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
-            if p.is_file()}
+    return {
+        str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()
+    }
 
 
 def _manifest(root: Path) -> dict:
@@ -87,8 +89,9 @@ def test_observed_effect_is_the_pushing_frame_difference_of_observed_poses(noisy
     c, s = np.cos(ds["push_yaw"])[:, None], np.sin(ds["push_yaw"])[:, None]
     np.testing.assert_allclose(ds["effect"][..., 1], d[..., 0] * c + d[..., 1] * s)
     np.testing.assert_allclose(ds["effect"][..., 0], -d[..., 0] * s + d[..., 1] * c)
-    np.testing.assert_allclose(ds["effect"][..., 2],
-                               ds["state_after"][..., 2] - ds["state_before"][..., 2])
+    np.testing.assert_allclose(
+        ds["effect"][..., 2], ds["state_after"][..., 2] - ds["state_before"][..., 2]
+    )
 
 
 def test_same_seed_same_bytes(noisy, tmp_path):
@@ -117,8 +120,9 @@ def test_observe_poses_statistics_on_many_draws():
     noise = PoseNoise(position_std=0.005, yaw_std=math.radians(2.0))
     ob, _, eff = observe_poses(noise, before, after, yaw, np.random.default_rng(1))
     assert eff.shape == (n, k, 3)
-    np.testing.assert_allclose((ob - before).std(axis=(0, 1)),
-                               [0.005, 0.005, math.radians(2.0)], rtol=0.03)
+    np.testing.assert_allclose(
+        (ob - before).std(axis=(0, 1)), [0.005, 0.005, math.radians(2.0)], rtol=0.03
+    )
     ob0, oa0, _ = observe_poses(PoseNoise(0.0, 0.0), before, after, yaw, rng)
     np.testing.assert_array_equal(ob0, before)
     np.testing.assert_array_equal(oa0, after)
@@ -127,8 +131,7 @@ def test_observe_poses_statistics_on_many_draws():
 def test_manifest_and_summary_record_the_noise(clean, noisy):
     manifest = _manifest(noisy)
     assert manifest["schema_version"] == 2
-    assert manifest["plan"]["pose_noise"] == {"position_std": 0.003,
-                                              "yaw_std": math.radians(1.0)}
+    assert manifest["plan"]["pose_noise"] == {"position_std": 0.003, "yaw_std": math.radians(1.0)}
     assert set(manifest["plan"]) == PLAN_KEYS | {"pose_noise"}
     s, s0 = summarize(load_dataset(noisy)), summarize(load_dataset(clean))
     assert s["pose_noise"] == {"position_std_m": 0.003, "yaw_std_rad": math.radians(1.0)}
@@ -145,8 +148,7 @@ def test_resume_with_other_noise_is_refused(clean, noisy, tmp_path):
     shutil.copytree(noisy, out)
     for other in (None, PoseNoise(position_std=0.001)):
         with pytest.raises(DatasetError, match="pose noise"):
-            generate(replace(NOISY, pose_noise=other), out, workers=0, resume=True,
-                     progress=False)
+            generate(replace(NOISY, pose_noise=other), out, workers=0, resume=True, progress=False)
     out = tmp_path / "c"
     shutil.copytree(clean, out)
     with pytest.raises(DatasetError, match=r"pose noise.*--pose-noise"):
@@ -185,9 +187,17 @@ def test_inconsistent_datasets_are_refused(clean, noisy, tmp_path):
         load_dataset(out)
 
 
-@pytest.mark.parametrize("kwargs", [{"position_std": -0.001}, {"yaw_std": float("nan")},
-                                    {"position_std": float("inf")}, {"yaw_std": "1"},
-                                    {"position_std": True}, {"yaw_std": None}])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"position_std": -0.001},
+        {"yaw_std": float("nan")},
+        {"position_std": float("inf")},
+        {"yaw_std": "1"},
+        {"position_std": True},
+        {"yaw_std": None},
+    ],
+)
 def test_bad_noise_values(kwargs):
     name = next(iter(kwargs))
     with pytest.raises(InputError, match=name):
@@ -196,18 +206,39 @@ def test_bad_noise_values(kwargs):
 
 def test_pose_noise_must_be_a_pose_noise(tmp_path):
     with pytest.raises(InputError, match="pose_noise"):
-        generate(replace(CLEAN, pose_noise=(0.003, 1.0)), tmp_path / "x", workers=0,
-                 progress=False)
+        generate(replace(CLEAN, pose_noise=(0.003, 1.0)), tmp_path / "x", workers=0, progress=False)
 
 
 def test_cli_pose_noise(tmp_path, capsys):
     out = tmp_path / "ds"
-    assert main(["generate", "--scene", "near_obstacle", "--n", "4", "--seed", "2", "--out",
-                 str(out), "--workers", "0", "--shard-size", "4", "--quiet",
-                 "--pose-noise", "0.002,0.5"]) == 0
+    assert (
+        main(
+            [
+                "generate",
+                "--scene",
+                "near_obstacle",
+                "--n",
+                "4",
+                "--seed",
+                "2",
+                "--out",
+                str(out),
+                "--workers",
+                "0",
+                "--shard-size",
+                "4",
+                "--quiet",
+                "--pose-noise",
+                "0.002,0.5",
+            ]
+        )
+        == 0
+    )
     capsys.readouterr()
-    assert _manifest(out)["plan"]["pose_noise"] == {"position_std": 0.002,
-                                                    "yaw_std": math.radians(0.5)}
+    assert _manifest(out)["plan"]["pose_noise"] == {
+        "position_std": 0.002,
+        "yaw_std": math.radians(0.5),
+    }
     assert main(["describe", str(out)]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["pose_noise"]["position_std_m"] == 0.002
@@ -215,8 +246,21 @@ def test_cli_pose_noise(tmp_path, capsys):
 
 @pytest.mark.parametrize("value", ["abc", "0.003", "0.003,1,2", "-1,1", "0.003,nan", ","])
 def test_cli_bad_pose_noise(tmp_path, capsys, value):
-    code = main(["generate", "--scene", "two_objects", "--n", "2", "--out",
-                 str(tmp_path / "x"), "--workers", "0", "--quiet", f"--pose-noise={value}"])
+    code = main(
+        [
+            "generate",
+            "--scene",
+            "two_objects",
+            "--n",
+            "2",
+            "--out",
+            str(tmp_path / "x"),
+            "--workers",
+            "0",
+            "--quiet",
+            f"--pose-noise={value}",
+        ]
+    )
     assert code == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--pose-noise" in err

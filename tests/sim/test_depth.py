@@ -59,8 +59,11 @@ def test_floor_points_lie_at_h_over_tan(exact):
     scan = DepthSensor(exact, m).scan(np.array([6.0, 6.0]), np.random.default_rng(0))
     floor = scan.points[np.abs(scan.points[:, 2]) < 1e-9]
     radius = np.hypot(floor[:, 0] - 6.0, floor[:, 1] - 6.0)
-    want = [exact.sensor_height / math.tan(math.radians(-e)) for e in exact.sensor_elevations
-            if e < 0 and exact.sensor_height / math.sin(math.radians(-e)) <= exact.sensor_range]
+    want = [
+        exact.sensor_height / math.tan(math.radians(-e))
+        for e in exact.sensor_elevations
+        if e < 0 and exact.sensor_height / math.sin(math.radians(-e)) <= exact.sensor_range
+    ]
     np.testing.assert_allclose(np.unique(radius.round(9)), sorted(want), atol=1e-9)
     assert len(floor) == exact.sensor_azimuths * len(want)
     # no point higher than the walls, no ray passing over the walls returns anything
@@ -92,8 +95,9 @@ def test_range_limit(exact):
     assert (np.linalg.norm(scan.points - scan.origin, axis=1) <= exact.sensor_range + 1e-9).all()
 
 
-@pytest.mark.parametrize("pose", [[np.nan, 1.0], [-0.5, 1.0], [1.5, 20.0], [8.5, 5.5],
-                                  [1.0, 1.0, 0.0]])
+@pytest.mark.parametrize(
+    "pose", [[np.nan, 1.0], [-0.5, 1.0], [1.5, 20.0], [8.5, 5.5], [1.0, 1.0, 0.0]]
+)
 def test_bad_poses(spec, pose):
     m = WarehouseMap.from_boxes((12, 12), [(6, 8)])
     with pytest.raises(InputError):

@@ -10,7 +10,9 @@ import pytest
 from probaff.errors import InputError
 from probaff.studies.push_models import PushModelStudyConfig, run
 
-ROOT = Path(__file__).resolve().parents[1]
+pytestmark = pytest.mark.slow
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_script_smoke_and_resume(tmp_path):
@@ -18,8 +20,15 @@ def test_script_smoke_and_resume(tmp_path):
     cmd = [sys.executable, str(ROOT / "inference/push_models.py"), "--smoke", "--out", str(out)]
     proc = subprocess.run(cmd, capture_output=True, text=True, check=True)
     files = json.loads(proc.stdout)["files"]
-    for name in ("ch5_summary.csv", "ch5_rmse_vs_M.png", "ch5_clusters.png",
-                 "ch5_ard_relevance.png", "ch4_summary.csv", "ch4_clusters.png", "summary.md"):
+    for name in (
+        "ch5_summary.csv",
+        "ch5_rmse_vs_M.png",
+        "ch5_clusters.png",
+        "ch5_ard_relevance.png",
+        "ch4_summary.csv",
+        "ch4_clusters.png",
+        "summary.md",
+    ):
         assert str(out / name) in files and (out / name).stat().st_size > 0
     text = (out / "summary.md").read_text()
     assert "| ocx | em | 2 |" in text and "| gx-eoc | vi | 1 |" in text

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from probaff.errors import InputError
-from probaff.maps.classifier import AffordanceClassifier, collect_voxels, evaluate
+from probaff.planning.classifier import AffordanceClassifier, collect_voxels, evaluate
 from probaff.sim.config import load_warehouse
 
 
