@@ -44,6 +44,7 @@ def dask_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
     Yields:
         A connected `dask.distributed.Client`.
     """
+    import dask
     from dask.distributed import Client, LocalCluster
 
     if scheduler:
@@ -51,12 +52,14 @@ def dask_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
             yield client
         return
     n = workers or os.cpu_count() or 1
-    with (
-        LocalCluster(
+    # Dask starts workers with MALLOC_TRIM_THRESHOLD_=65536. Setting it switches off glibc's
+    # dynamic mmap threshold, so every GP kernel matrix is mmapped and page-faulted afresh:
+    # one EM path took 136 s (43 s in the kernel) with it against 83 s (2 s) without.
+    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+        cluster = LocalCluster(
             n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None
-        ) as cluster,
-        Client(cluster) as client,
-    ):
+        )
+    with cluster, Client(cluster) as client:
         yield client
 
 

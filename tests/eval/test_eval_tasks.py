@@ -1,3 +1,6 @@
+import os
+
+import numpy as np
 import pytest
 
 from probaff.errors import InputError
@@ -28,10 +31,32 @@ def test_runs_missing_tasks_only(tmp_path):
     assert [r["y"] for r in out] == [0, 1, 4, 9, 16]
 
 
-def test_dask_gives_the_same_results(tmp_path):
+def square_of_shared(i, *, data):
+    return {"y": int(data["x"][i]) ** 2, "trim": os.environ.get("MALLOC_TRIM_THRESHOLD_")}
+
+
+def test_dask_gives_the_same_results_with_shared_data_and_glibc_defaults(tmp_path):
     tasks = [(f"t{i}", (i,)) for i in range(4)]
-    out = run_tasks(square, tasks, ResultStore(tmp_path), workers=1, progress=False)
+    data = {"x": np.arange(4)}
+    out = run_tasks(
+        square_of_shared,
+        tasks,
+        ResultStore(tmp_path),
+        workers=1,
+        progress=False,
+        shared={"data": data},
+    )
     assert [r["y"] for r in out] == [0, 1, 4, 9]
+    # Dask's MALLOC_TRIM_THRESHOLD_ makes GP fits page-fault-bound; workers must not get it.
+    assert {r["trim"] for r in out} == {None}
+    serial = run_tasks(
+        square_of_shared,
+        tasks,
+        ResultStore(tmp_path / "serial"),
+        progress=False,
+        shared={"data": data},
+    )
+    assert [r["y"] for r in serial] == [0, 1, 4, 9]
 
 
 def test_bad_keys(tmp_path):
