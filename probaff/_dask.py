@@ -55,10 +55,19 @@ def dask_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
     # Dask starts workers with MALLOC_TRIM_THRESHOLD_=65536. Setting it switches off glibc's
     # dynamic mmap threshold, so every GP kernel matrix is mmapped and page-faulted afresh:
     # one EM path took 136 s (43 s in the kernel) with it against 83 s (2 s) without.
-    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
-        cluster = LocalCluster(
-            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None
-        )
+    # A Dask nanny started earlier in this process leaves the variable in os.environ, where
+    # new workers would inherit it; hide that value while the workers spawn.
+    inherited = os.environ.pop("MALLOC_TRIM_THRESHOLD_", None)
+    if inherited is not None and inherited != "65536":  # the user's own setting stays
+        os.environ["MALLOC_TRIM_THRESHOLD_"] = inherited
+    try:
+        with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+            cluster = LocalCluster(
+                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None
+            )
+    finally:
+        if inherited is not None:
+            os.environ["MALLOC_TRIM_THRESHOLD_"] = inherited
     with cluster, Client(cluster) as client:
         yield client
 
