@@ -6,7 +6,8 @@ a mixture of GP experts by EM next to a single GP, printing their held-out RMSE,
 interval coverage and drawing both models' predictive density of o2's motion for a push where
 the mixture sees two outcomes (o2 hit or not), and finally explores a small warehouse map,
 pushes a few boxes chosen by information gain on the affordance MRF, and prints the map's
-entropy before and after.
+entropy before and after, and last plans and executes one push-to-edge episode (chapter 4: A*
+over the mixture's predictions, closed loop in the simulator), drawn to a PNG.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from probaff.models import MixtureOfGPExperts, fit_em
 from probaff.sim.arm import load_arm
 from probaff.sim.config import load_tabletop
 from probaff.studies.affordance_map import demo as affordance_demo
+from probaff.studies.planning import demo as planning_demo
 
 __all__ = ["DemoConfig", "run"]
 
@@ -92,12 +94,15 @@ def run(config: DemoConfig) -> dict[str, Any]:
     print(f"figure:  {os.fspath(figure)}")
     print("affordance map:")
     affordance = affordance_demo(out / "affordance_map", seed=config.seed, steps=3)
+    print("planning:")
+    planning = planning_demo(out / "planning", seed=config.seed, progress=config.progress)
     return {
         "summary": summary,
         "dataset": os.fspath(ds_path),
         "figure": os.fspath(figure),
         "models": models,
         "affordance_map": affordance,
+        "planning": planning,
     }
 
 

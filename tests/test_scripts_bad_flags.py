@@ -1,8 +1,8 @@
 """A bad flag to a study script or to `probaff generate` prints one line and exits 2.
 
-The study scripts (inference/affordance_map.py, inference/push_models.py) run in this process
-through `runpy`, with the studies' first heavy step replaced by a tripwire: every case must be
-refused before any work starts. One case runs in a real subprocess.
+The study scripts (inference/affordance_map.py, inference/push_models.py,
+inference/planning.py) run in this process through `runpy`, with the studies' first heavy step
+replaced by a tripwire: every case must be refused before any work starts. One case runs in a real subprocess.
 """
 
 import re
@@ -20,6 +20,7 @@ from probaff.errors import DatasetError, InputError
 ROOT = Path(__file__).resolve().parents[1]
 AFFORDANCE = ROOT / "inference" / "affordance_map.py"
 PUSH_MODELS = ROOT / "inference" / "push_models.py"
+PLANNING = ROOT / "inference" / "planning.py"
 FILE = "<a regular file>"  # replaced by a file in tmp_path
 
 CASES = [
@@ -34,21 +35,27 @@ CASES = [
     (PUSH_MODELS, ["--methods", "foo"], "unknown method 'foo'"),
     (PUSH_MODELS, ["--gate", "bar"], "unknown gate 'bar'"),
     (PUSH_MODELS, ["--out", FILE], "--out .* is a file, not a folder"),
+    (PLANNING, ["--trials", "0"], "trials must be a positive integer, got 0"),
+    (PLANNING, ["--planners", "astar-lstm"], "unknown or no planners"),
+    (PLANNING, ["--train-pushes", "3"], "train_pushes must be at least 10"),
+    (PLANNING, ["--workers", "-2"], "workers must be None or an integer >= 0, got -2"),
+    (PLANNING, ["--out", FILE], "--out .* is a file, not a folder"),
 ]
 
 
 @pytest.fixture(scope="module")
 def _studies():
     import probaff.studies.affordance_map as am
+    import probaff.studies.planning as pl
     import probaff.studies.push_models as pm
 
-    return am, pm
+    return am, pm, pl
 
 
 @pytest.fixture
 def tripwire(monkeypatch, _studies):
     """Fail the test if a study gets past its validation into real work."""
-    am, pm = _studies
+    am, pm, pl = _studies
 
     def work(*args, **kwargs):
         raise AssertionError("a bad flag passed validation and the study started")
@@ -56,6 +63,7 @@ def tripwire(monkeypatch, _studies):
     monkeypatch.setattr(am, "train_classifier", work)
     monkeypatch.setattr(am, "run_tasks", work)
     monkeypatch.setattr(pm, "generate", work)
+    monkeypatch.setattr(pl, "generate", work)
 
 
 def _run_script(monkeypatch, script, args):

@@ -23,6 +23,7 @@ from probaff._checks import check_count, check_output_dir, check_positive
 from probaff._dask import check_workers, run_batch
 from probaff._threads import torch_threads
 from probaff.data.noise import PoseNoise, observe_poses
+from probaff.data.queries import world_meta
 from probaff.data.schema import PushDataset, schema_version_for
 from probaff.data.store import (
     FORMAT_NAME,
@@ -288,17 +289,7 @@ def _prepare(out: Path, config: GenerateConfig, resume: bool) -> dict[str, Any]:
         "schema_version": schema_version_for(config.pose_noise is not None),
         "plan": _plan(config),
         "object_names": sorted(load_catalogue()),
-        "meta": {
-            "scene": config.scene,
-            "table_size": list(sim.world.table_size),
-            "push_height": sim.world.arm.push_height,
-            "gripper_opening": sim.world.gripper.push_opening,
-            "finger_radius": sim.world.gripper.finger_radius,
-            "control_rate": sim.world.physics.control_rate,
-            "record_rate": sim.world.record_rate,
-            "arm_base_xyz": list(sim.world.arm.base_xyz),
-            "arm_base_yaw": sim.world.arm.base_yaw,
-        },
+        "meta": {"scene": config.scene, **world_meta(sim.world)},
         "shards": {},
     }
     try:

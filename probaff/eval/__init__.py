@@ -1,6 +1,12 @@
 """Evaluation: metrics, resumable batch tasks, tables and figures."""
 
-from probaff.eval.metrics import interval_coverage, marginal_components, nlpd, rmse
+from probaff.eval.metrics import (
+    interval_coverage,
+    marginal_components,
+    nlpd,
+    rmse,
+    wilson_interval,
+)
 from probaff.eval.push_figures import plot_pushes
 from probaff.eval.selection import ExpertSelection, select_n_experts
 from probaff.eval.tasks import ResultStore, run_tasks
@@ -15,4 +21,5 @@ __all__ = [
     "rmse",
     "run_tasks",
     "select_n_experts",
+    "wilson_interval",
 ]

@@ -15,7 +15,7 @@ from torch.distributions import Distribution, Independent, MixtureSameFamily, No
 from probaff._checks import check_count, check_finite, check_shape
 from probaff.errors import InputError
 
-__all__ = ["interval_coverage", "marginal_components", "nlpd", "rmse"]
+__all__ = ["interval_coverage", "marginal_components", "nlpd", "rmse", "wilson_interval"]
 
 
 def marginal_components(dist: Distribution) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -130,3 +130,33 @@ def interval_coverage(
 
     inside = (y >= quantile(lo_q)) & (y <= quantile(hi_q))
     return inside.double().mean(0)
+
+
+def wilson_interval(successes: int, trials: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval of a success rate.
+
+    Args:
+        successes: Successful trials (an integer in [0, trials]).
+        trials: Trials (a positive integer).
+        confidence: Two-sided confidence level in (0, 1).
+
+    Returns:
+        ``(low, high)`` bounds of the rate, in [0, 1].
+
+    Raises:
+        InputError: For counts that are not integers, ``successes > trials`` or a level
+            outside (0, 1).
+    """
+    from scipy.stats import norm
+
+    n = check_count("trials", trials)
+    k = check_count("successes", successes, minimum=0)
+    if k > n:
+        raise InputError(f"successes ({k}) cannot exceed trials ({n}).")
+    if not 0 < confidence < 1:
+        raise InputError(f"confidence must lie in (0, 1), got {confidence!r}.")
+    z = float(norm.ppf(0.5 + confidence / 2))
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return max(0.0, centre - half), min(1.0, centre + half)

@@ -7,7 +7,7 @@ from collections.abc import Callable
 import numpy as np
 
 from probaff._checks import check_count, check_finite
-from probaff.data.schema import PushDataset
+from probaff.data.queries import PushInputs
 from probaff.errors import InputError
 from probaff.features.frames import directions_to_push_frame, points_to_push_frame
 
@@ -16,7 +16,7 @@ __all__ = ["FINGER_LENGTH", "PushClouds", "chunked", "meta_float", "principal_ya
 FINGER_LENGTH = 0.08  # m; fingers reach from push height up to this far above it
 
 
-def meta_float(ds: PushDataset, key: str) -> float:
+def meta_float(ds: PushInputs, key: str) -> float:
     """A numeric dataset metadata entry, with a clear error if it is missing."""
     if key not in ds.meta:
         raise InputError(
@@ -35,7 +35,7 @@ class PushClouds:
         distance: (n,) push distance d_p.
     """
 
-    def __init__(self, ds: PushDataset, rows: slice) -> None:
+    def __init__(self, ds: PushInputs, rows: slice) -> None:
         pts = ds["cloud_points"][rows].astype(np.float64)
         nrm = ds["cloud_normals"][rows].astype(np.float64)
         check_finite("cloud_points", pts)
@@ -48,7 +48,7 @@ class PushClouds:
 
 
 def chunked(
-    ds: PushDataset, dim: int, fn: Callable[[PushClouds], np.ndarray], chunk: int = 1024
+    ds: PushInputs, dim: int, fn: Callable[[PushClouds], np.ndarray], chunk: int = 1024
 ) -> np.ndarray:
     """Apply `fn` to consecutive chunks of pushes and stack the (n, dim) results.
 

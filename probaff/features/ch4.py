@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from probaff._checks import check_count
-from probaff.data.schema import PushDataset
+from probaff.data.queries import PushInputs
 from probaff.features._common import PushClouds, chunked, meta_float, principal_yaw
 from probaff.features.featureset import FeatureSet
 from probaff.features.frames import points_to_push_frame
@@ -158,12 +158,12 @@ def _wall_points(walls: np.ndarray) -> np.ndarray:
 
 
 def chapter4_features(
-    ds: PushDataset, table: TableGeometry | None = None, chunk: int = 512
+    ds: PushInputs, table: TableGeometry | None = None, chunk: int = 512
 ) -> FeatureSet:
     """Compute the chapter 4 features of every push.
 
     Args:
-        ds: A push dataset (clouds, walls and push poses are used).
+        ds: A push dataset, or candidate `PushQueries` (clouds, walls and push poses are used).
         table: The table top in the world; by default the dataset's table, centred at the
             origin.
         chunk: Pushes processed at once (bounds memory); a positive integer.

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from probaff.data.schema import PushDataset
+from probaff.data.queries import PushInputs
 from probaff.features._common import (
     FINGER_LENGTH,
     PushClouds,
@@ -112,11 +112,12 @@ def _context(c: PushClouds) -> np.ndarray:
     return out.reshape(n, -1)
 
 
-def chapter5_features(ds: PushDataset, chunk: int = 1024) -> FeatureSet:
+def chapter5_features(ds: PushInputs, chunk: int = 1024) -> FeatureSet:
     """Compute the chapter 5 features of every push.
 
     Args:
-        ds: A push dataset (its clouds, push poses and gripper geometry are used).
+        ds: A push dataset, or candidate `PushQueries` (its clouds, push poses and gripper
+            geometry are used).
         chunk: Pushes processed at once (bounds memory); a positive integer.
 
     Returns:

@@ -319,9 +319,9 @@ class TabletopSpec:
 class PlacementSpec:
     """Randomisation ranges for one object of a scene.
 
-    The first object is placed in the world frame (``x``, ``y``, ``yaw``); later ones in the
-    pushing frame of the pushed object (``along`` z_p and ``lateral`` along y_p from its centre,
-    ``yaw`` relative to the push direction).
+    The first object is placed in the world frame (``x``, ``y``, ``yaw``); later ones either in
+    the world frame too, or in the pushing frame of the pushed object (``along`` z_p and
+    ``lateral`` along y_p from its centre, ``yaw`` relative to the push direction).
     """
 
     choices: tuple[str, ...]
@@ -642,8 +642,18 @@ def _placement(
             y=_range(f"{where}.y", _take(where, e, "y")),
             yaw=yaw,
         )
+    if ("x" in e or "y" in e) and ("along" in e or "lateral" in e):
+        raise ConfigError(
+            f"{where}: place a later object either by world x/y (and a world yaw) or by "
+            "along/lateral in the push frame, not both."
+        )
     if "x" in e or "y" in e:
-        raise ConfigError(f"{where}: later objects are placed by along/lateral in the push frame.")
+        return PlacementSpec(
+            tuple(choices),
+            x=_range(f"{where}.x", _take(where, e, "x")),
+            y=_range(f"{where}.y", _take(where, e, "y")),
+            yaw=yaw,
+        )
     return PlacementSpec(
         tuple(choices),
         along=_range(f"{where}.along", _take(where, e, "along")),

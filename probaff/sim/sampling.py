@@ -69,10 +69,14 @@ def sample_scene(
 
     for spec in scene.objects[1:]:
         obj = catalogue[spec.choices[int(rng.integers(len(spec.choices)))]]
-        assert spec.along is not None and spec.lateral is not None
-        c = c1 + _uniform(rng, spec.along) * d + _uniform(rng, spec.lateral) * yp
         objs.append(obj)
-        poses.append((c[0], c[1], phi + _uniform(rng, spec.yaw)))
+        if spec.in_push_frame:
+            assert spec.along is not None and spec.lateral is not None
+            c = c1 + _uniform(rng, spec.along) * d + _uniform(rng, spec.lateral) * yp
+            poses.append((c[0], c[1], phi + _uniform(rng, spec.yaw)))
+        else:
+            assert spec.x is not None and spec.y is not None
+            poses.append((_uniform(rng, spec.x), _uniform(rng, spec.y), _uniform(rng, spec.yaw)))
 
     walls = []
     for w in scene.walls:

@@ -1,0 +1,518 @@
+"""The chapter 4 task: push a flat book over the table edge until it can be grasped.
+
+The task lives in ``worlds/tasks/push_to_edge.yaml`` (its scene in
+``worlds/scenes/push_to_edge.yaml``). World frame: the table's, z up; the edge is the line
+``x = edge_x`` (the table's +x side), the book (object 0) starts inside it and the battery
+(object 1, 15 kg, which the hand cannot move) stands on the table.
+
+Success, from the gripper and book geometry. The gripper closes vertically on the part of the
+book that overhangs the edge: one fingertip slides under the book beyond the edge, the other
+presses on top; the 3 cm book fits the 15 cm finger span. The fingertip under the book needs
+its diameter ``2 r_f`` (``gripper.finger_radius`` of ``worlds/tabletop.yaml``) plus a
+``clearance`` from the edge, the *grasp depth* ``d_g = 2 r_f + clearance``; it needs a pad of
+book at least one fingertip wide. So the book is graspable when
+
+- its footprint crosses the line ``x = edge_x + d_g`` along a chord at least ``2 r_f`` long,
+  and
+- its centre of mass (the footprint's centre: the book is uniform) lies at least
+  ``com_margin`` inside the edge, so that it does not tip over.
+
+It falls when its centre leaves the table, the simulator's rule (`probaff.sim.tabletop`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from probaff._checks import check_count, check_finite, check_positive, check_shape
+from probaff.errors import ConfigError, InputError
+from probaff.sim.config import (
+    ObjectSpec,
+    SceneSpec,
+    TabletopSpec,
+    load_catalogue,
+    load_scene,
+    load_tabletop,
+    worlds_dir,
+)
+from probaff.sim.sampling import sample_scene
+from probaff.sim.tabletop import SceneInstance
+
+__all__ = [
+    "EdgeTask",
+    "RiskBounds",
+    "SearchOptions",
+    "box_corners",
+    "boxes_overlap",
+    "check_book_pose",
+    "chord_at",
+    "load_edge_task",
+    "sample_episode",
+]
+
+_MAX_EPISODE_DRAWS = 500
+
+
+def box_corners(poses: np.ndarray, size: tuple[float, float]) -> np.ndarray:
+    """Corners of rectangular footprints in the world.
+
+    Args:
+        poses: (..., 3) world ``(x, y, theta)``.
+        size: Extent ``(a, b)`` along the object's own x and y (m).
+
+    Returns:
+        (..., 4, 2) world corners, counter-clockwise.
+    """
+    poses = np.asarray(poses, dtype=float)
+    hx, hy = 0.5 * size[0], 0.5 * size[1]
+    local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+    c, s = np.cos(poses[..., 2])[..., None], np.sin(poses[..., 2])[..., None]
+    x = poses[..., 0, None] + c * local[:, 0] - s * local[:, 1]
+    y = poses[..., 1, None] + s * local[:, 0] + c * local[:, 1]
+    return np.stack([x, y], axis=-1)
+
+
+def boxes_overlap(
+    poses_a: np.ndarray,
+    size_a: tuple[float, float],
+    pose_b: np.ndarray,
+    size_b: tuple[float, float],
+    margin: float = 0.0,
+) -> np.ndarray:
+    """Whether rectangles overlap, by the separating-axis test.
+
+    Args:
+        poses_a: (..., 3) world poses of the first rectangles.
+        size_a: Their extent (m).
+        pose_b: (3,) world pose of the second rectangle.
+        size_b: Its extent (m).
+        margin: Grow both by this much (m) on every side before testing.
+
+    Returns:
+        (...,) bool.
+    """
+    ca = box_corners(poses_a, (size_a[0] + 2 * margin, size_a[1] + 2 * margin))
+    cb = box_corners(
+        np.asarray(pose_b, dtype=float), (size_b[0] + 2 * margin, size_b[1] + 2 * margin)
+    )
+    th_a = np.asarray(poses_a, dtype=float)[..., 2]
+    th_b = float(pose_b[2])
+    axes = [
+        np.stack([np.cos(th_a), np.sin(th_a)], -1),
+        np.stack([-np.sin(th_a), np.cos(th_a)], -1),
+        np.broadcast_to(np.array([math.cos(th_b), math.sin(th_b)]), (*th_a.shape, 2)),
+        np.broadcast_to(np.array([-math.sin(th_b), math.cos(th_b)]), (*th_a.shape, 2)),
+    ]
+    separated = np.zeros(th_a.shape, dtype=bool)
+    for ax in axes:
+        pa = (ca * ax[..., None, :]).sum(-1)  # (..., 4)
+        pb = (cb * ax[..., None, :]).sum(-1)
+        separated |= (pa.max(-1) < pb.min(-1)) | (pb.max(-1) < pa.min(-1))
+    return ~separated
+
+
+def chord_at(poses: np.ndarray, size: tuple[float, float], line_x: float) -> np.ndarray:
+    """Length of the chord that the line ``x = line_x`` cuts from rectangular footprints.
+
+    Args:
+        poses: (..., 3) world poses.
+        size: Extent of the rectangle (m).
+        line_x: World x of the line.
+
+    Returns:
+        (...,) chord length (m); 0 where the line misses the footprint.
+    """
+    corners = box_corners(poses, size)
+    a, b = corners, np.roll(corners, -1, axis=-2)  # the four edges a -> b
+    dx = b[..., 0] - a[..., 0]
+    crosses = (a[..., 0] - line_x) * (b[..., 0] - line_x) <= 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(np.abs(dx) > 1e-12, (line_x - a[..., 0]) / dx, 0.0)
+    y = a[..., 1] + t * (b[..., 1] - a[..., 1])
+    hi = np.where(crosses, y, -np.inf).max(-1)
+    lo = np.where(crosses, y, np.inf).min(-1)
+    return np.where(np.isfinite(hi) & np.isfinite(lo), np.maximum(hi - lo, 0.0), 0.0)
+
+
+@dataclass(frozen=True)
+class SearchOptions:
+    """How A* searches (``search`` in the task YAML).
+
+    Attributes:
+        xy_resolution: Closed-set cell of the book's position (m).
+        yaw_resolution: Closed-set bin of the book's yaw (rad); yaw is taken modulo pi.
+        max_expansions: Nodes A* expands before it returns its best partial plan.
+        batch: Nodes expanded together; all their candidates are predicted in one call.
+        step_bound: Largest move of the book's centre by one push (m), the heuristic's
+            divisor; it must bound every transition for the heuristic to be admissible.
+    """
+
+    xy_resolution: float = 0.02
+    yaw_resolution: float = 0.2618
+    max_expansions: int = 240
+    batch: int = 8
+    step_bound: float = 0.16
+
+    def __post_init__(self) -> None:
+        for name in ("xy_resolution", "yaw_resolution", "step_bound"):
+            check_positive(f"search.{name}", getattr(self, name))
+        object.__setattr__(
+            self, "max_expansions", check_count("search.max_expansions", self.max_expansions)
+        )
+        object.__setattr__(self, "batch", check_count("search.batch", self.batch))
+
+
+@dataclass(frozen=True)
+class RiskBounds:
+    """The risk-aware planner's bounds (``risk`` in the task YAML).
+
+    Attributes:
+        samples: Draws from the model's predictive distribution per candidate push.
+        max_fall: Largest accepted P(the book falls off the table).
+        max_collision: Largest accepted P(the book ends overlapping the battery).
+    """
+
+    samples: int = 32
+    max_fall: float = 0.1
+    max_collision: float = 0.1
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "samples", check_count("risk.samples", self.samples))
+        for name in ("max_fall", "max_collision"):
+            v = getattr(self, name)
+            check_positive(f"risk.{name}", v, allow_zero=True)
+            if v > 1:
+                raise InputError(f"risk.{name} is a probability bound in [0, 1], got {v}.")
+
+
+@dataclass(frozen=True)
+class EdgeTask:
+    """The push-to-edge task.
+
+    Attributes:
+        scene: The scene template (book first, battery second).
+        world: The tabletop world.
+        edge_x: World x of the edge the book goes over (m).
+        start_x: Range of the book's start x in an episode (m).
+        start_y: Range of its start y (m).
+        clearance: Clearance of the lower fingertip from the edge (m).
+        com_margin: Distance the centre of mass stays inside the edge (m).
+        budget: Pushes allowed per episode.
+        replan_distance: Replan when the book lands farther than this from the prediction (m).
+        directions: Candidate pushing frames around the book.
+        start_gap: Hand start distance from the book's footprint (m).
+        push_distance: L, the hand's travel per push (m), from the scene.
+        contact_tolerance: Footprints that overlap by less than this (m) touch, they do not
+            collide: the simulator leaves a book resting against the battery with a sliver
+            of overlap (its collision slop).
+        search: A* options.
+        risk: The risk-aware planner's bounds.
+    """
+
+    scene: SceneSpec
+    world: TabletopSpec
+    edge_x: float = 0.5
+    start_x: tuple[float, float] = (-0.15, 0.15)
+    start_y: tuple[float, float] = (-0.25, 0.25)
+    clearance: float = 0.005
+    com_margin: float = 0.01
+    budget: int = 15
+    replan_distance: float = 0.05
+    directions: int = 16
+    start_gap: float = 0.02
+    push_distance: float = 0.15
+    contact_tolerance: float = 0.002
+    search: SearchOptions = SearchOptions()
+    risk: RiskBounds = RiskBounds()
+    _objects: tuple[ObjectSpec, ObjectSpec] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if len(self.scene.objects) != 2:
+            raise ConfigError(
+                f"scene {self.scene.name!r} has {len(self.scene.objects)} objects; the "
+                "push-to-edge task needs the book first and the battery second."
+            )
+        object.__setattr__(self, "budget", check_count("budget (pushes per episode)", self.budget))
+        object.__setattr__(
+            self, "directions", check_count("candidates.directions", self.directions)
+        )
+        for name in ("clearance", "com_margin", "start_gap", "contact_tolerance"):
+            check_positive(name, getattr(self, name), allow_zero=True)
+        for name in ("replan_distance", "push_distance"):
+            check_positive(name, getattr(self, name))
+        check_finite("edge_x", self.edge_x)
+        hx = 0.5 * self.world.table_size[0]
+        if not 0 < self.edge_x <= hx + 1e-9:
+            raise ConfigError(
+                f"edge_x = {self.edge_x} is not the table's +x edge (the table spans x in "
+                f"[-{hx}, {hx}]); set edge_x to {hx}."
+            )
+        for name in ("start_x", "start_y"):
+            lo, hi = getattr(self, name)
+            if not lo <= hi:
+                raise ConfigError(f"start.{name[-1]} must be [low, high], got {[lo, hi]}.")
+        catalogue = load_catalogue()
+        object.__setattr__(
+            self,
+            "_objects",
+            tuple(catalogue[p.choices[0]] for p in self.scene.objects[:2]),
+        )
+        book = self.book
+        if self.grasp_depth + self.com_margin >= self.half_diagonal:
+            raise ConfigError(
+                f"the goal is unreachable by construction: a {book.size[0]} x {book.size[1]} m "
+                f"book cannot reach {self.grasp_depth:.3f} m beyond the edge with its centre "
+                f"{self.com_margin} m inside it; lower grasp.clearance or grasp.com_margin."
+            )
+        if self.start_x[1] + self.half_diagonal >= self.edge_x + self.grasp_depth:
+            raise ConfigError(
+                "start.x reaches the goal already; start the book farther from the edge "
+                f"(start.x[1] + {self.half_diagonal:.3f} < {self.edge_x + self.grasp_depth:.3f})."
+            )
+
+    # ------------------------------------------------------------------ objects
+    @property
+    def book(self) -> ObjectSpec:
+        """The pushed book (the scene's first object)."""
+        return self._objects[0]
+
+    @property
+    def battery(self) -> ObjectSpec:
+        """The obstacle (the scene's second object)."""
+        return self._objects[1]
+
+    @property
+    def grasp_depth(self) -> float:
+        """d_g = 2 r_f + clearance: how far beyond the edge the gripper needs book (m)."""
+        return 2 * self.world.gripper.finger_radius + self.clearance
+
+    @property
+    def finger_width(self) -> float:
+        """2 r_f: the shortest chord of book a fingertip can close on (m)."""
+        return 2 * self.world.gripper.finger_radius
+
+    @property
+    def half_diagonal(self) -> float:
+        """The book's largest extent from its centre (m)."""
+        return 0.5 * math.hypot(*self.book.size)
+
+    # ------------------------------------------------------------------ tests
+    def graspable(self, poses: np.ndarray) -> np.ndarray:
+        """Whether book poses (..., 3) are goals (see the module docstring); (...,) bool."""
+        poses = np.asarray(poses, dtype=float)
+        chord = chord_at(poses, self.book.size, self.edge_x + self.grasp_depth)
+        return (chord >= self.finger_width) & (poses[..., 0] <= self.edge_x - self.com_margin)
+
+    def fallen(self, poses: np.ndarray) -> np.ndarray:
+        """Whether the book's centre is off the table, for poses (..., 3); (...,) bool."""
+        poses = np.asarray(poses, dtype=float)
+        hx, hy = 0.5 * self.world.table_size[0], 0.5 * self.world.table_size[1]
+        return (np.abs(poses[..., 0]) > hx) | (np.abs(poses[..., 1]) > hy)
+
+    def collides(self, poses: np.ndarray, battery: np.ndarray) -> np.ndarray:
+        """Whether book poses (..., 3) overlap the battery at world pose (3,); (...,) bool.
+
+        An overlap of less than ``contact_tolerance`` is a touch, not a collision.
+        """
+        return boxes_overlap(
+            poses, self.book.size, battery, self.battery.size, margin=-self.contact_tolerance
+        )
+
+    def heuristic(self, poses: np.ndarray) -> np.ndarray:
+        """Admissible lower bound on the pushes from book poses (..., 3) to a goal; (...,) int.
+
+        Every goal pose has ``x >= edge_x + d_g - R`` (R the half diagonal: no footprint
+        point is farther from the centre), and one push moves the centre at most
+        ``search.step_bound``.
+        """
+        poses = np.asarray(poses, dtype=float)
+        gap = self.edge_x + self.grasp_depth - self.half_diagonal - poses[..., 0]
+        return np.ceil(np.maximum(gap, 0.0) / self.search.step_bound - 1e-9).astype(int)
+
+    def progress(self, poses: np.ndarray) -> np.ndarray:
+        """How far (m) the book still lacks of a goal along x, 0 at a goal; (...,) float.
+
+        ``edge_x + d_g`` minus the farthest footprint point along +x, for a tie-break and for
+        the greedy planner (it ignores the chord and centre conditions).
+        """
+        poses = np.asarray(poses, dtype=float)
+        reach = box_corners(poses, self.book.size)[..., 0].max(-1)
+        return np.where(
+            self.graspable(poses), 0.0, np.maximum(self.edge_x + self.grasp_depth - reach, 0.0)
+        )
+
+    # ------------------------------------------------------------------ pushes
+    def candidate_pushes(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pushing frames placed evenly around book poses, oriented to their centres.
+
+        Direction ``i`` points along world yaw ``2 pi i / directions``; the hand starts
+        ``start_gap`` plus its fingertip radius behind the book's footprint.
+
+        Args:
+            poses: (B, 3) world book poses.
+
+        Returns:
+            ``(origins, yaws)``: (B, C, 2) world hand starts and (C,) world push yaws.
+        """
+        poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+        yaws = 2 * math.pi * np.arange(self.directions) / self.directions
+        d = np.stack([np.cos(yaws), np.sin(yaws)], -1)  # (C, 2)
+        rel = poses[:, 2, None] - yaws[None, :]  # book yaw in each pushing frame
+        a, b = 0.5 * self.book.size[0], 0.5 * self.book.size[1]
+        support = np.abs(np.cos(rel)) * a + np.abs(np.sin(rel)) * b  # footprint extent along -d
+        back = support + self.world.gripper.finger_radius + self.start_gap
+        origins = poses[:, None, :2] - back[..., None] * d[None]
+        return origins, yaws
+
+    def hand_hits_battery(
+        self, origins: np.ndarray, yaws: np.ndarray, battery: np.ndarray
+    ) -> np.ndarray:
+        """Whether either fingertip at the hand's start overlaps the battery.
+
+        Args:
+            origins: (..., 2) world hand starts.
+            yaws: (...,) push yaws, broadcastable.
+            battery: (3,) world battery pose.
+
+        Returns:
+            (...,) bool.
+        """
+        g = self.world.gripper
+        yaws = np.broadcast_to(yaws, origins.shape[:-1])
+        side = np.stack([-np.sin(yaws), np.cos(yaws)], -1) * (0.5 * g.push_opening)
+        c, s = math.cos(battery[2]), math.sin(battery[2])
+        hit = np.zeros(origins.shape[:-1], dtype=bool)
+        for sign in (-1.0, 1.0):
+            rel = origins + sign * side - battery[:2]
+            u = np.abs(rel[..., 0] * c + rel[..., 1] * s) - 0.5 * self.battery.size[0]
+            v = np.abs(-rel[..., 0] * s + rel[..., 1] * c) - 0.5 * self.battery.size[1]
+            dist = np.hypot(np.maximum(u, 0.0), np.maximum(v, 0.0))
+            hit |= (np.maximum(u, v) < 0) | (dist < g.finger_radius)
+        return hit
+
+
+def _pair(where: str, value: Any) -> tuple[float, float]:
+    if not isinstance(value, (list, tuple)) or len(value) != 2:
+        raise ConfigError(f"{where} must be [low, high], got {value!r}.")
+    try:
+        return float(value[0]), float(value[1])
+    except (TypeError, ValueError):
+        raise ConfigError(f"{where} must hold two numbers, got {value!r}.") from None
+
+
+def _section(where: str, raw: Any, keys: set[str]) -> dict[str, Any]:
+    if raw is None:
+        return {}
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{where} must be a mapping, got {raw!r}.")
+    extra = set(raw) - keys
+    if extra:
+        raise ConfigError(f"{where} has unknown keys {sorted(extra)}; known: {sorted(keys)}.")
+    return raw
+
+
+def load_edge_task(path: Path | str | None = None, world: TabletopSpec | None = None) -> EdgeTask:
+    """Load the push-to-edge task (``worlds/tasks/push_to_edge.yaml`` by default).
+
+    Args:
+        path: Another task file.
+        world: The tabletop world; ``worlds/tabletop.yaml`` by default.
+
+    Raises:
+        ConfigError: For a missing file, an unknown key or a malformed value, naming it.
+    """
+    import yaml
+
+    p = Path(path) if path is not None else worlds_dir() / "tasks" / "push_to_edge.yaml"
+    if not p.is_file():
+        raise ConfigError(f"no task file at {p}; give the path of a push-to-edge task YAML.")
+    raw = yaml.safe_load(p.read_text())
+    w = p.name
+    top = _section(
+        w,
+        raw,
+        {
+            "scene",
+            "edge_x",
+            "start",
+            "grasp",
+            "budget",
+            "replan_distance",
+            "candidates",
+            "search",
+            "risk",
+        },
+    )
+    start = _section(f"{w}:start", top.get("start"), {"x", "y"})
+    grasp = _section(f"{w}:grasp", top.get("grasp"), {"clearance", "com_margin"})
+    cand = _section(f"{w}:candidates", top.get("candidates"), {"directions", "start_gap"})
+    search = _section(f"{w}:search", top.get("search"), set(SearchOptions.__dataclass_fields__))
+    risk = _section(f"{w}:risk", top.get("risk"), set(RiskBounds.__dataclass_fields__))
+    scene = load_scene(str(top.get("scene", "push_to_edge")))
+    kw: dict[str, Any] = {}
+    if "x" in start:
+        kw["start_x"] = _pair(f"{w}:start.x", start["x"])
+    if "y" in start:
+        kw["start_y"] = _pair(f"{w}:start.y", start["y"])
+    for key, src in (("edge_x", top), ("replan_distance", top), ("budget", top)):
+        if key in src:
+            kw[key] = src[key]
+    kw.update({k: grasp[k] for k in grasp})
+    kw.update({k: cand[k] for k in cand})
+    try:
+        return EdgeTask(
+            scene=scene,
+            world=world or load_tabletop(),
+            push_distance=scene.push.distance,
+            search=SearchOptions(**search),
+            risk=RiskBounds(**risk),
+            **kw,
+        )
+    except InputError as exc:
+        raise ConfigError(f"{w}: {exc}") from None
+
+
+def sample_episode(task: EdgeTask, rng: np.random.Generator) -> SceneInstance:
+    """Draw an episode's start: the scene's objects and physics, the book in the start region.
+
+    The battery, the frictions, masses and pressure distributions come from the scene's
+    ranges, as for its training pushes; the book is drawn in ``start_x`` x ``start_y``. The
+    draw's push is not used. Objects never overlap at the start.
+
+    Args:
+        task: The task.
+        rng: Source of randomness (the draw depends on nothing else).
+
+    Returns:
+        The episode's scene, object 0 the book and object 1 the battery.
+
+    Raises:
+        ConfigError: If valid starts are too rare to draw.
+    """
+    first = replace(task.scene.objects[0], x=task.start_x, y=task.start_y)
+    scene = replace(task.scene, objects=(first, *task.scene.objects[1:]))
+    catalogue = load_catalogue()
+    for _ in range(_MAX_EPISODE_DRAWS):
+        s = sample_scene(scene, catalogue, task.world, rng)
+        if s is None:
+            continue
+        if task.collides(s.poses[0], s.poses[1]) or bool(task.graspable(s.poses[0])):
+            continue
+        return s
+    raise ConfigError(
+        f"fewer than 1 in {_MAX_EPISODE_DRAWS} draws of scene {task.scene.name!r} gives a start "
+        "with the book and battery apart; widen the start region or the battery's range."
+    )
+
+
+def check_book_pose(name: str, pose: Any) -> np.ndarray:
+    """A finite (3,) world pose as an array, or `InputError` naming `name`."""
+    arr = np.asarray(pose, dtype=float)
+    check_shape(name, arr, (3,))
+    check_finite(name, arr)
+    return arr

@@ -1,0 +1,138 @@
+"""A fitted push model together with the features it was fitted on, for planners.
+
+A planner knows world states and candidate pushes; a push model knows feature matrices. A
+`FeaturePushModel` joins them: it computes the named feature set of `PushQueries`, selects the
+column groups the model was fitted on, checks that their width is the model's, and returns the
+model's predictive distribution of every candidate in one batched call. `apply_effects` turns
+predicted pushing-frame effects back into world poses.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch.distributions import Distribution
+
+from probaff._checks import check_count, check_finite, check_positive, check_shape
+from probaff.data.queries import PushInputs
+from probaff.errors import InputError
+from probaff.features.ch4 import chapter4_features
+from probaff.features.ch5 import chapter5_features
+from probaff.features.featureset import FeatureSet
+from probaff.models.interface import PushModel
+
+__all__ = ["FEATURE_FUNCTIONS", "FeaturePushModel", "apply_effects"]
+
+FEATURE_FUNCTIONS: dict[str, Callable[[PushInputs], FeatureSet]] = {
+    "ch4": chapter4_features,
+    "ch5": chapter5_features,
+}
+"""Feature sets a planner can compute, by name."""
+
+
+@dataclass(frozen=True)
+class FeaturePushModel:
+    """A fitted `PushModel` and the features it reads.
+
+    Attributes:
+        model: The fitted model; it was fitted on ``FEATURE_FUNCTIONS[features](ds)
+            .select(*groups)``.
+        features: ``"ch4"`` or ``"ch5"``.
+        groups: The column groups fitted on, in order, e.g. ``("f_o", "f_c")``.
+        cloud_points: Points per object cloud of the training dataset; a planner senses its
+            candidates' clouds with as many.
+        cloud_noise: Cloud noise (m) of the training dataset.
+    """
+
+    model: PushModel
+    features: str
+    groups: tuple[str, ...]
+    cloud_points: int = 256
+    cloud_noise: float = 0.002
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.model, PushModel):
+            raise InputError(
+                f"model must be a fitted probaff push model (PushModel), got "
+                f"{type(self.model).__name__}."
+            )
+        if self.features not in FEATURE_FUNCTIONS:
+            raise InputError(
+                f"unknown feature set {self.features!r}; choose one of {sorted(FEATURE_FUNCTIONS)}."
+            )
+        groups = (self.groups,) if isinstance(self.groups, str) else tuple(self.groups)
+        if not groups:
+            raise InputError("groups must name at least one feature group, e.g. ('f_o', 'f_c').")
+        object.__setattr__(self, "groups", groups)
+        object.__setattr__(self, "cloud_points", check_count("cloud_points", self.cloud_points))
+        check_positive("cloud_noise", self.cloud_noise, allow_zero=True)
+
+    def feature_matrix(self, queries: PushInputs) -> np.ndarray:
+        """The model's input matrix for `queries`.
+
+        Args:
+            queries: C candidate pushes (or a dataset's pushes).
+
+        Returns:
+            (C, D) the selected feature columns.
+
+        Raises:
+            InputError: If the model was fitted on a different number of columns than the
+                planner computes (another feature set or other groups), or a group is unknown.
+        """
+        fs = FEATURE_FUNCTIONS[self.features](queries)
+        X = fs.select(*self.groups)
+        fitted = getattr(self.model, "n_features", None)
+        if fitted is not None and int(fitted) != X.shape[1]:
+            raise InputError(
+                f"the push model was fitted on {fitted} feature columns, but the planner "
+                f"computes {X.shape[1]} ({self.features} groups {list(self.groups)}); give the "
+                "feature set and groups the model was fitted on (FeaturePushModel(features=..., "
+                "groups=...)), or refit it on FEATURE_FUNCTIONS[features](ds).select(*groups)."
+            )
+        return X
+
+    def predict(self, queries: PushInputs) -> Distribution:
+        """Predictive distribution of the effects of every candidate, in one call.
+
+        Args:
+            queries: C candidate pushes.
+
+        Returns:
+            Batch shape (C,), event shape (E,): the model's prediction of the pushing-frame
+            effects ``(dy_p, dz_p, dtheta_p)`` per object.
+        """
+        return self.model.predict(torch.as_tensor(self.feature_matrix(queries)))
+
+
+def apply_effects(poses: np.ndarray, effects: np.ndarray, push_yaw: np.ndarray) -> np.ndarray:
+    """World poses after pushing-frame effects: the inverse of `push_frame_effect`.
+
+    Args:
+        poses: (..., K, 3) world ``(x, y, theta)`` before.
+        effects: (..., K, 3) ``(dy_p, dz_p, dtheta_p)`` in each push's frame, broadcastable
+            against `poses`.
+        push_yaw: (...,) world yaw of each push's z_p (rad).
+
+    Returns:
+        (..., K, 3) world ``(x, y, theta)`` after.
+
+    Raises:
+        InputError: For a last axis that is not 3 or a NaN.
+    """
+    poses, effects = np.asarray(poses, dtype=float), np.asarray(effects, dtype=float)
+    check_shape("poses", poses, (*(None,) * (poses.ndim - 1), 3))
+    check_shape("effects", effects, (*(None,) * (effects.ndim - 1), 3))
+    for name, x in (("poses", poses), ("effects", effects), ("push_yaw", push_yaw)):
+        check_finite(name, x)
+    yaw = np.asarray(push_yaw, dtype=float)[..., None]
+    c, s = np.cos(yaw), np.sin(yaw)
+    dy, dz, dth = effects[..., 0], effects[..., 1], effects[..., 2]
+    out = np.empty(np.broadcast_shapes(poses.shape, effects.shape))
+    out[..., 0] = poses[..., 0] + dz * c - dy * s
+    out[..., 1] = poses[..., 1] + dz * s + dy * c
+    out[..., 2] = poses[..., 2] + dth
+    return out

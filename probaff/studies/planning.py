@@ -1,0 +1,456 @@
+"""The planning study: push-to-edge planners (chapter 4) closed loop in the simulator.
+
+`run` generates the training pushes of the task's scene (``probaff generate --scene
+push_to_edge``, resumable), fits the planner models of `probaff.planning.edge_models` once
+(saved under ``out/models/``, reused while the data and settings are the same), and runs every
+planner on the same seeded episodes. Each episode is one resumable task (`run_tasks`): its
+record lands in ``out/tasks/`` as JSON, keyed by the planner, the trial and a fingerprint of
+every setting that shapes it, so a killed study reruns only the missing episodes.
+
+Planners (`EDGE_PLANNERS`): A* with the mixture of experts (``astar-moe``), its risk-aware
+variant (``astar-risk-moe``), A* with a single GP (``astar-gp``), with chapter 4's clustered
+model (``astar-clustered``), with the true simulator (``astar-sim``, an upper bound), with the
+analytic quasi-static model (``astar-quasistatic``), and the greedy one-step planner with the
+mixture (``greedy-moe``).
+
+Outputs in ``out/``: ``edge_summary.csv`` and ``summary.md`` (success rate with its 95 %
+Wilson interval, pushes and replans per trial, the mean one-step prediction error, planning
+time per plan, outcomes), ``edge_success.png``, ``edge_pushes.png`` and ``edge_episodes.png``
+(planned against executed book trajectories over the table).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+from typing import Any, cast
+
+import numpy as np
+
+from probaff._checks import check_count, check_output_dir
+from probaff._dask import check_workers
+from probaff._io import atomic_write_text
+from probaff._threads import torch_threads
+from probaff.data.generation import GenerateConfig, generate
+from probaff.errors import InputError
+from probaff.eval.fingerprint import config_fingerprint
+from probaff.eval.metrics import wilson_interval
+from probaff.eval.tables import markdown_table, write_csv
+from probaff.eval.tasks import ResultStore, run_tasks
+from probaff.models import load as load_model
+from probaff.models import save as save_model
+from probaff.planning.edge_episode import run_edge_episode
+from probaff.planning.edge_models import EDGE_MODELS, fit_edge_model
+from probaff.planning.edge_task import EdgeTask, load_edge_task
+from probaff.planning.edge_transitions import (
+    EdgeTransition,
+    LearnedTransition,
+    PushReachability,
+    QuasiStaticTransition,
+    SimulatorTransition,
+)
+from probaff.planning.learned import FeaturePushModel
+from probaff.sim.runner import PushSimulator
+
+__all__ = [
+    "EDGE_PLANNERS",
+    "RUN_ONLY",
+    "SMOKE_OVERRIDES",
+    "THESIS_EDGE",
+    "EdgePlannerSpec",
+    "PlanningStudyConfig",
+    "demo",
+    "edge_trial",
+    "run",
+    "summarise",
+    "trial_seed",
+]
+
+
+@dataclass(frozen=True)
+class EdgePlannerSpec:
+    """One push-to-edge planner of the study.
+
+    Attributes:
+        search: ``"astar"`` or ``"greedy"``.
+        model: A key of `EDGE_MODELS`, ``"simulator"`` or ``"quasistatic"``.
+        risk: The risk-aware variant.
+    """
+
+    search: str
+    model: str
+    risk: bool = False
+
+
+EDGE_PLANNERS: dict[str, EdgePlannerSpec] = {
+    "astar-moe": EdgePlannerSpec("astar", "moe"),
+    "astar-risk-moe": EdgePlannerSpec("astar", "moe", risk=True),
+    "astar-gp": EdgePlannerSpec("astar", "gp"),
+    "astar-clustered": EdgePlannerSpec("astar", "clustered"),
+    "astar-sim": EdgePlannerSpec("astar", "simulator"),
+    "astar-quasistatic": EdgePlannerSpec("astar", "quasistatic"),
+    "greedy-moe": EdgePlannerSpec("greedy", "moe"),
+}
+"""The planners the study compares, by name."""
+
+THESIS_EDGE = {"trials": 15, "successes": 14, "pushes": 4.4, "replans": 3.0, "error_cm": 3.65}
+"""Chapter 4's published push-to-edge result (A* with the hierarchical model, m = 2)."""
+
+RUN_ONLY = ("out", "workers", "scheduler", "progress")
+"""Fields that decide where and how the study runs, not what it computes."""
+
+_EDGE_FIELDS = ("seed", "train_pushes", "em_iterations")
+"""The fields that shape a push-to-edge episode's record (besides its planner and trial)."""
+
+_VERSION = 1
+_KEEP_TRAJECTORIES = 6  # episodes per planner whose full trajectories are stored (figures)
+
+
+@dataclass(frozen=True)
+class PlanningStudyConfig:
+    """Settings of the planning study.
+
+    Attributes:
+        out: Output folder (datasets, models, per-trial records, tables, figures).
+        seed: Seed of the training pushes, the fits and the episodes.
+        train_pushes: Training pushes of the task's scene for the learned models.
+        trials: Episodes per planner (the same seeded starts for every planner).
+        planners: Names from `EDGE_PLANNERS`.
+        em_iterations: EM iterations of the mixture models.
+        workers: 0 runs in this process; K > 0 or None uses a local Dask cluster.
+        scheduler: Address of an existing Dask scheduler.
+        progress: Show progress bars.
+    """
+
+    out: str = "results/planning"
+    seed: int = 0
+    train_pushes: int = 240
+    trials: int = 100
+    planners: tuple[str, ...] = tuple(EDGE_PLANNERS)
+    em_iterations: int = 10
+    workers: int | None = 0
+    scheduler: str | None = None
+    progress: bool = True
+
+    def validate(self) -> None:
+        """Raise `InputError` for unknown planners or impossible sizes."""
+        unknown = [p for p in self.planners if p not in EDGE_PLANNERS]
+        if unknown or not self.planners:
+            raise InputError(
+                f"unknown or no planners {unknown or list(self.planners)}; choose from "
+                f"{list(EDGE_PLANNERS)}."
+            )
+        check_count("train_pushes", self.train_pushes)
+        if self.train_pushes < 10:
+            raise InputError(f"train_pushes must be at least 10, got {self.train_pushes}.")
+        check_count("trials", self.trials)
+        check_count("em_iterations", self.em_iterations)
+        check_count("seed", self.seed, minimum=0)
+        check_workers(self.workers)
+        check_output_dir("out", self.out)
+
+
+SMOKE_OVERRIDES: dict[str, Any] = {
+    "train_pushes": 40,
+    "trials": 2,
+    "planners": ("astar-moe", "astar-risk-moe", "astar-quasistatic", "greedy-moe"),
+    "em_iterations": 2,
+    "progress": False,
+}
+"""Sizes of a tiny run that checks the whole pipeline in a minute or two."""
+
+
+def trial_seed(seed: int, trial: int) -> int:
+    """The episode seed of trial `trial`: the same for every planner."""
+    return int(np.random.SeedSequence(seed, spawn_key=(trial,)).generate_state(1)[0])
+
+
+@cache
+def _episode_tools() -> tuple[EdgeTask, PushSimulator, PushReachability]:
+    """The task, a simulator and a reachability cache, once per process.
+
+    Their answers do not depend on the order in which episodes ask.
+    """
+    task = load_edge_task()
+    return task, PushSimulator(task.scene, task.world), PushReachability(task)
+
+
+def _transition(
+    spec: EdgePlannerSpec, task: EdgeTask, models: dict[str, FeaturePushModel], seed: int
+) -> EdgeTransition:
+    if spec.model == "simulator":
+        return SimulatorTransition(task)
+    if spec.model == "quasistatic":
+        return QuasiStaticTransition(task)
+    return LearnedTransition(models[spec.model], task, seed=seed, name=spec.model)
+
+
+def edge_trial(
+    planner: str, trial: int, seed: int, keep_trajectories: bool, *, models: dict[str, Any]
+) -> dict[str, Any]:
+    """Run one episode of one planner (a study task; Dask workers import it).
+
+    Args:
+        planner: A key of `EDGE_PLANNERS`.
+        trial: Trial index (its start is shared by every planner).
+        seed: The episode's seed (`trial_seed`).
+        keep_trajectories: Store the executed hand and book trajectories.
+        models: Fitted planner models by name.
+
+    Returns:
+        The episode's record (`EdgeEpisode.to_dict`) with ``trial``.
+    """
+    spec = EDGE_PLANNERS[planner]
+    task, sim, reach = _episode_tools()
+    with torch_threads(1):
+        episode = run_edge_episode(
+            task,
+            _transition(spec, task, models, seed),
+            seed,
+            search=spec.search,
+            risk=spec.risk,
+            label=planner,
+            simulator=sim,
+            reach=reach,
+            trajectories=keep_trajectories,
+        )
+    return {**episode.to_dict(), "trial": trial}
+
+
+def _edge_tag(config: PlanningStudyConfig, length: int = 10) -> str:
+    """Fingerprint of the settings in `_EDGE_FIELDS` (and the code's version)."""
+    others = {f.name for f in dataclasses.fields(config)} - set(_EDGE_FIELDS)
+    return config_fingerprint(config, exclude=others, version=_VERSION, length=length)
+
+
+def _models(config: PlanningStudyConfig, out: Path, names: set[str]) -> dict[str, Any]:
+    """Generate the training pushes and fit (or load) the learned planner models."""
+    data_dir = out / "data" / f"push_to_edge_n{config.train_pushes}_s{config.seed}"
+    ds = generate(
+        GenerateConfig(
+            scene="push_to_edge", n=config.train_pushes, seed=config.seed, trajectories=False
+        ),
+        data_dir,
+        workers=config.workers,
+        scheduler=config.scheduler,
+        resume=data_dir.exists(),
+        progress=config.progress,
+    )
+    tag = _edge_tag(config, length=8)
+    models: dict[str, Any] = {}
+    for name in sorted(names):
+        path = out / "models" / f"{name}.{tag}.pt"
+        if path.is_file():
+            models[name] = _wrap(load_model(path), name, ds)
+            continue
+        fitted = fit_edge_model(name, ds, seed=config.seed, em_iterations=config.em_iterations)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        save_model(cast(Any, fitted.model), path)
+        models[name] = fitted
+    return models
+
+
+def _wrap(model: Any, name: str, ds: Any) -> FeaturePushModel:
+    return FeaturePushModel(
+        model,
+        "ch4",
+        EDGE_MODELS[name].groups,
+        cloud_points=int(ds["cloud_points"].shape[2]),
+        cloud_noise=float(ds.meta.get("cloud_noise", 0.002)),
+    )
+
+
+def summarise(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per planner: success rate with its 95 % Wilson interval and the means.
+
+    Args:
+        records: Episode records (``planner`` keys).
+
+    Returns:
+        Rows with ``planner``, ``trials``, ``successes``, ``success_rate``, ``success_low``,
+        ``success_high``, ``pushes`` (mean over trials), ``pushes_success`` (mean over
+        successful trials), ``replans``, ``error_cm`` (mean one-step prediction error),
+        ``plan_seconds`` (mean per planning call), ``plan_seconds_max``, and the counts of
+        each outcome.
+    """
+    rows = []
+    for planner in dict.fromkeys(r["planner"] for r in records):
+        rs = [r for r in records if r["planner"] == planner]
+        k = sum(bool(r["success"]) for r in rs)
+        lo, hi = wilson_interval(k, len(rs))
+        errors = [s["error"] for r in rs for s in r["steps"]]
+        plan_s = [t for r in rs for t in r["planning_seconds"]]
+        ok = [r["pushes"] for r in rs if r["success"]]
+        row: dict[str, Any] = {
+            "planner": planner,
+            "trials": len(rs),
+            "successes": k,
+            "success_rate": k / len(rs),
+            "success_low": lo,
+            "success_high": hi,
+            "pushes": float(np.mean([r["pushes"] for r in rs])),
+            "pushes_success": float(np.mean(ok)) if ok else math.nan,
+            "replans": float(np.mean([r["replans"] for r in rs])),
+            "error_cm": 100 * float(np.mean(errors)) if errors else math.nan,
+            "plan_seconds": float(np.mean(plan_s)) if plan_s else math.nan,
+            "plan_seconds_max": float(np.max(plan_s)) if plan_s else math.nan,
+        }
+        for outcome in ("success", "fell", "budget", "stuck"):
+            row[f"n_{outcome}"] = sum(r["outcome"] == outcome for r in rs)
+        rows.append(row)
+    return rows
+
+
+def _thesis_row() -> dict[str, Any]:
+    t = THESIS_EDGE
+    lo, hi = wilson_interval(int(t["successes"]), int(t["trials"]))
+    return {
+        "planner": "thesis (A*, hierarchical m=2)",
+        "trials": t["trials"],
+        "successes": t["successes"],
+        "success_rate": t["successes"] / t["trials"],
+        "success_low": lo,
+        "success_high": hi,
+        "pushes": t["pushes"],
+        "replans": t["replans"],
+        "error_cm": t["error_cm"],
+        **dict.fromkeys(("plan_seconds", "n_fell", "n_budget", "n_stuck"), ""),
+    }
+
+
+def run(config: PlanningStudyConfig) -> dict[str, Any]:
+    """Run (or resume) the study and write its tables and figures.
+
+    Args:
+        config: Study settings.
+
+    Returns:
+        ``{"edge": summary rows, "files": written paths}``.
+
+    Raises:
+        InputError: For an invalid config.
+    """
+    from probaff.eval.planning_figures import (
+        plot_edge_episodes,
+        plot_pushes_per_trial,
+        plot_success_rates,
+    )
+
+    config.validate()
+    out = Path(config.out)
+    names = {EDGE_PLANNERS[p].model for p in config.planners} & set(EDGE_MODELS)
+    models = _models(config, out, names)
+    tag = _edge_tag(config)
+    store = ResultStore(out / "tasks")
+    tasks = [
+        (
+            f"edge.{planner}.trial{trial:04d}.{tag}",
+            (planner, trial, trial_seed(config.seed, trial), trial < _KEEP_TRAJECTORIES),
+        )
+        for trial in range(config.trials)
+        for planner in config.planners
+    ]
+    records = run_tasks(
+        edge_trial,
+        tasks,
+        store,
+        workers=config.workers,
+        scheduler=config.scheduler,
+        progress=config.progress,
+        desc="push-to-edge episodes",
+        shared={"models": models},
+    )
+    rows = summarise(records)
+    files = [write_csv(out / "edge_summary.csv", rows)]
+    task = load_edge_task()
+    files.append(
+        plot_success_rates(
+            rows,
+            out / "edge_success.png",
+            title="Push to the edge: success rate (95 % Wilson intervals)",
+            reference=("thesis 14/15", 14 / 15),
+        )
+    )
+    by_planner = {p: [r for r in records if r["planner"] == p] for p in config.planners}
+    files.append(plot_pushes_per_trial(by_planner, out / "edge_pushes.png"))
+    shown = [r for p in config.planners[:3] for r in by_planner[p][:2]]
+    files.append(plot_edge_episodes(shown, task, out / "edge_episodes.png"))
+    columns = [
+        "planner",
+        "trials",
+        "successes",
+        "success_rate",
+        "success_low",
+        "success_high",
+        "pushes",
+        "replans",
+        "error_cm",
+        "plan_seconds",
+        "n_fell",
+        "n_budget",
+        "n_stuck",
+    ]
+    md = [
+        "# Planning study",
+        "",
+        "## Push to the edge, then grasp (chapter 4)",
+        "",
+        f"{config.trials} seeded episodes per planner, the same starts for every planner; "
+        f"models fitted on {config.train_pushes} pushes of the `push_to_edge` scene.",
+        "",
+        markdown_table([*rows, _thesis_row()], columns, digits=3),
+        "",
+        "`success_low`/`success_high`: 95 % Wilson interval. `pushes`, `replans`: means per "
+        "trial; `error_cm`: mean distance between the predicted and the executed book "
+        "position after a push; `plan_seconds`: mean wall time per planning call.",
+        "",
+    ]
+    files.append(str(out / "summary.md"))
+    atomic_write_text(out / "summary.md", "\n".join(md))
+    return {"edge": rows, "files": files}
+
+
+def demo(
+    out: str | Path, *, seed: int = 0, train_pushes: int = 64, progress: bool = True
+) -> dict[str, Any]:
+    """One planned push-to-edge episode with the mixture of experts, rendered to a PNG.
+
+    Generates `train_pushes` pushes of the task's scene, fits the ``"moe"`` model on them and
+    runs one closed-loop A* episode; ``probaff demo`` calls it.
+
+    Args:
+        out: Output folder (the dataset, ``edge_episode.png``).
+        seed: Seed of the pushes, the fit and the episode.
+        train_pushes: Training pushes (at least 10).
+        progress: Show the generator's progress bar.
+
+    Returns:
+        ``{"outcome", "pushes", "replans", "error_cm", "figure"}``.
+    """
+    from probaff.eval.planning_figures import plot_edge_episodes
+
+    out = Path(out)
+    config = PlanningStudyConfig(
+        out=str(out), seed=seed, train_pushes=train_pushes, progress=progress
+    )
+    config.validate()
+    models = _models(config, out, {"moe"})
+    record = edge_trial("astar-moe", 0, trial_seed(seed, 0), True, models=models)
+    figure = plot_edge_episodes(
+        [record], load_edge_task(), out / "edge_episode.png", title="A* with the mixture of experts"
+    )
+    result = {
+        "outcome": record["outcome"],
+        "pushes": record["pushes"],
+        "replans": record["replans"],
+        "error_cm": 100 * record["mean_error"],
+        "figure": figure,
+    }
+    print(
+        f"push to the edge: {record['outcome']} after {record['pushes']} pushes, "
+        f"{record['replans']} replans, mean one-step error {result['error_cm']:.2f} cm"
+    )
+    return result

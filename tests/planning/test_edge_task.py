@@ -1,0 +1,163 @@
+"""The push-to-edge task: goal geometry, falls, collisions, candidates and episode starts."""
+
+import math
+
+import numpy as np
+import pytest
+
+from probaff.errors import ConfigError, InputError
+from probaff.planning.edge_task import (
+    EdgeTask,
+    boxes_overlap,
+    chord_at,
+    load_edge_task,
+    sample_episode,
+)
+
+
+@pytest.fixture(scope="module")
+def task():
+    return load_edge_task()
+
+
+def test_grasp_geometry_comes_from_the_gripper(task):
+    r = task.world.gripper.finger_radius
+    assert task.grasp_depth == pytest.approx(2 * r + task.clearance)
+    assert task.finger_width == pytest.approx(2 * r)
+    assert task.half_diagonal == pytest.approx(0.5 * math.hypot(*task.book.size))
+
+
+def test_chord_of_an_axis_aligned_and_a_turned_book():
+    size = (0.24, 0.17)
+    # axis aligned: the line x = 0.5 cuts the full 0.17 m side while it crosses the book
+    assert chord_at(np.array([0.45, 0.0, 0.0]), size, 0.5) == pytest.approx(0.17)
+    assert chord_at(np.array([0.45, 0.0, 0.0]), size, 0.58) == 0.0
+    # turned by 90 degrees: the long side is now along y
+    assert chord_at(np.array([0.45, 0.0, math.pi / 2]), size, 0.5) == pytest.approx(0.24)
+    # a corner: the chord of a square turned 45 degrees at depth t from its tip is 2 t
+    sq = (0.2, 0.2)
+    tip = 0.1 * math.sqrt(2)
+    assert chord_at(np.array([0.0, 0.0, math.pi / 4]), sq, tip - 0.03) == pytest.approx(0.06)
+
+
+def test_graspable_needs_overhang_and_the_centre_on_the_table(task):
+    e, d = task.edge_x, task.grasp_depth
+    a = 0.5 * task.book.size[0]
+    ok = np.array([e + d + 0.01 - a, 0.0, 0.0])  # overhangs d + 1 cm, centre inside
+    short = np.array([e + d - 0.01 - a, 0.0, 0.0])  # overhangs 1 cm less than d
+    tipping = np.array([e - task.com_margin / 2, 0.0, 0.0])
+    assert task.graspable(np.stack([ok, short, tipping])).tolist() == [True, False, False]
+    # a corner that pokes out by d but is narrower than a fingertip there is not enough
+    corner = np.array([e + d + 0.004 - task.half_diagonal, 0.0, math.atan2(0.17, 0.24)])
+    assert not task.graspable(corner)
+
+
+def test_fallen_is_the_simulators_rule(task):
+    hx, hy = 0.5 * task.world.table_size[0], 0.5 * task.world.table_size[1]
+    poses = np.array([[hx - 1e-3, 0, 0], [hx + 1e-3, 0, 0], [0, -hy - 1e-3, 0]])
+    assert task.fallen(poses).tolist() == [False, True, True]
+
+
+def _inside(points, pose, size):
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    rel = points - pose[:2]
+    u = rel[:, 0] * c + rel[:, 1] * s
+    v = -rel[:, 0] * s + rel[:, 1] * c
+    return (np.abs(u) <= size[0] / 2) & (np.abs(v) <= size[1] / 2)
+
+
+def test_boxes_overlap_agrees_with_a_dense_point_test():
+    size_a, size_b = (0.24, 0.17), (0.26, 0.175)
+    rng = np.random.default_rng(1)
+    b = np.array([0.0, 0.0, 0.3])
+    poses = np.column_stack(
+        [rng.uniform(-0.35, 0.35, 300), rng.uniform(-0.35, 0.35, 300), rng.uniform(-3, 3, 300)]
+    )
+    got = boxes_overlap(poses, size_a, b, size_b)
+    u = np.linspace(-0.5, 0.5, 61)
+    grid = np.stack(np.meshgrid(u * size_a[0], u * size_a[1]), -1).reshape(-1, 2)
+    for pose, overlap in zip(poses, got, strict=True):
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        pts = pose[:2] + grid @ np.array([[c, s], [-s, c]])
+        brute = bool(_inside(pts, b, size_b).any())
+        if brute != bool(overlap):  # only a sliver thinner than the grid may disagree
+            shrunk = boxes_overlap(pose, size_a, b, size_b, margin=-0.004)
+            grown = boxes_overlap(pose, size_a, b, size_b, margin=0.004)
+            assert bool(grown) and not bool(shrunk)
+    assert 30 < got.sum() < 270  # both answers occur
+    assert bool(boxes_overlap(np.array([0.251, 0.0, 0.3]), size_a, b, size_b, margin=0.01))
+
+
+def test_heuristic_is_a_lower_bound_on_the_moves_needed(task):
+    rng = np.random.default_rng(0)
+    poses = np.column_stack(
+        [rng.uniform(-0.3, 0.45, 500), rng.uniform(-0.3, 0.3, 500), rng.uniform(-3, 3, 500)]
+    )
+    h = task.heuristic(poses)
+    goals = poses[task.graspable(poses)]
+    assert (task.heuristic(goals) == 0).all()
+    # the goal set lies at x >= edge + d_g - R, and a push moves the centre <= step_bound
+    needed = np.maximum(task.edge_x + task.grasp_depth - task.half_diagonal - poses[:, 0], 0)
+    assert (h * task.search.step_bound >= needed - 1e-9).all()
+    assert (h <= np.ceil(needed / task.search.step_bound) + 1e-9).all()
+
+
+def test_candidates_start_behind_the_book_and_point_at_its_centre(task):
+    pose = np.array([[0.1, -0.05, 0.4]])
+    origins, yaws = task.candidate_pushes(pose)
+    assert origins.shape == (1, task.directions, 2) and yaws.shape == (task.directions,)
+    to_centre = pose[0, :2] - origins[0]
+    ang = np.arctan2(to_centre[:, 1], to_centre[:, 0])
+    assert np.allclose(np.angle(np.exp(1j * (ang - yaws))), 0, atol=1e-9)
+    # the fingertip starts start_gap + r_f from the footprint, never inside it
+    from probaff.planning.edge_task import box_corners
+
+    corners = box_corners(pose[0], task.book.size)
+    d = np.stack([np.cos(yaws), np.sin(yaws)], -1)
+    behind = ((corners[None] - origins[0][:, None]) * d[:, None]).sum(-1).min(1)
+    assert np.allclose(behind, task.start_gap + task.world.gripper.finger_radius)
+
+
+def test_episodes_are_seeded_and_start_apart(task):
+    a = sample_episode(task, np.random.default_rng(5))
+    b = sample_episode(task, np.random.default_rng(5))
+    assert np.array_equal(a.poses, b.poses) and np.array_equal(a.mass, b.mass)
+    for seed in range(20):
+        s = sample_episode(task, np.random.default_rng(seed))
+        assert task.start_x[0] <= s.poses[0, 0] <= task.start_x[1]
+        assert not task.collides(s.poses[0], s.poses[1])
+        assert not task.graspable(s.poses[0])
+        assert [o.name for o in s.objects] == ["book", "battery"]
+
+
+def test_a_goal_unreachable_by_construction_is_refused(task):
+    with pytest.raises(ConfigError, match="unreachable by construction"):
+        EdgeTask(task.scene, task.world, clearance=0.5)
+    with pytest.raises(ConfigError, match="reaches the goal already"):
+        EdgeTask(task.scene, task.world, start_x=(-0.1, 0.45))
+
+
+@pytest.mark.parametrize(
+    ("kw", "match"),
+    [
+        ({"budget": 0}, "budget .* must be a positive integer, got 0"),
+        ({"budget": -3}, "budget .* must be a positive integer, got -3"),
+        ({"directions": 2.5}, "directions must be a positive integer"),
+        ({"replan_distance": float("nan")}, "replan_distance must be a finite number"),
+    ],
+)
+def test_bad_task_settings(task, kw, match):
+    with pytest.raises(InputError, match=match):
+        EdgeTask(task.scene, task.world, **kw)
+
+
+def test_task_file_errors_name_the_key(tmp_path):
+    bad = tmp_path / "t.yaml"
+    bad.write_text("scene: push_to_edge\nbudgett: 3\n")
+    with pytest.raises(ConfigError, match="unknown keys \\['budgett'\\]"):
+        load_edge_task(bad)
+    bad.write_text("scene: push_to_edge\nbudget: 0\n")
+    with pytest.raises(ConfigError, match="budget"):
+        load_edge_task(bad)
+    with pytest.raises(ConfigError, match="no task file"):
+        load_edge_task(tmp_path / "missing.yaml")
