@@ -2,7 +2,8 @@
 
 The study scripts (inference/affordance_map.py, inference/push_models.py,
 inference/planning.py) run in this process through `runpy`, with the studies' first heavy step
-replaced by a tripwire: every case must be refused before any work starts. One case runs in a real subprocess.
+replaced by a tripwire: every case must be refused before any work starts. One case runs in a
+real subprocess.
 """
 
 import re

@@ -22,6 +22,8 @@ Modules:
     edge_planner: A* over push transitions and the greedy one-step planner.
     edge_episode: one closed-loop episode in the simulator, with replanning.
     edge_models: the learned models the push-to-edge planners compare.
+    tool_push: chapter 5's two-step tool push: the receiving arm's reachable region,
+        candidate pushes of the tool, the two-step, single-push and random planners, trials.
 
 The planning study is `probaff.studies.planning` (`run`, `PlanningStudyConfig`), also reachable
 here as `probaff.planning.run`.
@@ -78,6 +80,27 @@ from probaff.planning.manipulation_loop import (
     predict_unary,
     travel_distances,
 )
+from probaff.planning.tool_push import (
+    TOOL_PUSH_PLANNERS,
+    ModelTransition,
+    ReachableRegion,
+    SimTransition,
+    ToolPushCandidates,
+    ToolPushConfig,
+    ToolPushPlan,
+    ToolPushState,
+    ToolPushTrial,
+    TransitionModel,
+    draw_tool_push_episode,
+    fit_tool_push_model,
+    plan_random_push,
+    plan_single_push,
+    plan_tool_push,
+    reachable_region,
+    run_tool_push_trial,
+    sample_tool_pushes,
+    tool_push_scores,
+)
 
 __all__ = [
     "DEFAULT_ALPHA",
@@ -85,6 +108,7 @@ __all__ = [
     "EDGE_SEARCHES",
     "FEATURE_FUNCTIONS",
     "POLICIES",
+    "TOOL_PUSH_PLANNERS",
     "UNKNOWN_PRIOR",
     "AffordanceClassifier",
     "AffordanceEvaluation",
@@ -101,15 +125,24 @@ __all__ = [
     "LoopStep",
     "MRFParams",
     "ManipulationLoop",
+    "ModelTransition",
     "PlanningStudyConfig",
     "PushCandidate",
     "PushCandidates",
     "PushPlan",
     "PushReachability",
     "QuasiStaticTransition",
+    "ReachableRegion",
     "RiskBounds",
     "SearchOptions",
+    "SimTransition",
     "SimulatorTransition",
+    "ToolPushCandidates",
+    "ToolPushConfig",
+    "ToolPushPlan",
+    "ToolPushState",
+    "ToolPushTrial",
+    "TransitionModel",
     "TransitionPrediction",
     "VerifiedPush",
     "VoxelDataset",
@@ -119,18 +152,27 @@ __all__ = [
     "cloud_distance",
     "collect_voxels",
     "detect_push",
+    "draw_tool_push_episode",
     "evaluate",
     "expected_entropies",
     "fit_edge_model",
+    "fit_tool_push_model",
     "load_edge_task",
     "plan_astar",
     "plan_greedy",
     "plan_pushes",
     "plan_pushes_on_grid",
+    "plan_random_push",
+    "plan_single_push",
+    "plan_tool_push",
     "predict_unary",
+    "reachable_region",
     "run",
     "run_edge_episode",
+    "run_tool_push_trial",
     "sample_episode",
+    "sample_tool_pushes",
+    "tool_push_scores",
     "travel_distances",
 ]
 

@@ -15,8 +15,8 @@ and the analytic quasi-static model answer with one deterministic outcome.
   so by symmetry the limit surface's answer to a centred push is a pure translation along the
   push (no turn); the hand meets the book after ``start_gap`` and carries it the remaining
   ``L - start_gap``; the battery, which cannot move, stops a book pushed towards it where
-  their footprints would meet. What it ignores: friction at the fingertips turning the book, uneven pressure,
-  the book's momentum after the hand stops.
+  their footprints would meet. What it ignores: friction at the fingertips turning the book,
+  uneven pressure, the book's momentum after the hand stops.
 
 `PushReachability` answers which pushes the URDF arm can execute, by IK, cached per cell.
 """

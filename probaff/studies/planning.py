@@ -1,4 +1,4 @@
-"""The planning study: push-to-edge planners (chapter 4) closed loop in the simulator.
+"""The planning study: push-to-edge planners (chapter 4) and two-step tool pushes (chapter 5).
 
 `run` generates the training pushes of the task's scene (``probaff generate --scene
 push_to_edge``, resumable), fits the planner models of `probaff.planning.edge_models` once
@@ -13,10 +13,17 @@ model (``astar-clustered``), with the true simulator (``astar-sim``, an upper bo
 analytic quasi-static model (``astar-quasistatic``), and the greedy one-step planner with the
 mixture (``greedy-moe``).
 
+Tool pushes (`probaff.planning.tool_push`): chapter 5's mixture (M = 3, f_o & f_c) is fitted
+on ``probaff generate --scene tool_push`` pushes, and every planner of `TOOL_PUSH_PLANNERS`
+(the thesis's two-step planner, random two-push sequences, the best single push, the two-step
+planner with the true simulator) runs on the same seeded starts, one resumable task each.
+
 Outputs in ``out/``: ``edge_summary.csv`` and ``summary.md`` (success rate with its 95 %
 Wilson interval, pushes and replans per trial, the mean one-step prediction error, planning
 time per plan, outcomes), ``edge_success.png``, ``edge_pushes.png`` and ``edge_episodes.png``
-(planned against executed book trajectories over the table).
+(planned against executed book trajectories over the table); ``tool_summary.csv`` and
+``tool_success.png`` (the fraction of trials whose target ends reachable, with its interval,
+and the target's final depth into the reachable region).
 """
 
 from __future__ import annotations
@@ -53,6 +60,7 @@ from probaff.planning.edge_transitions import (
     SimulatorTransition,
 )
 from probaff.planning.learned import FeaturePushModel
+from probaff.planning.tool_push import TOOL_PUSH_PLANNERS, fit_tool_push_model, run_tool_push_trial
 from probaff.sim.runner import PushSimulator
 
 __all__ = [
@@ -66,6 +74,8 @@ __all__ = [
     "edge_trial",
     "run",
     "summarise",
+    "summarise_tool",
+    "tool_trial",
     "trial_seed",
 ]
 
@@ -105,6 +115,9 @@ RUN_ONLY = ("out", "workers", "scheduler", "progress")
 _EDGE_FIELDS = ("seed", "train_pushes", "em_iterations")
 """The fields that shape a push-to-edge episode's record (besides its planner and trial)."""
 
+_TOOL_FIELDS = ("seed", "tool_train_pushes", "em_iterations")
+"""The fields that shape a tool-push trial's record (besides its planner and trial)."""
+
 _VERSION = 1
 _KEEP_TRAJECTORIES = 6  # episodes per planner whose full trajectories are stored (figures)
 
@@ -120,6 +133,9 @@ class PlanningStudyConfig:
         trials: Episodes per planner (the same seeded starts for every planner).
         planners: Names from `EDGE_PLANNERS`.
         em_iterations: EM iterations of the mixture models.
+        tool_trials: Tool-push trials per planner (0 skips chapter 5).
+        tool_train_pushes: Training pushes of the tool-push scene for chapter 5's mixture.
+        tool_planners: Names from `TOOL_PUSH_PLANNERS`.
         workers: 0 runs in this process; K > 0 or None uses a local Dask cluster.
         scheduler: Address of an existing Dask scheduler.
         progress: Show progress bars.
@@ -131,6 +147,9 @@ class PlanningStudyConfig:
     trials: int = 100
     planners: tuple[str, ...] = tuple(EDGE_PLANNERS)
     em_iterations: int = 10
+    tool_trials: int = 50
+    tool_train_pushes: int = 300
+    tool_planners: tuple[str, ...] = TOOL_PUSH_PLANNERS
     workers: int | None = 0
     scheduler: str | None = None
     progress: bool = True
@@ -147,6 +166,13 @@ class PlanningStudyConfig:
         if self.train_pushes < 10:
             raise InputError(f"train_pushes must be at least 10, got {self.train_pushes}.")
         check_count("trials", self.trials)
+        check_count("tool_trials", self.tool_trials, minimum=0)
+        check_count("tool_train_pushes", self.tool_train_pushes)
+        unknown = [p for p in self.tool_planners if p not in TOOL_PUSH_PLANNERS]
+        if unknown:
+            raise InputError(
+                f"unknown tool planners {unknown}; choose from {list(TOOL_PUSH_PLANNERS)}."
+            )
         check_count("em_iterations", self.em_iterations)
         check_count("seed", self.seed, minimum=0)
         check_workers(self.workers)
@@ -158,6 +184,9 @@ SMOKE_OVERRIDES: dict[str, Any] = {
     "trials": 2,
     "planners": ("astar-moe", "astar-risk-moe", "astar-quasistatic", "greedy-moe"),
     "em_iterations": 2,
+    "tool_trials": 1,
+    "tool_train_pushes": 40,
+    "tool_planners": ("random", "two_step"),
     "progress": False,
 }
 """Sizes of a tiny run that checks the whole pipeline in a minute or two."""
@@ -220,10 +249,100 @@ def edge_trial(
     return {**episode.to_dict(), "trial": trial}
 
 
-def _edge_tag(config: PlanningStudyConfig, length: int = 10) -> str:
-    """Fingerprint of the settings in `_EDGE_FIELDS` (and the code's version)."""
-    others = {f.name for f in dataclasses.fields(config)} - set(_EDGE_FIELDS)
+def _edge_tag(
+    config: PlanningStudyConfig, length: int = 10, only: tuple[str, ...] = _EDGE_FIELDS
+) -> str:
+    """Fingerprint of the settings in `only` (`_EDGE_FIELDS` by default) and the code's version."""
+    others = {f.name for f in dataclasses.fields(config)} - set(only)
     return config_fingerprint(config, exclude=others, version=_VERSION, length=length)
+
+
+def tool_trial(planner: str, trial: int, seed: int, *, tool_model: Any) -> dict[str, Any]:
+    """Run one tool-push trial of one planner (a study task; Dask workers import it).
+
+    Args:
+        planner: A name from `TOOL_PUSH_PLANNERS`.
+        trial: Trial index (its start is shared by every planner).
+        seed: The trial's seed (`trial_seed`).
+        tool_model: Chapter 5's fitted mixture with its features.
+
+    Returns:
+        The trial's record (`ToolPushTrial.to_dict`) with ``trial``.
+    """
+    model = tool_model if planner in ("two_step", "single_step") else None
+    return {**run_tool_push_trial(planner, model, seed).to_dict(), "trial": trial}
+
+
+def _tool_model(config: PlanningStudyConfig, out: Path) -> FeaturePushModel:
+    """Generate the tool-push training pushes and fit (or load) chapter 5's mixture."""
+    data_dir = out / "data" / f"tool_push_n{config.tool_train_pushes}_s{config.seed}"
+    ds = generate(
+        GenerateConfig(
+            scene="tool_push", n=config.tool_train_pushes, seed=config.seed, trajectories=False
+        ),
+        data_dir,
+        workers=config.workers,
+        scheduler=config.scheduler,
+        resume=data_dir.exists(),
+        progress=config.progress,
+    )
+    path = out / "models" / f"tool.{_edge_tag(config, 8, _TOOL_FIELDS)}.pt"
+    if path.is_file():
+        return FeaturePushModel(
+            load_model(path),
+            "ch5",
+            _TOOL_GROUPS,
+            cloud_points=int(ds["cloud_points"].shape[2]),
+            cloud_noise=float(ds.meta.get("cloud_noise", 0.002)),
+        )
+    fitted = fit_tool_push_model(
+        ds, n_experts=3, groups=_TOOL_GROUPS, max_iter=config.em_iterations, seed=config.seed
+    )
+    path.parent.mkdir(parents=True, exist_ok=True)
+    save_model(cast(Any, fitted.model), path)
+    return fitted
+
+
+_TOOL_GROUPS = ("f_o", "f_c")
+
+
+def summarise_tool(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per tool-push planner: success with its interval, depth, planning time.
+
+    Success is the target ending inside the reachable region (95 % Wilson interval); depth
+    is its final signed distance into the region (cm).
+
+    Args:
+        records: Trial records (``planner``, ``reached``, ``final_depth``, ``initial_depth``,
+            ``planning_time_s``).
+
+    Returns:
+        Rows with ``planner``, ``trials``, ``successes``, ``success_rate``, ``success_low``,
+        ``success_high``, ``depth_cm`` and its standard deviation ``depth_sd_cm``,
+        ``gain_cm`` (mean final minus initial depth) and ``plan_seconds``.
+    """
+    rows = []
+    for planner in dict.fromkeys(r["planner"] for r in records):
+        rs = [r for r in records if r["planner"] == planner]
+        k = sum(bool(r["reached"]) for r in rs)
+        lo, hi = wilson_interval(k, len(rs))
+        depth = 100 * np.array([r["final_depth"] for r in rs])
+        start = 100 * np.array([r["initial_depth"] for r in rs])
+        rows.append(
+            {
+                "planner": planner,
+                "trials": len(rs),
+                "successes": k,
+                "success_rate": k / len(rs),
+                "success_low": lo,
+                "success_high": hi,
+                "depth_cm": float(depth.mean()),
+                "depth_sd_cm": float(depth.std(ddof=1)) if len(rs) > 1 else 0.0,
+                "gain_cm": float((depth - start).mean()),
+                "plan_seconds": float(np.mean([r["planning_time_s"] for r in rs])),
+            }
+        )
+    return rows
 
 
 def _models(config: PlanningStudyConfig, out: Path, names: set[str]) -> dict[str, Any]:
@@ -328,7 +447,7 @@ def run(config: PlanningStudyConfig) -> dict[str, Any]:
         config: Study settings.
 
     Returns:
-        ``{"edge": summary rows, "files": written paths}``.
+        ``{"edge": summary rows, "tool": tool-push summary rows, "files": written paths}``.
 
     Raises:
         InputError: For an invalid config.
@@ -408,9 +527,68 @@ def run(config: PlanningStudyConfig) -> dict[str, Any]:
         "position after a push; `plan_seconds`: mean wall time per planning call.",
         "",
     ]
+    tool_rows: list[dict[str, Any]] = []
+    if config.tool_trials and config.tool_planners:
+        tool_model = _tool_model(config, out)
+        tool_tag = _edge_tag(config, only=_TOOL_FIELDS)
+        tool_tasks = [
+            (
+                f"tool.{planner}.trial{trial:04d}.{tool_tag}",
+                (planner, trial, trial_seed(config.seed, trial)),
+            )
+            for trial in range(config.tool_trials)
+            for planner in config.tool_planners
+        ]
+        tool_records = run_tasks(
+            tool_trial,
+            tool_tasks,
+            store,
+            workers=config.workers,
+            scheduler=config.scheduler,
+            progress=config.progress,
+            desc="tool-push trials",
+            shared={"tool_model": tool_model},
+        )
+        tool_rows = summarise_tool(tool_records)
+        files.append(write_csv(out / "tool_summary.csv", tool_rows))
+        files.append(
+            plot_success_rates(
+                tool_rows,
+                out / "tool_success.png",
+                title="Two-step tool push: target ends reachable (95 % Wilson intervals)",
+            )
+        )
+        md += [
+            "## Two-step tool push (chapter 5)",
+            "",
+            f"{config.tool_trials} seeded trials per planner, the same starts for every planner; "
+            f"chapter 5's mixture (M = 3, f_o & f_c) fitted on {config.tool_train_pushes} pushes "
+            "of the `tool_push` scene.",
+            "",
+            markdown_table(
+                tool_rows,
+                [
+                    "planner",
+                    "trials",
+                    "successes",
+                    "success_rate",
+                    "success_low",
+                    "success_high",
+                    "depth_cm",
+                    "depth_sd_cm",
+                    "gain_cm",
+                    "plan_seconds",
+                ],
+                digits=3,
+            ),
+            "",
+            "`depth_cm`: the target's final signed distance into the reachable region "
+            "(positive inside); `gain_cm`: final minus initial depth.",
+            "",
+        ]
     files.append(str(out / "summary.md"))
     atomic_write_text(out / "summary.md", "\n".join(md))
-    return {"edge": rows, "files": files}
+    return {"edge": rows, "tool": tool_rows, "files": files}
 
 
 def demo(

@@ -27,8 +27,13 @@ def test_script_smoke_and_resume(tmp_path):
     text = (out / "summary.md").read_text()
     assert "| astar-moe | 2 |" in text and "thesis" in text
     tasks = sorted((out / "tasks").glob("*.json"))
-    assert len(tasks) == 2 * 4
-    records = [json.loads(p.read_text()) for p in tasks]
+    assert len(tasks) == 2 * 4 + 1 * 2  # push-to-edge episodes, then tool-push trials
+    records = [json.loads(p.read_text()) for p in tasks if p.name.startswith("edge.")]
+    assert "## Two-step tool push" in text and "| two_step | 1 |" in text
+    assert (out / "tool_summary.csv").stat().st_size > 0
+    tool = [json.loads(p.read_text()) for p in tasks if p.name.startswith("tool.")]
+    assert {r["planner"] for r in tool} == {"random", "two_step"}
+    assert len({json.dumps(r["initial"]) for r in tool}) == 1  # the same start for both
     assert {r["planner"] for r in records} == {
         "astar-moe",
         "astar-risk-moe",

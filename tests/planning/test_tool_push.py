@@ -1,0 +1,241 @@
+"""Chapter 5's two-step tool push: region, candidates, batched planning, trials, bad input."""
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from probaff._threads import torch_threads
+from probaff.data.generation import GenerateConfig, generate
+from probaff.errors import InputError
+from probaff.planning.learned import FeaturePushModel
+from probaff.planning.tool_push import (
+    TOOL_PUSH_PLANNERS,
+    ModelTransition,
+    SimTransition,
+    ToolPushConfig,
+    ToolPushState,
+    ToolPushTrial,
+    draw_tool_push_episode,
+    fit_tool_push_model,
+    plan_single_push,
+    plan_tool_push,
+    reachable_region,
+    run_tool_push_trial,
+    sample_tool_pushes,
+    tool_push_scores,
+)
+from probaff.sim.arm import load_arm
+from probaff.sim.config import load_catalogue, load_scene, load_tabletop
+from probaff.sim.sampling import sample_scene
+
+# Small sizes for the learned planners (the simulator's keep their defaults, 24/4/12): the
+# tests check the pipeline, not the thesis's sample counts.
+SMALL = ToolPushConfig(n_first=12, n_keep=3, n_second=6)
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    cfg = GenerateConfig(
+        scene="tool_push", n=40, seed=0, shard_size=40, cloud_points=64, trajectories=False
+    )
+    return generate(cfg, tmp_path_factory.mktemp("tool_push") / "data", workers=0, progress=False)
+
+
+@pytest.fixture(scope="module")
+def model(dataset):
+    return fit_tool_push_model(
+        dataset, n_experts=2, max_iter=2, n_restarts=1, gp_max_iter=10, seed=0
+    )
+
+
+class CountingModel:
+    """Delegates to a FeaturePushModel and records the batch size of every call."""
+
+    def __init__(self, inner: FeaturePushModel) -> None:
+        self.inner = inner
+        self.cloud_points = inner.cloud_points
+        self.cloud_noise = inner.cloud_noise
+        self.batches: list[int] = []
+
+    def predict(self, queries):
+        self.batches.append(len(queries))
+        return self.inner.predict(queries)
+
+
+def _state(seed):
+    ep = draw_tool_push_episode(seed)
+    return ToolPushState(ep.objects, ep.poses)
+
+
+# ----------------------------------------------------------------------------- the region
+
+
+def test_region_comes_from_the_receiving_arms_ik():
+    region = reachable_region()
+    world = load_tabletop()
+    goal = dataclasses.replace(world.arm, base_xyz=(-1.0, 0.0, world.arm.base_xyz[2]))
+    mask, xs, ys = load_arm(goal).reachable_mask((-0.5, 0.5), (-0.4, 0.4), 0.02, 2, "any")
+    np.testing.assert_array_equal(region.mask, mask)
+    assert reachable_region() is region  # computed once per process
+    # near the receiving arm inside, far from it outside; the sign follows the mask
+    assert region.depth(np.array([-0.4, 0.0])) > 0.05
+    assert region.depth(np.array([0.3, 0.0])) < -0.2
+    gx, gy = np.meshgrid(xs, ys)
+    depth = region.depth(np.stack([gx, gy], -1))
+    assert ((depth > 0) == mask).mean() > 0.99
+    assert 0.1 < mask.mean() < 0.6  # part of the table, not all of it
+    # beyond the table edge the depth keeps falling
+    assert region.depth(np.array([-0.7, 0.0])) < region.depth(np.array([-0.45, 0.0]))
+
+
+def test_scene_targets_start_out_of_reach_and_the_tool_is_pushable():
+    scene, world = load_scene("tool_push"), load_tabletop()
+    region, arm = reachable_region(), load_arm(world.arm)
+    rng = np.random.default_rng(0)
+    draws = [s for s in (sample_scene(scene, load_catalogue(), world, rng) for _ in range(60)) if s]
+    outside = np.mean([region.depth(s.poses[1, :2]) < 0 for s in draws])
+    assert outside > 0.5  # most of the template's targets start out of the receiving arm's reach
+    for seed in (0, 1, 2):
+        ep = draw_tool_push_episode(seed)
+        assert -0.25 <= region.depth(ep.poses[1, :2]) <= -0.03
+        assert [o.name for o in ep.objects][1] == "phone_box"
+        cand = sample_tool_pushes(ep.objects, ep.poses, 8, np.random.default_rng(seed))
+        assert len(cand) == 8 and (cand.state == 0).all()
+        ok = arm.solve_pushes(torch.as_tensor(cand.origin), torch.as_tensor(cand.yaw), 0.25).ok
+        assert bool(ok.all())
+        # the hand starts behind the tool and points at it (within the lateral offset)
+        to_tool = ep.poses[0, :2] - cand.origin
+        d = np.stack([np.cos(cand.yaw), np.sin(cand.yaw)], -1)
+        along = (to_tool * d).sum(-1)
+        lateral = np.abs(to_tool[:, 0] * d[:, 1] - to_tool[:, 1] * d[:, 0])
+        assert (along > 0.04).all() and (lateral <= 0.05 + 1e-9).all()
+    a, b = draw_tool_push_episode(4), draw_tool_push_episode(4)
+    np.testing.assert_array_equal(a.poses, b.poses)
+    np.testing.assert_array_equal(a.ground_friction, b.ground_friction)
+
+
+# --------------------------------------------------------------------------- planning
+
+
+def test_planner_calls_the_model_once_per_step_with_every_candidate(model):
+    counting = CountingModel(model)
+    transition = ModelTransition(counting, load_tabletop())
+    config = ToolPushConfig()  # the thesis's 100, then 10 x 100
+    with torch_threads(1):
+        plan = plan_tool_push(transition, _state(0), np.random.default_rng(0), config)
+    assert counting.batches == [100, 1000]
+    assert plan.transition_calls == 2 and plan.n_candidates == (100, 1000)
+    assert plan.push_origin.shape == (2, 2) and plan.predicted.shape == (2, 2, 3)
+    assert np.isfinite(plan.predicted).all() and np.isfinite(plan.predicted_depth)
+    counting.batches.clear()
+    with torch_threads(1):
+        single = plan_single_push(transition, _state(0), np.random.default_rng(0), config)
+    assert counting.batches == [100] and single.push_yaw.shape == (1,)
+
+
+def test_simulator_two_step_moves_the_target_further_than_random_pushes():
+    gains = {"two_step_sim": [], "random": []}
+    for seed in (0, 1):
+        for planner in gains:
+            t = run_tool_push_trial(planner, None, seed, SMALL)
+            gains[planner].append(t.final_depth - t.initial_depth)
+            assert t.pushes.shape[1] == 3 and len(t.executed) == len(t.pushes)
+    assert np.mean(gains["two_step_sim"]) > np.mean(gains["random"]) + 0.03
+    assert min(gains["two_step_sim"]) > 0  # every planned sequence moves the target closer
+
+
+def test_a_fitted_mixture_runs_a_trial_end_to_end(model):
+    trial = run_tool_push_trial("two_step", model, 3, SMALL)
+    assert trial.planner == "two_step" and trial.seed == 3
+    assert trial.transition_calls == 2 and trial.pushes.shape == (2, 3)
+    assert trial.predicted.shape == trial.executed.shape == (2, 2, 3)
+    assert np.isfinite(trial.predicted).all() and np.isfinite(trial.final_depth)
+    assert trial.initial_depth < 0
+    assert trial.reached == (trial.final_depth > 0)
+    record = json.loads(json.dumps(trial.to_dict()))
+    assert record["objects"][1] == "phone_box" and len(record["executed"]) == 2
+    again = run_tool_push_trial("two_step", model, 3, SMALL)
+    np.testing.assert_array_equal(trial.pushes, again.pushes)
+    np.testing.assert_array_equal(trial.executed, again.executed)
+
+
+def test_scores_summarise_trials_per_planner():
+    def trial(planner, depth):
+        nan = np.full((1, 2, 3), np.nan)
+        return ToolPushTrial(
+            planner=planner,
+            seed=0,
+            objects=("cracker_box", "phone_box"),
+            initial=np.zeros((2, 3)),
+            initial_depth=-0.1,
+            pushes=np.zeros((1, 3)),
+            predicted=nan,
+            executed=np.zeros((1, 2, 3)),
+            final_depth=depth,
+            reached=depth > 0,
+            fell_off=False,
+            refused=False,
+            planning_time_s=0.5,
+        )
+
+    scores = tool_push_scores([trial("a", 0.1), trial("a", -0.1), trial("b", 0.3)])
+    assert scores["a"]["success"] == 0.5 and scores["a"]["mean_depth"] == pytest.approx(0.0)
+    assert scores["b"] == pytest.approx(
+        {"trials": 1, "success": 1, "mean_depth": 0.3, "std_depth": 0, "mean_planning_time_s": 0.5}
+    )
+    assert json.loads(json.dumps(trial("a", 0.1).to_dict()))["predicted"][0][0][0] is None
+    assert set(TOOL_PUSH_PLANNERS) == {"random", "single_step", "two_step", "two_step_sim"}
+
+
+# -------------------------------------------------------------------------- bad input
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"n_first": 0},
+        {"n_second": -3},
+        {"n_keep": 0},
+        {"n_first": 5, "n_keep": 6},
+        {"sim_n_second": 1.5},
+        {"min_outside": 0.3, "max_outside": 0.2},
+        {"goal_base_xy": (1.0,)},
+    ],
+)
+def test_config_rejects_bad_budgets(kwargs):
+    with pytest.raises(InputError, match="ToolPushConfig"):
+        ToolPushConfig(**kwargs)
+
+
+def test_bad_states_planners_and_models_are_refused(dataset, model):
+    cat = load_catalogue()
+    tool, target = cat["cracker_box"], cat["phone_box"]
+    with pytest.raises(InputError, match="overlap"):
+        ToolPushState((tool, target), np.array([[0.2, 0.0, 0.0], [0.25, 0.0, 0.3]]))
+    with pytest.raises(InputError, match=r"\(tool, target\) pair"):
+        ToolPushState((tool,), np.zeros((1, 3)))
+    with pytest.raises(InputError, match="off the"):
+        ToolPushState((tool, target), np.array([[0.2, 0.0, 0.0], [0.9, 0.0, 0.0]]))
+    far = ToolPushState((tool, target), np.array([[0.1, 0.0, 0.0], [0.42, 0.0, 0.0]]))
+    with pytest.raises(InputError, match="cannot be brought"):
+        plan_tool_push(SimTransition(load_tabletop()), far, np.random.default_rng(0))
+    with pytest.raises(InputError, match="n_second"):
+        plan_tool_push(
+            SimTransition(load_tabletop()), _state(0), np.random.default_rng(0), sizes=(4, 2, 0)
+        )
+    with pytest.raises(InputError, match="unknown planner"):
+        run_tool_push_trial("three_step", model, 0)
+    with pytest.raises(InputError, match="needs a fitted chapter-5 model"):
+        run_tool_push_trial("two_step", None, 0)
+    with pytest.raises(InputError, match="transition must have predict_poses"):
+        plan_tool_push(model, _state(0), np.random.default_rng(0))
+    # a model fitted on f_o alone, presented as if it read f_o and f_c
+    only_o = fit_tool_push_model(
+        dataset, n_experts=1, groups=("f_o",), max_iter=1, n_restarts=1, gp_max_iter=5
+    )
+    wrong = dataclasses.replace(only_o, groups=("f_o", "f_c"))
+    with pytest.raises(InputError, match="fitted on 8 feature columns"):
+        run_tool_push_trial("single_step", wrong, 0, SMALL)
