@@ -247,7 +247,9 @@ def plot_edge_episodes(
         _draw_episode(ax, task, ep, start, final, steps)
     for ax in axes[n:]:
         ax.axis("off")
-    fig.legend(handles=_episode_legend(), loc="outside lower center", ncols=5, fontsize=7)
+    fig.legend(
+        handles=_episode_legend(), loc="outside lower center", ncols=min(5, 2 + cols), fontsize=7
+    )
     more = f" (first {n} of {len(records)})" if len(records) > n else ""
     fig.suptitle(
         title if title is not None else f"{task.scene.name}: {len(records)} episodes{more}",

@@ -7,9 +7,11 @@ as a transition model predicts them. Each push costs 1; the heuristic
 ``search.step_bound``. The closed set discretises the pose (``search.xy_resolution``, and the
 yaw modulo pi in ``search.yaw_resolution`` bins, the book's footprint being symmetric).
 
-Pruning. The mean-only planner drops a child whose predicted pose has fallen off the table or
-overlaps the battery. The risk-aware planner draws ``risk.samples`` outcomes from the model's
-predictive distribution and drops a child when the fraction of draws that fall, or that
+Pruning. The mean-only planner drops a child whose predicted centre comes within
+``search.safety_margin`` of a table edge or whose footprint overlaps the battery, and it only
+counts goals whose centre is that margin farther inside the edge than the task needs. The
+risk-aware planner also draws ``risk.samples`` outcomes from the model's predictive
+distribution and drops a child when the fraction of draws that fall off the table, or that
 overlap the battery, exceeds its bound; a deterministic model's single outcome gives
 probabilities of 0 or 1.
 
@@ -119,13 +121,14 @@ def _expand(
         poses[parent], origins[parent, col], yaws[col], battery, n_samples=n_samples
     )
     child = pred.mean
+    margin = task.search.safety_margin
     if risk and pred.samples is not None:
         p_fall = task.fallen(pred.samples).mean(0)
         p_hit = task.collides(pred.samples, battery).mean(0)
         keep = (p_fall <= task.risk.max_fall) & (p_hit <= task.risk.max_collision)
-        keep &= ~task.fallen(child)
+        keep &= ~task.fallen(child, margin)
     else:
-        keep = ~task.fallen(child) & ~task.collides(child, battery)
+        keep = ~task.fallen(child, margin) & ~task.collides(child, battery)
     return parent[keep], yaws[col][keep], child[keep]
 
 
@@ -165,12 +168,13 @@ def plan_astar(
         (the plan then leads to the pose closest to a goal, possibly empty).
 
     Raises:
-        InputError: For a malformed pose or a budget that is not a positive integer.
+        InputError: For a malformed pose, a book overlapping the battery, or a budget that
+            is not a positive integer.
     """
     start_time = time.perf_counter()
-    _check_planner_args(task)
     book = check_book_pose("book", book)
     battery = check_book_pose("battery", battery)
+    _check_planner_args(task, book, battery)
     budget = check_count("budget (pushes left)", task.budget if budget is None else budget)
     calls0 = getattr(transition, "calls", 0)
     tie = itertools.count()
@@ -199,7 +203,7 @@ def plan_astar(
         parent, yaws, child = _expand(
             task, transition, reach, np.stack([n.pose for n in batch]), battery, risk
         )
-        goals = task.graspable(child)
+        goals = task.graspable(child, task.search.safety_margin)
         hs, missing = task.heuristic(child), task.progress(child)
         for i in range(len(child)):
             g = batch[parent[i]].g + 1
@@ -250,9 +254,9 @@ def plan_greedy(
         A plan of at most one push.
     """
     start_time = time.perf_counter()
-    _check_planner_args(task)
     book = check_book_pose("book", book)
     battery = check_book_pose("battery", battery)
+    _check_planner_args(task, book, battery)
     check_count("budget (pushes left)", task.budget if budget is None else budget)
     if bool(task.graspable(book)):
         return EdgePlan((), np.zeros((0, 3)), True, 0, time.perf_counter() - start_time)
@@ -261,18 +265,25 @@ def plan_greedy(
     if len(child) == 0:
         calls = getattr(transition, "calls", 0) - calls0
         return EdgePlan((), np.zeros((0, 3)), False, 1, time.perf_counter() - start_time, calls)
-    score = np.where(task.graspable(child), -1.0, task.progress(child))
+    goals = task.graspable(child, task.search.safety_margin)
+    score = np.where(goals, -1.0, task.progress(child))
     i = int(np.argmin(score))
     return EdgePlan(
         (float(yaws[i]),),
         child[i : i + 1],
-        bool(task.graspable(child[i])),
+        bool(goals[i]),
         1,
         time.perf_counter() - start_time,
         getattr(transition, "calls", 0) - calls0,
     )
 
 
-def _check_planner_args(task: EdgeTask) -> None:
+def _check_planner_args(task: EdgeTask, book: np.ndarray, battery: np.ndarray) -> None:
     if not isinstance(task, EdgeTask):
         raise InputError(f"task must be an EdgeTask (load_edge_task()), got {type(task).__name__}.")
+    if bool(task.collides(book, battery)):
+        raise InputError(
+            f"the book at {np.round(book, 3).tolist()} overlaps the battery at "
+            f"{np.round(battery, 3).tolist()}; give poses whose footprints are apart "
+            "(sample_episode draws such starts)."
+        )

@@ -150,6 +150,9 @@ class SearchOptions:
         batch: Nodes expanded together; all their candidates are predicted in one call.
         step_bound: Largest move of the book's centre by one push (m), the heuristic's
             divisor; it must bound every transition for the heuristic to be admissible.
+        safety_margin: The planner's buffer against its model's errors (m): it aims for
+            goals whose centre lies this much farther inside the edge than the task
+            requires, and treats a predicted centre this close to a table edge as a fall.
     """
 
     xy_resolution: float = 0.02
@@ -157,10 +160,12 @@ class SearchOptions:
     max_expansions: int = 240
     batch: int = 8
     step_bound: float = 0.16
+    safety_margin: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("xy_resolution", "yaw_resolution", "step_bound"):
             check_positive(f"search.{name}", getattr(self, name))
+        check_positive("search.safety_margin", self.safety_margin, allow_zero=True)
         object.__setattr__(
             self, "max_expansions", check_count("search.max_expansions", self.max_expansions)
         )
@@ -302,16 +307,28 @@ class EdgeTask:
         return 0.5 * math.hypot(*self.book.size)
 
     # ------------------------------------------------------------------ tests
-    def graspable(self, poses: np.ndarray) -> np.ndarray:
-        """Whether book poses (..., 3) are goals (see the module docstring); (...,) bool."""
+    def graspable(self, poses: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """Whether book poses (..., 3) are goals (see the module docstring); (...,) bool.
+
+        Args:
+            poses: (..., 3) world book poses.
+            margin: Keep the centre this much farther inside the edge (m) than
+                ``com_margin`` (the planner's safety margin; 0 for the task's own test).
+        """
         poses = np.asarray(poses, dtype=float)
         chord = chord_at(poses, self.book.size, self.edge_x + self.grasp_depth)
-        return (chord >= self.finger_width) & (poses[..., 0] <= self.edge_x - self.com_margin)
+        inside = poses[..., 0] <= self.edge_x - self.com_margin - margin
+        return (chord >= self.finger_width) & inside
 
-    def fallen(self, poses: np.ndarray) -> np.ndarray:
-        """Whether the book's centre is off the table, for poses (..., 3); (...,) bool."""
+    def fallen(self, poses: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """Whether the book's centre is off the table, for poses (..., 3); (...,) bool.
+
+        Args:
+            poses: (..., 3) world book poses.
+            margin: Count a centre closer than this to an edge (m) as fallen too.
+        """
         poses = np.asarray(poses, dtype=float)
-        hx, hy = 0.5 * self.world.table_size[0], 0.5 * self.world.table_size[1]
+        hx, hy = 0.5 * self.world.table_size[0] - margin, 0.5 * self.world.table_size[1] - margin
         return (np.abs(poses[..., 0]) > hx) | (np.abs(poses[..., 1]) > hy)
 
     def collides(self, poses: np.ndarray, battery: np.ndarray) -> np.ndarray:

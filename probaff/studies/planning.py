@@ -29,6 +29,7 @@ and the target's final depth into the reachable region).
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 from dataclasses import dataclass
 from functools import cache
@@ -61,6 +62,7 @@ from probaff.planning.edge_transitions import (
 )
 from probaff.planning.learned import FeaturePushModel
 from probaff.planning.tool_push import TOOL_PUSH_PLANNERS, fit_tool_push_model, run_tool_push_trial
+from probaff.sim.config import worlds_dir
 from probaff.sim.runner import PushSimulator
 
 __all__ = [
@@ -70,6 +72,7 @@ __all__ = [
     "THESIS_EDGE",
     "EdgePlannerSpec",
     "PlanningStudyConfig",
+    "attribute_failures",
     "demo",
     "edge_trial",
     "run",
@@ -118,7 +121,7 @@ _EDGE_FIELDS = ("seed", "train_pushes", "em_iterations")
 _TOOL_FIELDS = ("seed", "tool_train_pushes", "em_iterations")
 """The fields that shape a tool-push trial's record (besides its planner and trial)."""
 
-_VERSION = 1
+_VERSION = 2
 _KEEP_TRAJECTORIES = 6  # episodes per planner whose full trajectories are stored (figures)
 
 
@@ -249,12 +252,32 @@ def edge_trial(
     return {**episode.to_dict(), "trial": trial}
 
 
+_EDGE_WORLD = (
+    "tasks/push_to_edge.yaml",
+    "scenes/push_to_edge.yaml",
+    "tabletop.yaml",
+    "objects.yaml",
+)
+_TOOL_WORLD = ("scenes/tool_push.yaml", "tabletop.yaml", "objects.yaml")
+
+
 def _edge_tag(
-    config: PlanningStudyConfig, length: int = 10, only: tuple[str, ...] = _EDGE_FIELDS
+    config: PlanningStudyConfig,
+    length: int = 10,
+    only: tuple[str, ...] = _EDGE_FIELDS,
+    world: tuple[str, ...] = _EDGE_WORLD,
 ) -> str:
-    """Fingerprint of the settings in `only` (`_EDGE_FIELDS` by default) and the code's version."""
+    """Fingerprint of the settings in `only`, the world files they read and the code's version.
+
+    The task, scene, world and catalogue files under `worlds_dir()` shape the results as much
+    as the config does, so an edited file never reuses a stored result.
+    """
     others = {f.name for f in dataclasses.fields(config)} - set(only)
-    return config_fingerprint(config, exclude=others, version=_VERSION, length=length)
+    digest = hashlib.sha256()
+    for name in world:
+        digest.update((worlds_dir() / name).read_bytes())
+    fields_tag = config_fingerprint(config, exclude=others, version=_VERSION, length=length)
+    return f"{fields_tag}{digest.hexdigest()[:6]}"
 
 
 def tool_trial(planner: str, trial: int, seed: int, *, tool_model: Any) -> dict[str, Any]:
@@ -286,7 +309,7 @@ def _tool_model(config: PlanningStudyConfig, out: Path) -> FeaturePushModel:
         resume=data_dir.exists(),
         progress=config.progress,
     )
-    path = out / "models" / f"tool.{_edge_tag(config, 8, _TOOL_FIELDS)}.pt"
+    path = out / "models" / f"tool.{_edge_tag(config, 8, _TOOL_FIELDS, _TOOL_WORLD)}.pt"
     if path.is_file():
         return FeaturePushModel(
             load_model(path),
@@ -423,6 +446,57 @@ def summarise(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return rows
 
 
+def attribute_failures(
+    records: list[dict[str, Any]], reference: str = "astar-sim"
+) -> list[dict[str, Any]]:
+    """Whether a planner's failures are its model's: compare each trial with the reference.
+
+    The reference planner (A* with the true simulator) plans with the same search on the same
+    start; where it succeeds and a planner with a learned or analytic model fails, the model
+    is to blame, not the search. Where both fail, the start is hard for the search itself.
+
+    Args:
+        records: Episode records of several planners (``planner``, ``trial``, ``success``,
+            ``outcome``, ``steps``).
+        reference: The planner whose results stand for the search with a perfect model.
+
+    Returns:
+        One row per other planner: ``failures``, ``model_failures`` (the reference succeeded
+        on that start), ``search_failures`` (it failed too), the outcomes of the model
+        failures, and ``error_cm_failed`` / ``error_cm_succeeded``, the mean one-step
+        prediction errors over the failed and the successful trials. Empty if the reference
+        did not run.
+    """
+    ref = {r["trial"]: r for r in records if r["planner"] == reference}
+    if not ref:
+        return []
+    rows = []
+    for planner in dict.fromkeys(r["planner"] for r in records):
+        if planner == reference:
+            continue
+        rs = [r for r in records if r["planner"] == planner and r["trial"] in ref]
+        failed = [r for r in rs if not r["success"]]
+        model = [r for r in failed if ref[r["trial"]]["success"]]
+
+        def err(group: list[dict[str, Any]]) -> float:
+            e = [s["error"] for r in group for s in r["steps"]]
+            return 100 * float(np.mean(e)) if e else math.nan
+
+        row: dict[str, Any] = {
+            "planner": planner,
+            "trials": len(rs),
+            "failures": len(failed),
+            "model_failures": len(model),
+            "search_failures": len(failed) - len(model),
+            "error_cm_failed": err(failed),
+            "error_cm_succeeded": err([r for r in rs if r["success"]]),
+        }
+        for outcome in ("fell", "budget", "stuck"):
+            row[f"model_{outcome}"] = sum(r["outcome"] == outcome for r in model)
+        rows.append(row)
+    return rows
+
+
 def _thesis_row() -> dict[str, Any]:
     t = THESIS_EDGE
     lo, hi = wilson_interval(int(t["successes"]), int(t["trials"]))
@@ -527,10 +601,36 @@ def run(config: PlanningStudyConfig) -> dict[str, Any]:
         "position after a push; `plan_seconds`: mean wall time per planning call.",
         "",
     ]
+    blame = attribute_failures(records)
+    if blame:
+        files.append(write_csv(out / "edge_failures.csv", blame))
+        md += [
+            "Failures the model is to blame for: `model_failures` counts the starts on which "
+            "A* with the true simulator succeeded (same search, same start) and this planner "
+            "failed; `search_failures` those on which both failed.",
+            "",
+            markdown_table(
+                blame,
+                [
+                    "planner",
+                    "trials",
+                    "failures",
+                    "model_failures",
+                    "search_failures",
+                    "model_fell",
+                    "model_budget",
+                    "model_stuck",
+                    "error_cm_failed",
+                    "error_cm_succeeded",
+                ],
+                digits=3,
+            ),
+            "",
+        ]
     tool_rows: list[dict[str, Any]] = []
     if config.tool_trials and config.tool_planners:
         tool_model = _tool_model(config, out)
-        tool_tag = _edge_tag(config, only=_TOOL_FIELDS)
+        tool_tag = _edge_tag(config, only=_TOOL_FIELDS, world=_TOOL_WORLD)
         tool_tasks = [
             (
                 f"tool.{planner}.trial{trial:04d}.{tool_tag}",

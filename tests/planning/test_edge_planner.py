@@ -161,5 +161,7 @@ def test_bad_planner_input(task, reach):
         plan_astar(task, qs, np.array([0.0, np.nan, 0.0]), FAR, reach)
     with pytest.raises(InputError, match="unknown search"):
         run_edge_episode(task, qs, 0, search="dfs")
+    with pytest.raises(InputError, match="overlaps the battery"):
+        plan_astar(task, qs, np.array([0.1, 0.0, 0.0]), np.array([0.2, 0.05, 0.3]), reach)
     with pytest.raises(InputError, match="task must be an EdgeTask"):
         plan_greedy("push_to_edge", qs, np.zeros(3), FAR, reach)  # type: ignore[arg-type]

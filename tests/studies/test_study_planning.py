@@ -9,7 +9,13 @@ from pathlib import Path
 import pytest
 
 from probaff.errors import InputError
-from probaff.studies.planning import PlanningStudyConfig, run, summarise, trial_seed
+from probaff.studies.planning import (
+    PlanningStudyConfig,
+    attribute_failures,
+    run,
+    summarise,
+    trial_seed,
+)
 
 pytestmark = pytest.mark.slow
 
@@ -73,6 +79,32 @@ def test_summary_counts_and_intervals():
     assert a["error_cm"] == pytest.approx(3.0) and a["pushes_success"] == 3
     assert a["plan_seconds"] == pytest.approx(1.0) and a["plan_seconds_max"] == 1.5
     assert b["success_rate"] == 1.0 and b["success_high"] == 1.0
+
+
+def test_failures_are_blamed_on_the_model_only_where_the_simulator_succeeded():
+    def rec(planner, trial, success, outcome="success", error=0.01):
+        return {
+            "planner": planner,
+            "trial": trial,
+            "success": success,
+            "outcome": outcome,
+            "steps": [{"error": error}],
+        }
+
+    records = [
+        rec("astar-sim", 0, True),
+        rec("astar-sim", 1, False, "budget"),
+        rec("astar-sim", 2, True),
+        rec("astar-gp", 0, False, "fell", 0.08),
+        rec("astar-gp", 1, False, "budget", 0.02),
+        rec("astar-gp", 2, True, error=0.02),
+    ]
+    (row,) = attribute_failures(records)
+    assert (row["failures"], row["model_failures"], row["search_failures"]) == (2, 1, 1)
+    assert row["model_fell"] == 1 and row["model_budget"] == 0
+    assert row["error_cm_failed"] == pytest.approx(5.0)
+    assert row["error_cm_succeeded"] == pytest.approx(2.0)
+    assert attribute_failures([rec("astar-gp", 0, True)]) == []
 
 
 def test_trial_seeds_are_shared_and_distinct():
