@@ -409,6 +409,9 @@ def plot_pushes_per_trial(
             positions,
             [f"{n}\n{int(data[n][0].sum())}/{len(data[n][0])} succeeded" for n in names],
             fontsize=7,
+            rotation=30,
+            ha="right",
+            rotation_mode="anchor",
         )
         ax.set_xlim(-0.6, len(names) - 0.4)
         ax.yaxis.set_major_locator(MaxNLocator(integer=True))
