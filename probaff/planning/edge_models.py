@@ -15,7 +15,7 @@ few hundred pushes and tens of features, ML-II length scales overfit.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -120,6 +120,11 @@ def fit_edge_model(
                 spec.n_experts, seed=seed, expert_kwargs={"lengthscale_prior": True}
             )
             get_fitter("clustered")(model, X, Y)
-    points = int(ds["cloud_points"].shape[2]) if cloud_points is None else cloud_points
-    noise = float(ds.meta.get("cloud_noise", 0.002)) if cloud_noise is None else cloud_noise
-    return FeaturePushModel(model, "ch4", spec.groups, cloud_points=points, cloud_noise=noise)
+    fitted = FeaturePushModel.for_dataset(model, "ch4", spec.groups, ds)
+    if cloud_points is None and cloud_noise is None:
+        return fitted
+    return replace(
+        fitted,
+        cloud_points=fitted.cloud_points if cloud_points is None else cloud_points,
+        cloud_noise=fitted.cloud_noise if cloud_noise is None else cloud_noise,
+    )

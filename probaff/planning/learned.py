@@ -18,6 +18,7 @@ from torch.distributions import Distribution
 
 from probaff._checks import check_count, check_finite, check_positive, check_shape
 from probaff.data.queries import PushInputs
+from probaff.data.schema import PushDataset
 from probaff.errors import InputError
 from probaff.features.ch4 import chapter4_features
 from probaff.features.ch5 import chapter5_features
@@ -69,6 +70,27 @@ class FeaturePushModel:
         object.__setattr__(self, "groups", groups)
         object.__setattr__(self, "cloud_points", check_count("cloud_points", self.cloud_points))
         check_positive("cloud_noise", self.cloud_noise, allow_zero=True)
+
+    @classmethod
+    def for_dataset(
+        cls, model: PushModel, features: str, groups: tuple[str, ...], ds: PushDataset
+    ) -> FeaturePushModel:
+        """`model`, fitted on `ds`, sensing candidate clouds as `ds` was sensed.
+
+        Args:
+            model: The fitted model.
+            features: ``"ch4"`` or ``"ch5"``.
+            groups: The column groups fitted on, in order.
+            ds: The training dataset: its clouds give the points per cloud, its metadata
+                the cloud noise (0.002 m, the generator's default, when it is not recorded).
+        """
+        return cls(
+            model,
+            features,
+            tuple(groups),
+            cloud_points=int(ds["cloud_points"].shape[2]),
+            cloud_noise=float(ds.meta.get("cloud_noise", 0.002)),
+        )
 
     def feature_matrix(self, queries: PushInputs) -> np.ndarray:
         """The model's input matrix for `queries`.

@@ -1165,10 +1165,4 @@ def fit_tool_push_model(
     )
     with torch_threads(1):
         fit_em(model, X, Y, max_iter=max_iter, n_restarts=n_restarts, seed=seed)
-    return FeaturePushModel(
-        model,
-        "ch5",
-        tuple(groups),
-        cloud_points=int(ds["cloud_points"].shape[2]),
-        cloud_noise=float(ds.meta.get("cloud_noise", 0.002)),
-    )
+    return FeaturePushModel.for_dataset(model, "ch5", tuple(groups), ds)

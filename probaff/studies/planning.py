@@ -31,8 +31,9 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, partial
 from pathlib import Path
 from typing import Any, cast
 
@@ -296,34 +297,47 @@ def tool_trial(planner: str, trial: int, seed: int, *, tool_model: Any) -> dict[
     return {**run_tool_push_trial(planner, model, seed).to_dict(), "trial": trial}
 
 
-def _tool_model(config: PlanningStudyConfig, out: Path) -> FeaturePushModel:
-    """Generate the tool-push training pushes and fit (or load) chapter 5's mixture."""
-    data_dir = out / "data" / f"tool_push_n{config.tool_train_pushes}_s{config.seed}"
-    ds = generate(
-        GenerateConfig(
-            scene="tool_push", n=config.tool_train_pushes, seed=config.seed, trajectories=False
-        ),
+def _training_pushes(config: PlanningStudyConfig, out: Path, scene: str, n: int) -> Any:
+    """Generate (or resume, or load) `n` training pushes of `scene` under ``out/data/``."""
+    data_dir = out / "data" / f"{scene}_n{n}_s{config.seed}"
+    return generate(
+        GenerateConfig(scene=scene, n=n, seed=config.seed, trajectories=False),
         data_dir,
         workers=config.workers,
         scheduler=config.scheduler,
         resume=data_dir.exists(),
         progress=config.progress,
     )
-    path = out / "models" / f"tool.{_edge_tag(config, 8, _TOOL_FIELDS, _TOOL_WORLD)}.pt"
+
+
+def _fit_or_load(
+    path: Path,
+    fit: Callable[[], FeaturePushModel],
+    features: str,
+    groups: tuple[str, ...],
+    ds: Any,
+) -> FeaturePushModel:
+    """The model saved at `path`, or `fit()`'s, saved there (atomically) for the next run."""
     if path.is_file():
-        return FeaturePushModel(
-            load_model(path),
-            "ch5",
-            _TOOL_GROUPS,
-            cloud_points=int(ds["cloud_points"].shape[2]),
-            cloud_noise=float(ds.meta.get("cloud_noise", 0.002)),
-        )
-    fitted = fit_tool_push_model(
-        ds, n_experts=3, groups=_TOOL_GROUPS, max_iter=config.em_iterations, seed=config.seed
-    )
+        return FeaturePushModel.for_dataset(load_model(path), features, groups, ds)
+    fitted = fit()
     path.parent.mkdir(parents=True, exist_ok=True)
     save_model(cast(Any, fitted.model), path)
     return fitted
+
+
+def _tool_model(config: PlanningStudyConfig, out: Path) -> FeaturePushModel:
+    """Generate the tool-push training pushes and fit (or load) chapter 5's mixture."""
+    ds = _training_pushes(config, out, "tool_push", config.tool_train_pushes)
+    return _fit_or_load(
+        out / "models" / f"tool.{_edge_tag(config, 8, _TOOL_FIELDS, _TOOL_WORLD)}.pt",
+        lambda: fit_tool_push_model(
+            ds, n_experts=3, groups=_TOOL_GROUPS, max_iter=config.em_iterations, seed=config.seed
+        ),
+        "ch5",
+        _TOOL_GROUPS,
+        ds,
+    )
 
 
 _TOOL_GROUPS = ("f_o", "f_c")
@@ -370,39 +384,18 @@ def summarise_tool(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 def _models(config: PlanningStudyConfig, out: Path, names: set[str]) -> dict[str, Any]:
     """Generate the training pushes and fit (or load) the learned planner models."""
-    data_dir = out / "data" / f"push_to_edge_n{config.train_pushes}_s{config.seed}"
-    ds = generate(
-        GenerateConfig(
-            scene="push_to_edge", n=config.train_pushes, seed=config.seed, trajectories=False
-        ),
-        data_dir,
-        workers=config.workers,
-        scheduler=config.scheduler,
-        resume=data_dir.exists(),
-        progress=config.progress,
-    )
+    ds = _training_pushes(config, out, "push_to_edge", config.train_pushes)
     tag = _edge_tag(config, length=8)
-    models: dict[str, Any] = {}
-    for name in sorted(names):
-        path = out / "models" / f"{name}.{tag}.pt"
-        if path.is_file():
-            models[name] = _wrap(load_model(path), name, ds)
-            continue
-        fitted = fit_edge_model(name, ds, seed=config.seed, em_iterations=config.em_iterations)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        save_model(cast(Any, fitted.model), path)
-        models[name] = fitted
-    return models
-
-
-def _wrap(model: Any, name: str, ds: Any) -> FeaturePushModel:
-    return FeaturePushModel(
-        model,
-        "ch4",
-        EDGE_MODELS[name].groups,
-        cloud_points=int(ds["cloud_points"].shape[2]),
-        cloud_noise=float(ds.meta.get("cloud_noise", 0.002)),
-    )
+    return {
+        name: _fit_or_load(
+            out / "models" / f"{name}.{tag}.pt",
+            partial(fit_edge_model, name, ds, seed=config.seed, em_iterations=config.em_iterations),
+            "ch4",
+            EDGE_MODELS[name].groups,
+            ds,
+        )
+        for name in sorted(names)
+    }
 
 
 def summarise(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
