@@ -13,7 +13,6 @@ import torch
 from gpytorch.constraints import Interval
 from gpytorch.distributions import MultivariateNormal
 from gpytorch.means import ConstantMean
-from gpytorch.mlls import ExactMarginalLogLikelihood
 from gpytorch.priors import LogNormalPrior, Prior
 from linear_operator.utils.errors import NanError, NotPSDError
 from torch import Tensor
@@ -23,6 +22,7 @@ from probaff._checks import check_count, check_finite
 from probaff.errors import InputError, NotFittedError
 from probaff.models._scaling import Standardizer
 from probaff.models._tensors import as_matrix, as_vector
+from probaff.models.gaussian_density import gaussian_log_density
 from probaff.models.kernels import ard_se_kernel
 from probaff.models.likelihood import WeightedGaussianLikelihood
 
@@ -288,10 +288,44 @@ class GPExpert(torch.nn.Module):
             stacklevel=3,
         )
 
+    def marginal_log_likelihood(self, jitter: float | None = None) -> Tensor:
+        r"""Weighted log marginal likelihood (plus log prior) per output, divided by `n`.
+
+        The value of gpytorch's ``ExactMarginalLogLikelihood(likelihood, gp)`` on the
+        training data: :math:`\log \mathcal N(y; m, K + \sigma^2 W^{-1})`, plus the
+        likelihood's added loss terms (`WeightCorrection`) and the log priors, over the
+        number of training samples. Its gradient comes from the closed form of
+        `gaussian_log_density` instead of back-propagation through a Cholesky
+        factorisation, which makes each L-BFGS evaluation about twice as fast.
+
+        Args:
+            jitter: First diagonal jitter tried when the kernel matrix is singular;
+                defaults to the expert's current jitter.
+
+        Returns:
+            One value per output, `(E,)`, differentiable in the hyperparameters.
+
+        Raises:
+            NotFittedError: If the expert has no training data yet.
+        """
+        if not self.is_fitted:
+            raise NotFittedError("GPExpert has no training data; call fit first.")
+        x, y = self.gp.train_inputs[0], self.gp.train_targets  # (n, D), (E, n)
+        n = y.shape[-1]
+        k = self.gp.covar_module(x.expand(self.n_outputs, n, x.shape[-1])).to_dense()
+        noise = self.likelihood.noise_covar(x, shape=torch.Size([self.n_outputs, n]))
+        cov = k + noise.to_dense()
+        mean = self.gp.mean_module.constant[:, None]
+        res = gaussian_log_density(cov, y - mean, float(self.jitter) if jitter is None else jitter)
+        for term in self.gp.added_loss_terms():
+            res = res + term.loss()
+        for _, module, prior, closure, _ in self.gp.named_priors():
+            log_p = prior.log_prob(closure(module))
+            res = res + log_p.reshape(self.n_outputs, -1).sum(-1)
+        return res / n
+
     def _lbfgs(self, params: list[torch.nn.Parameter], max_iter: int, jitter: float) -> bool:
         """Minimise the negative weighted marginal likelihood; return whether all stayed finite."""
-        mll = ExactMarginalLogLikelihood(self.likelihood, self.gp)
-        x, y = self.gp.train_inputs[0], self.gp.train_targets
         optimiser = torch.optim.LBFGS(
             params,
             lr=1.0,
@@ -303,14 +337,14 @@ class GPExpert(torch.nn.Module):
 
         def closure() -> Tensor:
             optimiser.zero_grad()
-            loss = -mll(self.gp(x), y).sum()
+            loss = -self.marginal_log_likelihood(jitter).sum()
             loss.backward()
             return loss
 
         with exact_gp_settings(jitter):
             optimiser.step(closure)
             with torch.no_grad():
-                final = -mll(self.gp(x), y).sum()
+                final = -self.marginal_log_likelihood(jitter).sum()
         return bool(torch.isfinite(final)) and all(bool(torch.isfinite(p).all()) for p in params)
 
     # ------------------------------------------------------------- prediction
