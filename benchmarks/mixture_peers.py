@@ -30,6 +30,8 @@ budget) -> Distribution`` with batch shape ``(N_test,)`` and event shape ``(E,)`
 * ``em``: `MixtureOfGPExperts` fitted by `fit_em` with its defaults. When `fit_em` takes an
   ``init`` argument, ``em_effects``, ``em_joint`` and ``em_grow`` run it with that
   initialisation.
+* ``em_finish2``: the default EM with its two best screened starts run to convergence
+  (``n_finish=2``).
 * ``vi``: `VariationalMixtureOfGPExperts` (``min(32, N)`` inducing points) fitted by
   `fit_svi`.
 
@@ -300,6 +302,8 @@ MODELS: dict[str, FitPredict] = {
 if "init" in inspect.signature(fit_em).parameters:
     for _init in EM_INITS:
         MODELS[f"em_{_init}"] = functools.partial(em, fit=functools.partial(fit_em, init=_init))
+if "n_finish" in inspect.signature(fit_em).parameters:
+    MODELS["em_finish2"] = functools.partial(em, fit=functools.partial(fit_em, n_finish=2))
 MODELS["vi"] = vi
 
 

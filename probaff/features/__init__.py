@@ -1,24 +1,54 @@
 """Features computed from data.
 
-Push features of chapters 4 (n = 631) and 5 (n = 101), and per-voxel warehouse features of
-chapter 3.
+Push features of chapters 4 (n = 631) and 5 (n = 101), interaction features of chapter 6
+(n = 169) with their action-frame geometry, and per-voxel warehouse features of chapter 3.
 """
 
+from probaff.features.action_frame import (
+    action_frame,
+    apply_effect,
+    box_surface,
+    effect_in_action_frame,
+    planar_pose_from_sideview,
+    planar_pose_from_tabletop,
+    sideview_transform,
+    tabletop_transform,
+)
 from probaff.features.cells import HMP_SCALES, VoxelFeatures, cell_features
 from probaff.features.ch4 import CONTEXT_CLASSES, TableGeometry, chapter4_features
 from probaff.features.ch5 import chapter5_features
+from probaff.features.ch6 import (
+    INTERACTION_FEATURE_COUNT,
+    INTERACTION_GROUPS,
+    InteractionFeatureConfig,
+    InteractionFeatures,
+    interaction_features,
+)
 from probaff.features.featureset import FeatureSet
 from probaff.features.frames import directions_to_push_frame, points_to_push_frame
 
 __all__ = [
     "CONTEXT_CLASSES",
     "HMP_SCALES",
+    "INTERACTION_FEATURE_COUNT",
+    "INTERACTION_GROUPS",
     "FeatureSet",
+    "InteractionFeatureConfig",
+    "InteractionFeatures",
     "TableGeometry",
     "VoxelFeatures",
+    "action_frame",
+    "apply_effect",
+    "box_surface",
     "cell_features",
     "chapter4_features",
     "chapter5_features",
     "directions_to_push_frame",
+    "effect_in_action_frame",
+    "interaction_features",
+    "planar_pose_from_sideview",
+    "planar_pose_from_tabletop",
     "points_to_push_frame",
+    "sideview_transform",
+    "tabletop_transform",
 ]

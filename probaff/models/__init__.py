@@ -21,6 +21,12 @@ from probaff.models.interface import PushModel
 from probaff.models.mixture import MixtureOfGPExperts
 from probaff.models.persistence import load, save
 from probaff.models.svi import SVIHistory, fit_svi
+from probaff.models.transition import (
+    MonolithicTransitionModel,
+    SkillTransitionModel,
+    TransitionHistory,
+    fit_transition,
+)
 from probaff.models.vi import VariationalMixtureOfGPExperts
 
 __all__ = [
@@ -31,14 +37,18 @@ __all__ = [
     "GPExpert",
     "GatedMixture",
     "MixtureOfGPExperts",
+    "MonolithicTransitionModel",
     "NotFittedError",
     "PushModel",
     "SVIHistory",
+    "SkillTransitionModel",
     "SoftmaxGate",
+    "TransitionHistory",
     "VariationalMixtureOfGPExperts",
     "fit_em",
     "fit_em_path",
     "fit_svi",
+    "fit_transition",
     "get_fitter",
     "load",
     "make_gate",

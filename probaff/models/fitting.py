@@ -2,7 +2,8 @@
 
 ``get_fitter("em")(model, X, Y, **options)`` fits `model` in place and returns what the
 fitter returns (`fit_em`: an `EMHistory`; `fit_svi`: an `SVIHistory`; ``"clustered"``: the
-model). New procedures are added with `register_fitter`.
+model; ``"transition"``: a `TransitionHistory`, reactions passed as ``R=``). New procedures
+are added with `register_fitter`.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from probaff.errors import InputError
 from probaff.models.clustered import ClusteredGPModel
 from probaff.models.em import fit_em
 from probaff.models.svi import fit_svi
+from probaff.models.transition import fit_transition
 
 __all__ = ["FITTERS", "fit_clustered", "get_fitter", "register_fitter"]
 
@@ -53,7 +55,8 @@ def get_fitter(name: str) -> Fitter:
     """The fitter registered under `name`.
 
     Args:
-        name: ``"em"``, ``"svi"``, ``"clustered"`` or a name given to `register_fitter`.
+        name: ``"em"``, ``"svi"``, ``"clustered"``, ``"transition"`` or a name given to
+            `register_fitter`.
 
     Returns:
         ``fitter(model, X, Y, **options)``.
@@ -92,3 +95,4 @@ def fit_clustered(model: ClusteredGPModel, X: Any, Y: Any) -> ClusteredGPModel:
 register_fitter("em")(fit_em)
 register_fitter("svi")(fit_svi)
 register_fitter("clustered")(fit_clustered)
+register_fitter("transition")(fit_transition)

@@ -18,7 +18,7 @@ from linear_operator.utils.errors import NanError, NotPSDError
 from torch import Tensor
 from torch.distributions import Normal
 
-from probaff._checks import check_count, check_finite
+from probaff._checks import check_count, check_finite, check_positive
 from probaff.errors import InputError, NotFittedError
 from probaff.models._scaling import Standardizer
 from probaff.models._tensors import as_matrix, as_vector
@@ -65,6 +65,18 @@ def noise_floor_vector(
             f"(one per output), got {noise_floor!r}."
         )
     return floor.clone()
+
+
+def _initial_value(name: str, value: float, bounds: tuple[float, float]) -> float:
+    """`value` as a float, or `InputError` unless it is finite and strictly inside `bounds`."""
+    check_positive(name, value)
+    v = float(value)
+    if not bounds[0] < v < bounds[1]:
+        raise InputError(
+            f"{name} must lie strictly between {bounds[0]:g} and {bounds[1]:g} "
+            f"(standardised units), got {value!r}."
+        )
+    return v
 
 
 @contextlib.contextmanager
@@ -142,6 +154,10 @@ class GPExpert(torch.nn.Module):
             the floor's square, so experts whose samples have (nearly) identical targets,
             such as the exact zeros of an object that did not move, keep a finite noise
             level and a meaningful predictive density. ``None`` (default) is no floor.
+        outputscale: Initial signal variance (the kernel amplitude theta0) of every output,
+            in standardised output units, inside [1e-4, 1e4]; 1 by default.
+        noise: Initial observation-noise variance of every output, in standardised output
+            units, inside [1e-6, 1e2]; 0.1 by default.
 
     Attributes:
         gp: The batched gpytorch model.
@@ -159,11 +175,15 @@ class GPExpert(torch.nn.Module):
         max_iter: int = 50,
         lengthscale_prior: bool = False,
         noise_floor: float | Sequence[float] | Tensor | None = None,
+        outputscale: float = 1.0,
+        noise: float = 0.1,
     ) -> None:
         super().__init__()
         self.n_features = check_count("n_features", n_features)
         self.n_outputs = check_count("n_outputs", n_outputs)
         self.max_iter = check_count("max_iter", max_iter)
+        self.initial_outputscale = _initial_value("outputscale", outputscale, _OUTPUTSCALE_BOUNDS)
+        self.initial_noise = _initial_value("noise", noise, _NOISE_BOUNDS)
         self.lengthscale_prior = bool(lengthscale_prior)
         batch = torch.Size([self.n_outputs])
         self.likelihood = WeightedGaussianLikelihood(
@@ -188,16 +208,17 @@ class GPExpert(torch.nn.Module):
 
     # ------------------------------------------------------------------ setup
     def reset_hyperparameters(self) -> None:
-        """Set length scales to sqrt(D), amplitudes to 1, noise to 0.1 and means to 0.
+        """Set length scales to sqrt(D), amplitudes and noise to their initial values, means to 0.
 
-        All in standardised units.
+        The initial amplitude and noise are the constructor's `outputscale` (1 by default)
+        and `noise` (0.1 by default). All in standardised units.
         """
         kernel = self.gp.covar_module
         kernel.base_kernel.lengthscale = torch.full_like(
             kernel.base_kernel.lengthscale, math.sqrt(self.n_features)
         )
-        kernel.outputscale = torch.ones_like(kernel.outputscale)
-        self.likelihood.noise = 0.1
+        kernel.outputscale = torch.full_like(kernel.outputscale, self.initial_outputscale)
+        self.likelihood.noise = self.initial_noise
         self.gp.mean_module.constant.data.zero_()
 
     @property

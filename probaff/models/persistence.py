@@ -20,11 +20,18 @@ from probaff.errors import InputError
 from probaff.models.clustered import ClusteredGPModel
 from probaff.models.gp_expert import GPExpert
 from probaff.models.mixture import MixtureOfGPExperts
+from probaff.models.transition import MonolithicTransitionModel, SkillTransitionModel
 from probaff.models.vi import VariationalMixtureOfGPExperts
 
 __all__ = ["FORMAT", "FORMATS", "SavableModel", "load", "save"]
 
-SavableModel = MixtureOfGPExperts | VariationalMixtureOfGPExperts | ClusteredGPModel
+SavableModel = (
+    MixtureOfGPExperts
+    | VariationalMixtureOfGPExperts
+    | ClusteredGPModel
+    | SkillTransitionModel
+    | MonolithicTransitionModel
+)
 """The model classes `save` and `load` handle."""
 
 FORMAT = "probaff.models.MixtureOfGPExperts/1"
@@ -34,6 +41,8 @@ FORMATS: dict[type, str] = {
     MixtureOfGPExperts: FORMAT,
     VariationalMixtureOfGPExperts: "probaff.models.VariationalMixtureOfGPExperts/1",
     ClusteredGPModel: "probaff.models.ClusteredGPModel/1",
+    SkillTransitionModel: "probaff.models.SkillTransitionModel/1",
+    MonolithicTransitionModel: "probaff.models.MonolithicTransitionModel/1",
 }
 """Format tag (identifier and version) of every model class `save` handles."""
 
@@ -104,6 +113,44 @@ def _load_clustered(payload: dict[str, Any]) -> ClusteredGPModel:
     return model
 
 
+def _dump_skill(model: SkillTransitionModel) -> dict[str, Any]:
+    return {
+        "config": model.config(),
+        "sizes": [model.n_features, model.n_outputs, model.n_reaction],
+        "X": model.train_X,
+        "Y": model.train_Y,
+        "R": model.train_R,
+        "weights": model.component_weights(),
+        "state_dict": model.state_dict(),
+    }
+
+
+def _load_skill(payload: dict[str, Any]) -> SkillTransitionModel:
+    model = SkillTransitionModel(**payload["config"])
+    model.build(*payload["sizes"])
+    model.condition(payload["X"], payload["Y"], payload["R"], payload["weights"])
+    model.load_state_dict(payload["state_dict"])
+    return model
+
+
+def _dump_monolithic(model: MonolithicTransitionModel) -> dict[str, Any]:
+    return {
+        "config": model.config(),
+        "sizes": [model.n_features, model.n_outputs],
+        "X": model.train_X,
+        "Y": model.train_Y,
+        "state_dict": model.state_dict(),
+    }
+
+
+def _load_monolithic(payload: dict[str, Any]) -> MonolithicTransitionModel:
+    model = MonolithicTransitionModel(**payload["config"])
+    model.build(*payload["sizes"])
+    model.condition(payload["X"], payload["Y"])
+    model.load_state_dict(payload["state_dict"])
+    return model
+
+
 _CODECS: dict[
     str, tuple[Callable[[Any], dict[str, Any]], Callable[[dict[str, Any]], Any], tuple[str, ...]]
 ] = {
@@ -121,6 +168,16 @@ _CODECS: dict[
         _dump_clustered,
         _load_clustered,
         ("config", "X", "Y", "labels", "state_dict"),
+    ),
+    FORMATS[SkillTransitionModel]: (
+        _dump_skill,
+        _load_skill,
+        ("config", "sizes", "X", "Y", "R", "weights", "state_dict"),
+    ),
+    FORMATS[MonolithicTransitionModel]: (
+        _dump_monolithic,
+        _load_monolithic,
+        ("config", "sizes", "X", "Y", "state_dict"),
     ),
 }
 
@@ -145,8 +202,9 @@ def save(model: SavableModel, path: str | os.PathLike[str]) -> None:
 
     Args:
         model: A `MixtureOfGPExperts` fitted with `fit_em`, a
-            `VariationalMixtureOfGPExperts` fitted with `fit_svi` or a fitted
-            `ClusteredGPModel`.
+            `VariationalMixtureOfGPExperts` fitted with `fit_svi`, a fitted
+            `ClusteredGPModel`, or a `SkillTransitionModel` or `MonolithicTransitionModel`
+            fitted with `fit_transition`.
         path: Destination file.
 
     Raises:

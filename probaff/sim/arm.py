@@ -23,7 +23,15 @@ from probaff._checks import check_count, check_finite, check_shape
 from probaff.errors import ConfigError, InputError, UnreachablePoseError
 from probaff.sim.config import ArmSpec
 
-__all__ = ["Arm", "IKResult", "PushPathIK", "load_arm", "topdown_pose"]
+__all__ = [
+    "Arm",
+    "IKResult",
+    "PathIK",
+    "PushPathIK",
+    "load_arm",
+    "sideview_pose",
+    "topdown_pose",
+]
 
 _DTYPE = torch.float64
 # Elbow/wrist postures that hold the tool vertical over the table; the pan joint of each seed is
@@ -49,6 +57,31 @@ def topdown_pose(xy: torch.Tensor, yaw: torch.Tensor, height: float) -> torch.Te
     T[:, 0, 1], T[:, 1, 1] = s, -c
     T[:, 2, 2] = -1.0
     T[:, 0, 3], T[:, 1, 3], T[:, 2, 3] = xy[:, 0], xy[:, 1], height
+    T[:, 3, 3] = 1.0
+    return T
+
+
+def sideview_pose(xz: torch.Tensor, phi: torch.Tensor, plane_y: float) -> torch.Tensor:
+    """Tool poses in the side-view plane: tool z down (at phi = 0), fingers closing along x.
+
+    The plane is world x-z at ``y = plane_y``; phi is the counter-clockwise rotation in it as
+    seen from -y. At phi = 0 the tool z axis is world -z, its y axis (joining the fingers) is
+    world +x and its x axis world +y; phi turns tool y to ``(cos phi, 0, sin phi)``.
+
+    Args:
+        xz: (B, 2) world ``(x, z)`` of the tcp (m).
+        phi: (B,) rotation about the viewing axis (rad).
+        plane_y: World y of the plane (m).
+
+    Returns:
+        T_world_tcp: (B, 4, 4).
+    """
+    c, s = torch.cos(phi), torch.sin(phi)
+    T = torch.zeros(xz.shape[0], 4, 4, dtype=_DTYPE)
+    T[:, 1, 0] = 1.0
+    T[:, 0, 1], T[:, 2, 1] = c, s
+    T[:, 0, 2], T[:, 2, 2] = s, -c
+    T[:, 0, 3], T[:, 1, 3], T[:, 2, 3] = xz[:, 0], plane_y, xz[:, 1]
     T[:, 3, 3] = 1.0
     return T
 
@@ -81,6 +114,21 @@ class PushPathIK:
 
     q: torch.Tensor
     ok: torch.Tensor
+
+
+@dataclass(frozen=True)
+class PathIK:
+    """Joint waypoints of tcp paths in the side-view plane.
+
+    Attributes:
+        q: (B, K, dof) joint angles at the K waypoints of each path.
+        ok: (B,) every waypoint converged and the joint path is continuous.
+        first_bad: (B,) index of the first waypoint that failed, -1 where `ok`.
+    """
+
+    q: torch.Tensor
+    ok: torch.Tensor
+    first_bad: torch.Tensor
 
 
 class Arm:
@@ -260,6 +308,128 @@ class Arm:
         q = q_waypoints[:, i0] * (1 - frac) + q_waypoints[:, i0 + 1] * frac  # (B, T, dof)
         return self.planar_fk(q.reshape(-1, dof)).reshape(B, len(progress), 3)
 
+    # -- side view --------------------------------------------------------------------------
+    def sideview_fk(self, q: torch.Tensor) -> torch.Tensor:
+        """Pose of the tcp in the side-view plane, as the plane physics uses it.
+
+        Args:
+            q: (B, dof) joint angles.
+
+        Returns:
+            (B, 3) world ``(x, z, phi)`` of the tcp (see `sideview_pose`).
+        """
+        T = self.fk(q)
+        return torch.stack([T[:, 0, 3], T[:, 2, 3], torch.atan2(T[:, 2, 1], T[:, 0, 1])], dim=-1)
+
+    def _sideview_seed(self, plane_y: float) -> torch.Tensor:
+        """(dof,) a tool-down posture in the plane (pan relative to the target direction)."""
+        return _sideview_seed_cached(self, float(plane_y))
+
+    def solve_sideview_paths(self, xz: torch.Tensor, plane_y: float) -> PathIK:
+        """IK for tcp paths in the side-view plane, with the tool at phi = 0.
+
+        All waypoints of all paths are solved in one batched call, each seeded with a side-view
+        posture aimed at its target, which keeps a path on one IK branch; waypoints where that
+        fails are retried, in one more call, from the default seeds. A path with a failed or
+        discontinuous waypoint is then solved again waypoint by waypoint, each seeded with the
+        previous solution.
+
+        Args:
+            xz: (B, K, 2) world ``(x, z)`` of the tcp at K waypoints per path (m), K >= 2.
+            plane_y: World y of the plane (m).
+
+        Returns:
+            Joint waypoints (B, K, dof), per-path success and the first failed waypoint.
+
+        Raises:
+            InputError: If `xz` is not a finite (B, K, 2) array with K >= 2.
+        """
+        check_shape("xz", xz, (None, None, 2))
+        check_finite("xz", xz)
+        B, K = xz.shape[0], xz.shape[1]
+        if K < 2:
+            raise InputError(f"xz holds {K} waypoint(s) per path; give at least 2.")
+        xz = xz.to(_DTYPE)
+        if B == 0:
+            return PathIK(
+                torch.zeros(0, K, self.dof, dtype=_DTYPE),
+                torch.zeros(0, dtype=torch.bool),
+                torch.zeros(0, dtype=torch.long),
+            )
+        flat = xz.reshape(B * K, 2)
+        T = sideview_pose(flat, torch.zeros(B * K, dtype=_DTYPE), plane_y)
+        default = self._seeds(T)
+        first = self._sideview_seed(plane_y).expand(B * K, 1, self.dof).clone()
+        first[:, 0, 0] += default[:, 0, 0]  # aim the reference posture at each target
+        sol = self.ik(T, first)
+        q_flat, conv_flat = sol.q.clone(), sol.converged.clone()
+        miss = (~conv_flat).nonzero()[:, 0]
+        if miss.numel():  # the default tool-down postures, only where the side-view one failed
+            retry = self.ik(T[miss], default[miss])
+            q_flat[miss], conv_flat[miss] = retry.q, retry.converged
+        q = q_flat.reshape(B, K, self.dof)
+        conv = conv_flat.reshape(B, K)
+        ok = conv.all(1) & ((q[:, 1:] - q[:, :-1]).abs().amax(dim=(1, 2)) < _MAX_JOINT_STEP)
+        for b in (~ok).nonzero()[:, 0].tolist():
+            q[b], conv[b] = self._sequential_path(xz[b], plane_y, q[b], conv[b])
+        jump = torch.zeros(B, K, dtype=torch.bool)
+        jump[:, 1:] = (q[:, 1:] - q[:, :-1]).abs().amax(dim=2) >= _MAX_JOINT_STEP
+        bad = ~conv | jump
+        ok = ~bad.any(1)
+        first_bad = torch.where(ok, -1, bad.to(torch.int8).argmax(1))
+        return PathIK(q=q, ok=ok, first_bad=first_bad)
+
+    def _sequential_path(
+        self, xz: torch.Tensor, plane_y: float, q: torch.Tensor, conv: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Re-solve one path (K, 2) waypoint by waypoint from its first converged waypoint."""
+        K = xz.shape[0]
+        q, conv = q.clone(), conv.clone()
+        if not bool(conv[0]):
+            return q, conv
+        zero = torch.zeros(1, dtype=_DTYPE)
+        for k in range(1, K):
+            nxt = self.ik(sideview_pose(xz[k : k + 1], zero, plane_y), q[k - 1][None, None, :])
+            q[k], conv[k] = nxt.q[0], nxt.converged[0]
+            if not bool(conv[k]):
+                break
+        return q, conv
+
+    def sideview_trace(self, q_waypoints: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        """Map a joint-space linear interpolation of waypoints through FK, in the side view.
+
+        Args:
+            q_waypoints: (B, K, dof) waypoints of each path.
+            u: (B, T) fractional waypoint index at each control tick, in [0, K - 1].
+
+        Returns:
+            (B, T, 3) world ``(x, z, phi)`` of the tcp at each control tick.
+        """
+        B, K, dof = q_waypoints.shape
+        u = u.to(_DTYPE).clamp(0.0, K - 1)
+        i0 = u.floor().clamp(max=K - 2).long()  # (B, T)
+        frac = (u - i0)[..., None]
+        rows = torch.arange(B)[:, None]
+        q = q_waypoints[rows, i0] * (1 - frac) + q_waypoints[rows, i0 + 1] * frac  # (B, T, dof)
+        return self.sideview_fk(q.reshape(-1, dof)).reshape(B, u.shape[1], 3)
+
+    def sideview_reach(
+        self, z: float, plane_y: float, x_range: tuple[float, float] = (-1.2, 1.2), n: int = 97
+    ) -> tuple[float, float] | None:
+        """Reachable interval of tcp x at height `z` in the plane (tool down), from the chain.
+
+        Args:
+            z: World height of the tcp (m).
+            plane_y: World y of the plane (m).
+            x_range: World x interval scanned (m).
+            n: Number of scanned points (a positive integer).
+
+        Returns:
+            ``(x_min, x_max)`` of the reachable scanned points, or ``None`` if none is.
+        """
+        n = check_count("n", n)
+        return _sideview_reach_cached(self, float(z), float(plane_y), tuple(x_range), n)
+
     # -- workspace --------------------------------------------------------------------------
     def reachable(self, xy: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
         """Whether the tcp can point down at each table point with each yaw, at push height.
@@ -355,3 +525,31 @@ def _reachable_mask_cached(
 def load_arm(spec: ArmSpec) -> Arm:
     """Build (once per process) the arm for a world spec."""
     return Arm(spec)
+
+
+@lru_cache(maxsize=16)
+def _sideview_seed_cached(arm: Arm, plane_y: float) -> torch.Tensor:
+    """(dof,) IK solution at a reference pose in front of the base; its pan is made relative."""
+    ref = torch.tensor([[arm.spec.base_xyz[0], 0.2]], dtype=_DTYPE)
+    T = sideview_pose(ref, torch.zeros(1, dtype=_DTYPE), plane_y)
+    sol = arm.ik(T)
+    if not bool(sol.converged[0]):
+        raise ConfigError(
+            f"the arm cannot point its tool down at world (x={float(ref[0, 0]):.2f}, "
+            f"y={plane_y:.2f}, z={float(ref[0, 1]):.2f}); mount it closer to the side-view plane."
+        )
+    q = sol.q[0].clone()
+    q[0] -= arm._seeds(T)[0, 0, 0]  # pan relative to the direction of the target
+    return q
+
+
+@lru_cache(maxsize=64)
+def _sideview_reach_cached(
+    arm: Arm, z: float, plane_y: float, x_range: tuple[float, float], n: int
+) -> tuple[float, float] | None:
+    xs = torch.linspace(x_range[0], x_range[1], n, dtype=_DTYPE)
+    xz = torch.stack([xs, torch.full_like(xs, z)], dim=-1)
+    ok = arm.ik(sideview_pose(xz, torch.zeros(n, dtype=_DTYPE), plane_y)).converged
+    if not bool(ok.any()):
+        return None
+    return float(xs[ok].min()), float(xs[ok].max())

@@ -125,6 +125,16 @@ def test_named_initialisations_and_their_candidates():
     assert auto.best == max(c[2] for c in auto.candidates) or auto.split_merge
 
 
+def test_finishing_more_screened_starts_never_lowers_the_objective():
+    x, y, _ = piecewise_1d(60, seed=4)
+    one, two = (
+        fit_em(MixtureOfGPExperts(3), x, y, init="effects", n_restarts=3, n_finish=k, **FAST)
+        for k in (1, 2)
+    )
+    assert len(one.candidates) == len(two.candidates) == 3
+    assert two.best >= one.best
+
+
 def test_initial_responsibilities_and_split():
     x, y, _labels = softmax_regimes(200, seed=4)
     for init in ("effects", "joint"):
@@ -219,6 +229,8 @@ def test_same_seed_same_fit_and_counts_must_be_integers():
                 fit_em(MixtureOfGPExperts(2), x, y, **{name: bad})
     with pytest.raises(InputError, match="split_merge"):
         fit_em(MixtureOfGPExperts(2), x, y, split_merge=1.5)
+    with pytest.raises(InputError, match="n_finish"):
+        fit_em(MixtureOfGPExperts(2), x, y, n_finish=1.5)
     with pytest.raises(InputError, match="n_experts"):
         fit_em_path(MixtureOfGPExperts(2), x, y, (1, 2.5))
     with pytest.raises(InputError, match="rows that sum to 1"):
