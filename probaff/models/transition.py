@@ -219,7 +219,46 @@ class TransitionHistory:
 
 
 # ------------------------------------------------------------- skill model
-class SkillTransitionModel(torch.nn.Module):
+class _TransitionBase(torch.nn.Module):
+    """What both transition models hold: the skill, the GP settings and the training data."""
+
+    def __init__(
+        self,
+        skill: str,
+        *,
+        gp_max_iter: int,
+        lengthscale_prior: bool,
+        noise_floor: float | str | None,
+        outputscale: float,
+        noise: float,
+    ) -> None:
+        super().__init__()
+        self.skill = _check_skill("skill", skill)
+        self.gp_max_iter = check_count("gp_max_iter", gp_max_iter)
+        self.lengthscale_prior = bool(lengthscale_prior)
+        self.noise_floor = _check_noise_floor(noise_floor)
+        # GPExpert validates the start values; build one now so that errors come early.
+        GPExpert(1, 1, outputscale=outputscale, noise=noise)
+        self.outputscale = float(outputscale)
+        self.noise = float(noise)
+        self.components = torch.nn.ModuleDict()
+        self.n_features: int | None = None
+        self.n_outputs: int | None = None
+        self.train_X: Tensor | None = None
+        self.train_Y: Tensor | None = None
+
+    def _gp_config(self) -> dict[str, Any]:
+        """The GP settings as constructor arguments."""
+        return {
+            "gp_max_iter": self.gp_max_iter,
+            "lengthscale_prior": self.lengthscale_prior,
+            "noise_floor": self.noise_floor,
+            "outputscale": self.outputscale,
+            "noise": self.noise,
+        }
+
+
+class SkillTransitionModel(_TransitionBase):
     r"""Transition model of one skill: interaction features to the object's effect.
 
     Maps interaction features `X (N, D)` to the object's displacement in the action frame
@@ -276,8 +315,14 @@ class SkillTransitionModel(torch.nn.Module):
         outputscale: float = 0.1,
         noise: float = 0.1,
     ) -> None:
-        super().__init__()
-        self.skill = _check_skill("skill", skill)
+        super().__init__(
+            skill,
+            gp_max_iter=gp_max_iter,
+            lengthscale_prior=lengthscale_prior,
+            noise_floor=noise_floor,
+            outputscale=outputscale,
+            noise=noise,
+        )
         if kind not in KINDS:
             raise InputError(f"unknown kind {kind!r}; known kinds: {', '.join(map(repr, KINDS))}.")
         self.kind = kind
@@ -292,19 +337,7 @@ class SkillTransitionModel(torch.nn.Module):
                 "n_experts", _DEFAULT_EXPERTS if n_experts is None else n_experts
             )
         self.backward = bool(backward)
-        self.gp_max_iter = check_count("gp_max_iter", gp_max_iter)
-        self.lengthscale_prior = bool(lengthscale_prior)
-        self.noise_floor = _check_noise_floor(noise_floor)
-        # GPExpert validates the start values; build one now so that errors come early.
-        GPExpert(1, 1, outputscale=outputscale, noise=noise)
-        self.outputscale = float(outputscale)
-        self.noise = float(noise)
-        self.components = torch.nn.ModuleDict()
-        self.n_features: int | None = None
-        self.n_outputs: int | None = None
         self.n_reaction: int | None = None
-        self.train_X: Tensor | None = None
-        self.train_Y: Tensor | None = None
         self.train_R: Tensor | None = None
 
     # ----------------------------------------------------------------- config
@@ -315,11 +348,7 @@ class SkillTransitionModel(torch.nn.Module):
             "kind": self.kind,
             "backward": self.backward,
             "n_experts": None if self.kind == "gp" else self.n_experts,
-            "gp_max_iter": self.gp_max_iter,
-            "lengthscale_prior": self.lengthscale_prior,
-            "noise_floor": self.noise_floor,
-            "outputscale": self.outputscale,
-            "noise": self.noise,
+            **self._gp_config(),
         }
 
     @property
@@ -630,7 +659,7 @@ class SkillTransitionModel(torch.nn.Module):
 
 
 # -------------------------------------------------------- monolithic model
-class MonolithicTransitionModel(torch.nn.Module):
+class MonolithicTransitionModel(_TransitionBase):
     r"""The thesis's monolithic baseline: one GP from a whole scene to every object's effect.
 
     Trained on scenes of exactly `n_objects` objects: scene features `X (N, D)` map to the
@@ -669,31 +698,22 @@ class MonolithicTransitionModel(torch.nn.Module):
         outputscale: float = 0.1,
         noise: float = 0.1,
     ) -> None:
-        super().__init__()
+        super().__init__(
+            skill,
+            gp_max_iter=gp_max_iter,
+            lengthscale_prior=lengthscale_prior,
+            noise_floor=noise_floor,
+            outputscale=outputscale,
+            noise=noise,
+        )
         self.n_objects = check_count("n_objects", n_objects)
-        self.skill = _check_skill("skill", skill)
-        self.gp_max_iter = check_count("gp_max_iter", gp_max_iter)
-        self.lengthscale_prior = bool(lengthscale_prior)
-        self.noise_floor = _check_noise_floor(noise_floor)
-        GPExpert(1, 1, outputscale=outputscale, noise=noise)
-        self.outputscale = float(outputscale)
-        self.noise = float(noise)
-        self.components = torch.nn.ModuleDict()
-        self.n_features: int | None = None
-        self.n_outputs: int | None = None
-        self.train_X: Tensor | None = None
-        self.train_Y: Tensor | None = None
 
     def config(self) -> dict[str, Any]:
         """Constructor arguments: ``MonolithicTransitionModel(**model.config())`` rebuilds it."""
         return {
             "n_objects": self.n_objects,
             "skill": self.skill,
-            "gp_max_iter": self.gp_max_iter,
-            "lengthscale_prior": self.lengthscale_prior,
-            "noise_floor": self.noise_floor,
-            "outputscale": self.outputscale,
-            "noise": self.noise,
+            **self._gp_config(),
         }
 
     @property
