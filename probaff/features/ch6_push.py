@@ -1,0 +1,215 @@
+"""Chapter 6 interactions of tabletop push datasets: the hand on o1, and object on object.
+
+A push dataset (`probaff.data.PushDataset`) records, per push, the hand's commanded straight
+path and every object's pose before and after. This module turns it into the rows a
+per-skill push model learns from (`probaff.models.SkillTransitionModel`):
+
+* ``"hand"`` rows: the actor is the hand (two fingers), its action the commanded push from
+  the push origin over ``push_distance`` along ``push_yaw``; the target is o1. The reaction
+  is the hand's deviation from the commanded end point, in the action frame's (x, y).
+* ``"objects"`` rows: for each consecutive pair ``(k, k + 1)`` of objects, the actor is object
+  k moving from its pose before to its pose after the push (that motion is its action) and
+  the target is object k + 1. A pair whose actor moved less than `min_action` is skipped: a
+  motion that short has no direction. An object's motion is what it is, so its reaction is 0.
+
+Geometry. Objects are the catalogue's boxes: ``size = (length, width, height)`` at the
+dataset's observed poses, lifted with `tabletop_transform` and sampled with `box_surface`
+every `spacing` m; the same points a chained prediction moves. A finger is a box of
+``2 r x 2 r x FINGER_LENGTH`` (r the finger radius) standing from the push height, the two of
+them ``gripper_opening`` apart across the push: the round fingertips of the simulator's hand
+drawn as their bounding boxes. Circular catalogue objects have no box; datasets holding one
+are refused.
+
+Effects are the target's observed rigid displacements in the action frame A_t
+(`effect_in_action_frame`, six columns ``dx, dy, dz, rx, ry, rz``); on the table only
+``dx`` (off the action), ``dy`` (along it) and ``rz`` (the turn) are non-zero
+(`PLANAR_EFFECT_COLUMNS`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from probaff._checks import check_positive
+from probaff.data.schema import PushDataset
+from probaff.errors import InputError
+from probaff.features._common import FINGER_LENGTH, meta_float
+from probaff.features.action_frame import (
+    box_surface,
+    effect_in_action_frame,
+    tabletop_transform,
+)
+from probaff.features.ch6 import InteractionFeatureConfig, InteractionFeatures, interaction_features
+from probaff.sim.config import load_catalogue
+
+__all__ = ["PAIR_KINDS", "PLANAR_EFFECT_COLUMNS", "PushInteractions", "push_interactions"]
+
+PAIR_KINDS = ("hand", "objects")
+"""Kinds of interaction rows `push_interactions` builds."""
+
+PLANAR_EFFECT_COLUMNS = (0, 1, 5)
+"""Effect columns that move on the table: off-action dx, along-action dy, yaw turn rz."""
+
+
+@dataclass(frozen=True)
+class PushInteractions:
+    """Interaction rows of a push dataset.
+
+    Attributes:
+        interactions: The (n, 169) features and frames of the n rows.
+        effect: (n, 6) observed displacement of each row's target in its action frame.
+        reaction: (n, 2) the actor's deviation ``(dx, dy)`` (m) from its commanded end point
+            in the action frame: the hand's for ``"hand"`` rows, 0 for object actors.
+        push: (n,) the push (row of the dataset) of each interaction.
+        actor: (n,) the acting object's index, -1 for the hand.
+        target: (n,) the target object's index.
+    """
+
+    interactions: InteractionFeatures
+    effect: np.ndarray
+    reaction: np.ndarray
+    push: np.ndarray
+    actor: np.ndarray
+    target: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.push.shape[0])
+
+
+def _box_sizes(ds: PushDataset) -> np.ndarray:
+    """(N, K, 3) ``(length, width, height)`` of every object; refuses circular ones."""
+    catalogue = load_catalogue()
+    names = ds.object_names
+    table = np.zeros((len(names), 3))
+    for i, name in enumerate(names):
+        spec = catalogue.get(name)
+        if spec is None:
+            raise InputError(
+                f"dataset object {name!r} is not in the catalogue; regenerate the dataset with "
+                "this version of probaff."
+            )
+        table[i] = (*spec.size, spec.height) if spec.shape == "box" else np.nan
+    sizes = table[ds["object_ids"]]
+    bad = np.unique(ds["object_ids"][np.isnan(sizes[..., 0])])
+    if bad.size:
+        raise InputError(
+            f"chapter 6 interactions need cuboid objects; the dataset holds "
+            f"{[names[i] for i in bad]} (circular). Use a scene of boxes."
+        )
+    return sizes
+
+
+def _boxes(sizes: np.ndarray, poses: np.ndarray, spacing: float) -> tuple[np.ndarray, ...]:
+    """Surface points and normals of boxes `(n, 3)` at planar poses `(n, 3)`, and the lifts."""
+    T = tabletop_transform(poses, sizes[:, 2])
+    points, normals = box_surface(sizes, T, spacing)
+    return points, normals, T
+
+
+def _hand(ds: PushDataset, spacing: float) -> tuple[np.ndarray, ...]:
+    """Finger points, normals, and the hand's start and commanded end poses, `(N, 4, 4)`."""
+    n = len(ds)
+    r = meta_float(ds, "finger_radius")
+    opening = meta_float(ds, "gripper_opening")
+    height = meta_float(ds, "push_height")
+    yaw = ds["push_yaw"]
+    # a "box" of height 2 h has its centre at the push height h: the hand frame, x along z_p
+    T_s = tabletop_transform(np.column_stack([ds["push_origin"], yaw]), np.full(n, 2 * height))
+    T_e = T_s.copy()
+    T_e[:, :2, 3] += ds["push_distance"][:, None] * np.column_stack([np.cos(yaw), np.sin(yaw)])
+    finger = np.array([2 * r, 2 * r, FINGER_LENGTH])
+    pts, nrm = [], []
+    for side in (-0.5, 0.5):
+        offset = np.eye(4)
+        offset[1, 3] = side * opening
+        offset[2, 3] = 0.5 * FINGER_LENGTH
+        p, q = box_surface(np.tile(finger, (n, 1)), T_s @ offset, spacing)
+        pts.append(p)
+        nrm.append(q)
+    return np.concatenate(pts, axis=1), np.concatenate(nrm, axis=1), T_s, T_e
+
+
+def _hand_reaction(ds: PushDataset, T_a: np.ndarray, T_e: np.ndarray) -> np.ndarray:
+    """(N, 2) the hand's end-point deviation from the commanded end, in A_t's (x, y)."""
+    if not ds.has_trajectories:
+        raise InputError(
+            "the hand's reaction needs the hand trajectory; regenerate the dataset with "
+            "trajectories (GenerateConfig(trajectories=True), the default)."
+        )
+    end = ds["traj_hand"][:, -1, :2].astype(np.float64)
+    miss = end - T_e[:, :2, 3]
+    R = T_a[:, :2, :2]
+    return np.einsum("nji,nj->ni", R, miss)
+
+
+def push_interactions(
+    ds: PushDataset,
+    kind: str = "hand",
+    *,
+    spacing: float = 0.01,
+    min_action: float = 1e-3,
+    config: InteractionFeatureConfig | None = None,
+) -> PushInteractions:
+    """Chapter 6 interaction rows of a tabletop push dataset.
+
+    Args:
+        ds: A push dataset of cuboid objects.
+        kind: ``"hand"`` (the hand on o1, one row per push) or ``"objects"`` (object k on
+            object k + 1, for each consecutive pair whose actor moved).
+        spacing: Point spacing (m) of the box surfaces, > 0.
+        min_action: Shortest actor motion (m) that makes an ``"objects"`` row, > 0.
+        config: Contact thresholds of the features (``InteractionFeatureConfig()`` if
+            ``None``).
+
+    Returns:
+        The rows, their features, observed effects and reactions.
+
+    Raises:
+        InputError: For an unknown kind, bad spacing, circular objects, missing trajectories
+            (``"hand"`` rows need the hand's path) or a dataset without rows.
+    """
+    config = InteractionFeatureConfig() if config is None else config
+    if kind not in PAIR_KINDS:
+        raise InputError(f"unknown interaction kind {kind!r}; use one of {list(PAIR_KINDS)}.")
+    check_positive("spacing", spacing)
+    check_positive("min_action", min_action)
+    if len(ds) == 0:
+        raise InputError("the dataset has no pushes.")
+    sizes = _box_sizes(ds)
+    before, after = ds["state_before"], ds["state_after"]
+    n, k = before.shape[:2]
+    if kind == "hand":
+        t_pts, t_nrm, T_before = _boxes(sizes[:, 0], before[:, 0], spacing)
+        a_pts, a_nrm, T_s, T_e = _hand(ds, spacing)
+        feats = interaction_features(t_pts, t_nrm, a_pts, a_nrm, T_s, T_e, config)
+        T_after = tabletop_transform(after[:, 0], sizes[:, 0, 2])
+        effect = effect_in_action_frame(feats.T_world_action, T_before, T_after)
+        return PushInteractions(
+            feats,
+            effect,
+            _hand_reaction(ds, feats.T_world_action, T_e),
+            np.arange(n),
+            np.full(n, -1),
+            np.zeros(n, dtype=int),
+        )
+    if k < 2:
+        raise InputError("object-on-object rows need scenes of at least two objects.")
+    push = np.repeat(np.arange(n), k - 1)  # (n (K - 1),) push of each candidate pair
+    actor = np.tile(np.arange(k - 1), n)  # its acting object
+    moved = np.linalg.norm(after[push, actor, :2] - before[push, actor, :2], axis=1)
+    keep = moved >= min_action
+    if not keep.any():
+        raise InputError(f"no object moved by {min_action} m or more; there are no rows.")
+    push, actor = push[keep], actor[keep]
+    target = actor + 1
+    t_pts, t_nrm, T_before = _boxes(sizes[push, target], before[push, target], spacing)
+    a_pts, a_nrm, T_s = _boxes(sizes[push, actor], before[push, actor], spacing)
+    T_e = tabletop_transform(after[push, actor], sizes[push, actor, 2])
+    feats = interaction_features(t_pts, t_nrm, a_pts, a_nrm, T_s, T_e, config)
+    T_after = tabletop_transform(after[push, target], sizes[push, target, 2])
+    effect = effect_in_action_frame(feats.T_world_action, T_before, T_after)
+    return PushInteractions(
+        feats, effect, np.zeros((len(push), 2)), push, actor, target.astype(int)
+    )
