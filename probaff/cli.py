@@ -18,9 +18,16 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="probaff", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True)
 
-    g = sub.add_parser("generate", help="simulate a push dataset (sharded, resumable)")
-    g.add_argument("--scene", required=True, help="scene template (see `probaff scenes`)")
-    g.add_argument("--n", type=int, required=True, help="number of pushes")
+    g = sub.add_parser(
+        "generate", help="simulate a push or pick/place dataset (sharded, resumable)"
+    )
+    g.add_argument(
+        "--scene",
+        required=True,
+        help="scene template (see `probaff scenes`): a tabletop scene gives pushes, a side-view "
+        "scene picks or places",
+    )
+    g.add_argument("--n", type=int, required=True, help="number of pushes (or picks, places)")
     g.add_argument("--seed", type=int, default=0)
     g.add_argument("--out", required=True, help="dataset folder to create")
     g.add_argument(
@@ -38,7 +45,15 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="record object poses with Gaussian measurement noise of these standard "
         "deviations (metres, degrees), e.g. 0.003,1; exact values are kept in "
-        "the true_* arrays (default: exact poses)",
+        "the true_* arrays (default: exact poses); tabletop scenes only",
+    )
+    g.add_argument(
+        "--record-rate",
+        type=float,
+        default=None,
+        metavar="HZ",
+        help="samples per second of the stored trajectories; side-view scenes only (default: "
+        "the world's record rate)",
     )
     g.add_argument("--resume", action="store_true", help="finish an interrupted dataset")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -46,7 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
     d = sub.add_parser("describe", help="print a JSON summary of a dataset")
     d.add_argument("path")
 
-    sub.add_parser("scenes", help="list the scene templates")
+    sub.add_parser("scenes", help="list the scene templates (tabletop and side view)")
 
     m = sub.add_parser("demo", help="generate a small two-object dataset and draw it")
     m.add_argument("--out", default="results/demo")
@@ -61,9 +76,10 @@ def _dispatch(args: argparse.Namespace) -> None:
         from probaff._checks import check_output_dir
 
         check_output_dir("--out", args.out)  # before the simulator is loaded
-        from probaff.data.generation import GenerateConfig, generate
+        from probaff.data.generation import GenerateConfig, generate, generate_skills, scene_kind
         from probaff.data.noise import parse_pose_noise
 
+        kind = scene_kind(args.scene)
         noise = None if args.pose_noise is None else parse_pose_noise(args.pose_noise)
         cfg = GenerateConfig(
             scene=args.scene,
@@ -72,8 +88,10 @@ def _dispatch(args: argparse.Namespace) -> None:
             shard_size=args.shard_size,
             trajectories=not args.no_trajectories,
             pose_noise=noise,
+            record_rate=args.record_rate,
         )
-        ds = generate(
+        write = generate if kind == "push" else generate_skills
+        ds = write(
             cfg,
             args.out,
             workers=args.workers,
@@ -81,7 +99,8 @@ def _dispatch(args: argparse.Namespace) -> None:
             resume=args.resume,
             progress=not args.quiet,
         )
-        print(f"wrote {len(ds)} pushes to {args.out}")
+        what = "pushes" if kind == "push" else f"{ds.meta.get('skill', 'skill')}s"
+        print(f"wrote {len(ds)} {what} to {args.out}")
     elif args.command == "describe":
         from probaff.data.store import load_dataset
         from probaff.data.summary import summarize
@@ -89,9 +108,13 @@ def _dispatch(args: argparse.Namespace) -> None:
         print(json.dumps(summarize(load_dataset(args.path)), indent=1))
     elif args.command == "scenes":
         from probaff.sim.config import list_scenes, load_scene
+        from probaff.sim.sideview_config import list_sideview_scenes, load_sideview_scene
 
         for name in list_scenes():
             print(f"{name:16s} {load_scene(name).description}")
+        for name in list_sideview_scenes():
+            spec = load_sideview_scene(name)
+            print(f"{name:16s} side view, {spec.skill}: {spec.description}")
     elif args.command == "demo":
         from probaff._checks import check_output_dir
 

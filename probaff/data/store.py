@@ -1,6 +1,6 @@
 """The on-disk dataset format: a folder of a JSON manifest and checksummed shards.
 
-Layout (schema versions 1 and 2)::
+Layout of a push dataset (schema versions 1 and 2)::
 
     PATH/
       manifest.json        {"format": "probaff-push-dataset", "schema_version": 1 or 2,
@@ -20,6 +20,14 @@ Version 2 adds measurement noise on the recorded poses: ``plan.pose_noise`` hold
 parameters, ``{"position_std": metres, "yaw_std": radians}``, and each shard then also holds the
 exact ``true_*`` arrays (see `probaff.data.schema`). A dataset without pose noise has no
 ``pose_noise`` key and is written as version 1, exactly as before version 2 existed.
+
+Version 3 adds a second kind of dataset, side-view skills (`probaff.data.skill_schema`). Its
+manifest has the same layout plus ``"kind": "skill"``, ``"schema_version": 3`` and the plan
+``{scene, n, seed, shard_size, trajectories, record_rate}``; its shards hold the skill arrays.
+A manifest without ``kind`` is a push dataset, so push datasets are written exactly as before;
+``format`` stays ``probaff-push-dataset`` for both kinds, so an earlier release refuses a skill
+dataset by its version number. `load_dataset` reads push datasets and `load_skill_dataset`
+skill datasets; each refuses the other kind, naming the function to use.
 """
 
 from __future__ import annotations
@@ -29,18 +37,24 @@ import io
 import json
 import os
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 from probaff._io import atomic_write_bytes
-from probaff.data.schema import READABLE_SCHEMA_VERSIONS, SCHEMA_VERSION, PushDataset
+from probaff.data.schema import READABLE_SCHEMA_VERSIONS, PushDataset
+from probaff.data.skill_schema import SKILL_SCHEMA_VERSION, SkillDataset
 from probaff.errors import DatasetError
 
 __all__ = [
     "FORMAT_NAME",
+    "READABLE_VERSIONS",
+    "count_rows",
     "load_dataset",
+    "load_skill_dataset",
+    "manifest_kind",
     "read_manifest",
     "read_shard",
     "shard_path",
@@ -49,7 +63,33 @@ __all__ = [
 ]
 
 FORMAT_NAME = "probaff-push-dataset"
+READABLE_VERSIONS: dict[str, tuple[int, ...]] = {
+    "push": READABLE_SCHEMA_VERSIONS,
+    "skill": (SKILL_SCHEMA_VERSION,),
+}
+"""Dataset kinds this probaff reads, and the schema versions of each."""
 _EPOCH = (1980, 1, 1, 0, 0, 0)
+_LOADERS = {"push": "load_dataset", "skill": "load_skill_dataset"}
+_D = TypeVar("_D", PushDataset, SkillDataset)
+
+
+def _readable() -> str:
+    """What this probaff reads, in words, for error messages."""
+    return " and ".join(
+        f"{kind} datasets of schema version{'s' if len(v) > 1 else ''} "
+        + ", ".join(str(x) for x in v)
+        for kind, v in READABLE_VERSIONS.items()
+    )
+
+
+def manifest_kind(manifest: dict[str, Any]) -> str:
+    """The kind of dataset a manifest describes: its ``kind``, ``"push"`` when it has none."""
+    return str(manifest.get("kind", "push"))
+
+
+def count_rows(arrays: dict[str, np.ndarray]) -> int:
+    """Rows of a shard's arrays (of either kind): the length of ``object_ids``, 0 without it."""
+    return len(arrays.get("object_ids", ()))
 
 
 def shard_path(root: Path, index: int) -> Path:
@@ -149,8 +189,8 @@ def read_manifest(root: Path) -> dict[str, Any]:
     """Read and check a dataset's manifest.
 
     Raises:
-        DatasetError: If it is missing, not JSON, not a probaff dataset, of a schema version
-            this probaff does not read, or records pose noise under version 1.
+        DatasetError: If it is missing, not JSON, not a probaff dataset, of a kind or schema
+            version this probaff does not read, or records pose noise under version 1.
     """
     path = Path(root) / "manifest.json"
     if not path.is_file():
@@ -165,11 +205,18 @@ def read_manifest(root: Path) -> dict[str, Any]:
     if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
         raise DatasetError(f"{path} does not describe a {FORMAT_NAME}.")
     version = manifest.get("schema_version")
-    if version not in READABLE_SCHEMA_VERSIONS:
-        readable = ", ".join(str(v) for v in READABLE_SCHEMA_VERSIONS)
+    kind = manifest.get("kind", "push")
+    if not isinstance(kind, str) or kind not in READABLE_VERSIONS:
         raise DatasetError(
-            f"{root} has schema version {version}, but this probaff reads versions "
-            f"{readable} (newest {SCHEMA_VERSION}); regenerate it with `probaff generate`."
+            f"{root} holds a dataset of kind {kind!r}, but this probaff reads {_readable()}; "
+            "read it with the probaff release that wrote it, or regenerate it with "
+            "`probaff generate`."
+        )
+    if version not in READABLE_VERSIONS[kind]:
+        raise DatasetError(
+            f"{root} is a {kind} dataset of schema version {version}, but this probaff reads "
+            f"{_readable()}; read it with the probaff release that wrote it, or regenerate it "
+            "with `probaff generate`."
         )
     if version == 1 and manifest.get("plan", {}).get("pose_noise") is not None:
         raise DatasetError(
@@ -179,17 +226,14 @@ def read_manifest(root: Path) -> dict[str, Any]:
     return manifest
 
 
-def load_dataset(root: str | os.PathLike[str]) -> PushDataset:
-    """Load a complete dataset folder into memory, verifying every shard.
-
-    Args:
-        root: Dataset folder written by `probaff generate`.
+def _load_parts(
+    root: Path, manifest: dict[str, Any], make: Callable[[dict[str, np.ndarray]], _D]
+) -> list[_D]:
+    """Every shard of a complete dataset, verified and wrapped by `make`.
 
     Raises:
-        DatasetError: If the dataset is incomplete, corrupt or of another version.
+        DatasetError: If a shard is missing, corrupt or has another row count.
     """
-    root = Path(root)
-    manifest = read_manifest(root)
     plan = manifest["plan"]
     n, size = int(plan["n"]), int(plan["shard_size"])
     n_shards = -(-n // size)
@@ -204,19 +248,79 @@ def load_dataset(root: str | os.PathLike[str]) -> PushDataset:
     for i in range(n_shards):
         entry = shards[f"{i:05d}"]
         arrays = read_shard(root, i, entry["sha256"])
-        rows = len(arrays.get("effect", ()))
+        rows = count_rows(arrays)
         if rows != entry["rows"]:
             raise DatasetError(
                 f"shard {i} of {root} has {rows} rows, manifest says {entry['rows']}."
             )
-        parts.append(PushDataset(arrays, list(manifest["object_names"]), manifest["meta"]))
-    ds = PushDataset.concatenate(parts)
+        parts.append(make(arrays))
+    return parts
+
+
+def _read_kind(root: Path, kind: str) -> dict[str, Any]:
+    """`read_manifest`, refusing a dataset of another kind with the function that reads it."""
+    manifest = read_manifest(root)
+    found = manifest_kind(manifest)
+    if found != kind:
+        scene = manifest.get("plan", {}).get("scene")
+        raise DatasetError(
+            f"{root} is a {found} dataset (scene {scene!r}), not a {kind} dataset; load it with "
+            f"probaff.data.{_LOADERS[found]}."
+        )
+    return manifest
+
+
+def load_dataset(root: str | os.PathLike[str]) -> PushDataset:
+    """Load a complete push dataset folder into memory, verifying every shard.
+
+    Args:
+        root: Dataset folder written by `probaff generate` for a push scene.
+
+    Raises:
+        DatasetError: If the dataset is incomplete, corrupt, of another version, or a skill
+            dataset (read those with `load_skill_dataset`).
+    """
+    root = Path(root)
+    manifest = _read_kind(root, "push")
+    plan = manifest["plan"]
+    names, meta = list(manifest["object_names"]), manifest["meta"]
+    ds = PushDataset.concatenate(
+        _load_parts(root, manifest, lambda arrays: PushDataset(arrays, names, meta))
+    )
     noisy = plan.get("pose_noise") is not None
     if ds.has_pose_noise != noisy:
         raise DatasetError(
             f"the shards of {root} {'lack' if noisy else 'hold'} the ground-truth arrays but its "
             f"manifest says pose noise is {'on' if noisy else 'off'}; regenerate the dataset "
             "with `probaff generate`."
+        )
+    ds.meta = {**manifest["meta"], **plan}
+    return ds
+
+
+def load_skill_dataset(root: str | os.PathLike[str]) -> SkillDataset:
+    """Load a complete side-view skill dataset folder into memory, verifying every shard.
+
+    Args:
+        root: Dataset folder written by `probaff generate` for a side-view scene.
+
+    Raises:
+        DatasetError: If the dataset is incomplete, corrupt, of another version, or a push
+            dataset (read those with `load_dataset`).
+    """
+    root = Path(root)
+    manifest = _read_kind(root, "skill")
+    plan = manifest["plan"]
+    names, meta = list(manifest["object_names"]), manifest["meta"]
+    ds = SkillDataset.concatenate(
+        _load_parts(root, manifest, lambda arrays: SkillDataset(arrays, names, meta))
+    )
+    if ds.has_trajectories != bool(plan.get("trajectories")):
+        raise DatasetError(
+            f"the shards of {root} {'hold' if ds.has_trajectories else 'lack'} the trajectory "
+            f"arrays but its manifest says trajectories are "
+            f"{'on' if plan.get('trajectories') else 'off'}; regenerate the dataset with "
+            "`probaff generate`."
         )
     ds.meta = {**manifest["meta"], **plan}
     return ds
