@@ -24,6 +24,13 @@ from probaff.features.ch6 import (
     InteractionFeatures,
     interaction_features,
 )
+from probaff.features.ch6_push import (
+    PAIR_KINDS,
+    PLANAR_EFFECT_COLUMNS,
+    PushInteractions,
+    push_interactions,
+)
+from probaff.features.chain_geometry import MOTION_COLUMNS, Ch6Geometry
 from probaff.features.featureset import FeatureSet
 from probaff.features.frames import directions_to_push_frame, points_to_push_frame
 
@@ -32,9 +39,14 @@ __all__ = [
     "HMP_SCALES",
     "INTERACTION_FEATURE_COUNT",
     "INTERACTION_GROUPS",
+    "MOTION_COLUMNS",
+    "PAIR_KINDS",
+    "PLANAR_EFFECT_COLUMNS",
+    "Ch6Geometry",
     "FeatureSet",
     "InteractionFeatureConfig",
     "InteractionFeatures",
+    "PushInteractions",
     "TableGeometry",
     "VoxelFeatures",
     "action_frame",
@@ -49,6 +61,7 @@ __all__ = [
     "planar_pose_from_sideview",
     "planar_pose_from_tabletop",
     "points_to_push_frame",
+    "push_interactions",
     "sideview_transform",
     "tabletop_transform",
 ]

@@ -13,8 +13,9 @@ per-skill push model learns from (`probaff.models.SkillTransitionModel`):
   motion that short has no direction. An object's motion is what it is, so its reaction is 0.
 
 Geometry. Objects are the catalogue's boxes: ``size = (length, width, height)`` at the
-dataset's observed poses, lifted with `tabletop_transform` and sampled with `box_surface`
-every `spacing` m; the same points a chained prediction moves. A finger is a box of
+dataset's observed poses, lifted with `tabletop_transform`; their surfaces and features come
+from a `Ch6Geometry`, the same one a chained prediction (`ModularTransitionModel`) is
+given, so training rows and chain links are computed alike. A finger is a box of
 ``2 r x 2 r x FINGER_LENGTH`` (r the finger radius) standing from the push height, the two of
 them ``gripper_opening`` apart across the push: the round fingertips of the simulator's hand
 drawn as their bounding boxes. Circular catalogue objects have no box; datasets holding one
@@ -36,12 +37,8 @@ from probaff._checks import check_positive
 from probaff.data.schema import PushDataset
 from probaff.errors import InputError
 from probaff.features._common import FINGER_LENGTH, meta_float
-from probaff.features.action_frame import (
-    box_surface,
-    effect_in_action_frame,
-    tabletop_transform,
-)
-from probaff.features.ch6 import InteractionFeatureConfig, InteractionFeatures, interaction_features
+from probaff.features.action_frame import effect_in_action_frame, tabletop_transform
+from probaff.features.chain_geometry import Ch6Geometry
 from probaff.sim.config import load_catalogue
 
 __all__ = ["PAIR_KINDS", "PLANAR_EFFECT_COLUMNS", "PushInteractions", "push_interactions"]
@@ -58,7 +55,9 @@ class PushInteractions:
     """Interaction rows of a push dataset.
 
     Attributes:
-        interactions: The (n, 169) features and frames of the n rows.
+        features: (n, D) the geometry's features of the n rows.
+        touches: (n,) whether the actor touches the target during its action.
+        T_world_action: (n, 4, 4) the action frames A_t.
         effect: (n, 6) observed displacement of each row's target in its action frame.
         reaction: (n, 2) the actor's deviation ``(dx, dy)`` (m) from its commanded end point
             in the action frame: the hand's for ``"hand"`` rows, 0 for object actors.
@@ -67,7 +66,9 @@ class PushInteractions:
         target: (n,) the target object's index.
     """
 
-    interactions: InteractionFeatures
+    features: np.ndarray
+    touches: np.ndarray
+    T_world_action: np.ndarray
     effect: np.ndarray
     reaction: np.ndarray
     push: np.ndarray
@@ -101,14 +102,14 @@ def _box_sizes(ds: PushDataset) -> np.ndarray:
     return sizes
 
 
-def _boxes(sizes: np.ndarray, poses: np.ndarray, spacing: float) -> tuple[np.ndarray, ...]:
+def _boxes(geometry: Ch6Geometry, sizes: np.ndarray, poses: np.ndarray) -> tuple[np.ndarray, ...]:
     """Surface points and normals of boxes `(n, 3)` at planar poses `(n, 3)`, and the lifts."""
     T = tabletop_transform(poses, sizes[:, 2])
-    points, normals = box_surface(sizes, T, spacing)
+    points, normals = geometry.surface(sizes, T)
     return points, normals, T
 
 
-def _hand(ds: PushDataset, spacing: float) -> tuple[np.ndarray, ...]:
+def _hand(ds: PushDataset, geometry: Ch6Geometry) -> tuple[np.ndarray, ...]:
     """Finger points, normals, and the hand's start and commanded end poses, `(N, 4, 4)`."""
     n = len(ds)
     r = meta_float(ds, "finger_radius")
@@ -125,7 +126,7 @@ def _hand(ds: PushDataset, spacing: float) -> tuple[np.ndarray, ...]:
         offset = np.eye(4)
         offset[1, 3] = side * opening
         offset[2, 3] = 0.5 * FINGER_LENGTH
-        p, q = box_surface(np.tile(finger, (n, 1)), T_s @ offset, spacing)
+        p, q = geometry.surface(np.tile(finger, (n, 1)), T_s @ offset)
         pts.append(p)
         nrm.append(q)
     return np.concatenate(pts, axis=1), np.concatenate(nrm, axis=1), T_s, T_e
@@ -148,9 +149,8 @@ def push_interactions(
     ds: PushDataset,
     kind: str = "hand",
     *,
-    spacing: float = 0.01,
+    geometry: Ch6Geometry | None = None,
     min_action: float = 1e-3,
-    config: InteractionFeatureConfig | None = None,
 ) -> PushInteractions:
     """Chapter 6 interaction rows of a tabletop push dataset.
 
@@ -158,22 +158,21 @@ def push_interactions(
         ds: A push dataset of cuboid objects.
         kind: ``"hand"`` (the hand on o1, one row per push) or ``"objects"`` (object k on
             object k + 1, for each consecutive pair whose actor moved).
-        spacing: Point spacing (m) of the box surfaces, > 0.
+        geometry: Surfaces and features (``Ch6Geometry()`` if ``None``).
         min_action: Shortest actor motion (m) that makes an ``"objects"`` row, > 0.
-        config: Contact thresholds of the features (``InteractionFeatureConfig()`` if
-            ``None``).
 
     Returns:
         The rows, their features, observed effects and reactions.
 
     Raises:
-        InputError: For an unknown kind, bad spacing, circular objects, missing trajectories
+        InputError: For an unknown kind or geometry, circular objects, missing trajectories
             (``"hand"`` rows need the hand's path) or a dataset without rows.
     """
-    config = InteractionFeatureConfig() if config is None else config
+    geometry = Ch6Geometry() if geometry is None else geometry
+    if not isinstance(geometry, Ch6Geometry):
+        raise InputError(f"geometry must be a Ch6Geometry, got {type(geometry).__name__}.")
     if kind not in PAIR_KINDS:
         raise InputError(f"unknown interaction kind {kind!r}; use one of {list(PAIR_KINDS)}.")
-    check_positive("spacing", spacing)
     check_positive("min_action", min_action)
     if len(ds) == 0:
         raise InputError("the dataset has no pushes.")
@@ -181,15 +180,16 @@ def push_interactions(
     before, after = ds["state_before"], ds["state_after"]
     n, k = before.shape[:2]
     if kind == "hand":
-        t_pts, t_nrm, T_before = _boxes(sizes[:, 0], before[:, 0], spacing)
-        a_pts, a_nrm, T_s, T_e = _hand(ds, spacing)
-        feats = interaction_features(t_pts, t_nrm, a_pts, a_nrm, T_s, T_e, config)
+        t_pts, t_nrm, T_before = _boxes(geometry, sizes[:, 0], before[:, 0])
+        a_pts, a_nrm, T_s, T_e = _hand(ds, geometry)
+        X, touches, T_a = geometry.features(t_pts, t_nrm, a_pts, a_nrm, T_s, T_e)
         T_after = tabletop_transform(after[:, 0], sizes[:, 0, 2])
-        effect = effect_in_action_frame(feats.T_world_action, T_before, T_after)
         return PushInteractions(
-            feats,
-            effect,
-            _hand_reaction(ds, feats.T_world_action, T_e),
+            X,
+            touches,
+            T_a,
+            effect_in_action_frame(T_a, T_before, T_after),
+            _hand_reaction(ds, T_a, T_e),
             np.arange(n),
             np.full(n, -1),
             np.zeros(n, dtype=int),
@@ -204,12 +204,18 @@ def push_interactions(
         raise InputError(f"no object moved by {min_action} m or more; there are no rows.")
     push, actor = push[keep], actor[keep]
     target = actor + 1
-    t_pts, t_nrm, T_before = _boxes(sizes[push, target], before[push, target], spacing)
-    a_pts, a_nrm, T_s = _boxes(sizes[push, actor], before[push, actor], spacing)
+    t_pts, t_nrm, T_before = _boxes(geometry, sizes[push, target], before[push, target])
+    a_pts, a_nrm, T_s = _boxes(geometry, sizes[push, actor], before[push, actor])
     T_e = tabletop_transform(after[push, actor], sizes[push, actor, 2])
-    feats = interaction_features(t_pts, t_nrm, a_pts, a_nrm, T_s, T_e, config)
+    X, touches, T_a = geometry.features(t_pts, t_nrm, a_pts, a_nrm, T_s, T_e)
     T_after = tabletop_transform(after[push, target], sizes[push, target, 2])
-    effect = effect_in_action_frame(feats.T_world_action, T_before, T_after)
     return PushInteractions(
-        feats, effect, np.zeros((len(push), 2)), push, actor, target.astype(int)
+        X,
+        touches,
+        T_a,
+        effect_in_action_frame(T_a, T_before, T_after),
+        np.zeros((len(push), 2)),
+        push,
+        actor,
+        target.astype(int),
     )

@@ -19,6 +19,12 @@ from probaff.models.gated import GatedMixture
 from probaff.models.gp_expert import GPExpert
 from probaff.models.interface import PushModel
 from probaff.models.mixture import MixtureOfGPExperts
+from probaff.models.modular import (
+    ChainPrediction,
+    ChainScene,
+    InteractionGeometry,
+    ModularTransitionModel,
+)
 from probaff.models.persistence import load, save
 from probaff.models.svi import SVIHistory, fit_svi
 from probaff.models.transition import (
@@ -31,12 +37,16 @@ from probaff.models.vi import VariationalMixtureOfGPExperts
 
 __all__ = [
     "FITTERS",
+    "ChainPrediction",
+    "ChainScene",
     "ClusteredGPModel",
     "EMHistory",
     "FourierGate",
     "GPExpert",
     "GatedMixture",
+    "InteractionGeometry",
     "MixtureOfGPExperts",
+    "ModularTransitionModel",
     "MonolithicTransitionModel",
     "NotFittedError",
     "PushModel",

@@ -18,8 +18,8 @@ def chain(tmp_path_factory):
 
 def test_hand_rows_follow_the_push(chain):
     rows = push_interactions(chain, "hand")
-    assert len(rows) == len(chain) and rows.interactions.features.dim == 169
-    assert rows.interactions.touches.all() and (rows.actor == -1).all()
+    assert len(rows) == len(chain) and rows.features.shape == (len(chain), 171)
+    assert rows.touches.all() and (rows.actor == -1).all()
     # o1's displacement, turned into the push frame, is the effect's (dx, dy)
     yaw = chain["push_yaw"]
     move = chain["state_after"][:, 0, :2] - chain["state_before"][:, 0, :2]
@@ -39,15 +39,15 @@ def test_object_rows_chain_consecutive_pairs(chain):
     assert set(rows.target - rows.actor) == {1}
     assert np.all(rows.reaction == 0.0)
     # in a row of three the pushed objects touch the next ones, which move along the push
-    assert rows.interactions.touches.mean() > 0.8
-    assert np.median(rows.effect[rows.interactions.touches, 1]) > 0.02
+    assert rows.touches.mean() > 0.8
+    assert np.median(rows.effect[rows.touches, 1]) > 0.02
 
 
 def test_bad_inputs_are_refused(chain):
     with pytest.raises(InputError, match="kind"):
         push_interactions(chain, "feet")
-    with pytest.raises(InputError, match="spacing"):
-        push_interactions(chain, spacing=0.0)
+    with pytest.raises(InputError, match="geometry"):
+        push_interactions(chain, geometry="ch6")
     circle = chain.object_names.index("nut_container")
     ids = chain["object_ids"].copy()
     ids[:, 1] = circle
