@@ -24,6 +24,7 @@ from probaff.features.ch6 import (
     InteractionFeatures,
     interaction_features,
 )
+from probaff.features.ch6_pick import SIDEVIEW_EFFECT_COLUMNS, PickInteractions, pick_interactions
 from probaff.features.ch6_push import (
     PAIR_KINDS,
     PLANAR_EFFECT_COLUMNS,
@@ -42,10 +43,12 @@ __all__ = [
     "MOTION_COLUMNS",
     "PAIR_KINDS",
     "PLANAR_EFFECT_COLUMNS",
+    "SIDEVIEW_EFFECT_COLUMNS",
     "Ch6Geometry",
     "FeatureSet",
     "InteractionFeatureConfig",
     "InteractionFeatures",
+    "PickInteractions",
     "PushInteractions",
     "TableGeometry",
     "VoxelFeatures",
@@ -58,6 +61,7 @@ __all__ = [
     "directions_to_push_frame",
     "effect_in_action_frame",
     "interaction_features",
+    "pick_interactions",
     "planar_pose_from_sideview",
     "planar_pose_from_tabletop",
     "points_to_push_frame",
