@@ -31,7 +31,7 @@ import numpy as np
 from probaff.data.skill_schema import SkillDataset
 from probaff.errors import InputError
 from probaff.features.action_frame import effect_in_action_frame, sideview_transform
-from probaff.features.chain_geometry import Ch6Geometry
+from probaff.features.chain_geometry import Ch6Geometry, resolve_geometry
 from probaff.sim.sideview_config import SideViewSpec, load_sideview
 
 __all__ = ["SIDEVIEW_EFFECT_COLUMNS", "PickInteractions", "pick_interactions"]
@@ -105,9 +105,7 @@ def pick_interactions(
         InputError: For a dataset of another skill, one without trajectories, or a geometry
             of the wrong type.
     """
-    geometry = Ch6Geometry() if geometry is None else geometry
-    if not isinstance(geometry, Ch6Geometry):
-        raise InputError(f"geometry must be a Ch6Geometry, got {type(geometry).__name__}.")
+    geometry = resolve_geometry(geometry)
     if ds.skill != "pick":
         raise InputError(
             f"pick_interactions needs a pick dataset, got a {ds.skill!r} one; generate it "

@@ -38,7 +38,7 @@ from probaff.data.schema import PushDataset
 from probaff.errors import InputError
 from probaff.features._common import FINGER_LENGTH, meta_float
 from probaff.features.action_frame import effect_in_action_frame, tabletop_transform
-from probaff.features.chain_geometry import Ch6Geometry
+from probaff.features.chain_geometry import Ch6Geometry, resolve_geometry
 from probaff.sim.config import load_catalogue
 
 __all__ = ["PAIR_KINDS", "PLANAR_EFFECT_COLUMNS", "PushInteractions", "push_interactions"]
@@ -168,9 +168,7 @@ def push_interactions(
         InputError: For an unknown kind or geometry, circular objects, missing trajectories
             (``"hand"`` rows need the hand's path) or a dataset without rows.
     """
-    geometry = Ch6Geometry() if geometry is None else geometry
-    if not isinstance(geometry, Ch6Geometry):
-        raise InputError(f"geometry must be a Ch6Geometry, got {type(geometry).__name__}.")
+    geometry = resolve_geometry(geometry)
     if kind not in PAIR_KINDS:
         raise InputError(f"unknown interaction kind {kind!r}; use one of {list(PAIR_KINDS)}.")
     check_positive("min_action", min_action)

@@ -40,7 +40,7 @@ from probaff.features.ch6 import (
 if TYPE_CHECKING:
     from probaff.models.modular import InteractionGeometry
 
-__all__ = ["MOTION_COLUMNS", "Ch6Geometry"]
+__all__ = ["MOTION_COLUMNS", "Ch6Geometry", "resolve_geometry"]
 
 _SPACING_PER_CONTACT = 1.25  # default surface spacing in units of r_d (below sqrt(2))
 
@@ -189,6 +189,19 @@ class Ch6Geometry:
             (N, 4, 4) the target's pose after the action.
         """
         return apply_effect(T_world_action, T_world_before, effect)
+
+
+def resolve_geometry(geometry: Any) -> Ch6Geometry:
+    """`geometry`, or ``Ch6Geometry()`` for ``None``, for the builders of training rows.
+
+    Raises:
+        InputError: If `geometry` is neither ``None`` nor a `Ch6Geometry`.
+    """
+    if geometry is None:
+        return Ch6Geometry()
+    if not isinstance(geometry, Ch6Geometry):
+        raise InputError(f"geometry must be a Ch6Geometry, got {type(geometry).__name__}.")
+    return geometry
 
 
 if TYPE_CHECKING:  # the type checker confirms that Ch6Geometry satisfies the protocol
