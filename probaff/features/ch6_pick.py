@@ -31,6 +31,7 @@ import numpy as np
 from probaff.data.skill_schema import SkillDataset
 from probaff.errors import InputError
 from probaff.features.action_frame import effect_in_action_frame, sideview_transform
+from probaff.features.ch6_push import _check_finite_rows
 from probaff.features.chain_geometry import Ch6Geometry, resolve_geometry
 from probaff.sim.sideview_config import SideViewSpec, load_sideview
 
@@ -51,6 +52,8 @@ class PickInteractions:
         effect: (N, 6) the object's displacement in A_t.
         reaction: (N, 2) the tcp's end-point deviation in A_t's (y, z) (m).
         lifted: (N,) the simulator's verdict that the object was lifted.
+        T_world_before: (N, 4, 4) the object's pose before the skill, which `effect` starts
+            from.
     """
 
     features: np.ndarray
@@ -59,6 +62,7 @@ class PickInteractions:
     effect: np.ndarray
     reaction: np.ndarray
     lifted: np.ndarray
+    T_world_before: np.ndarray
 
     def __len__(self) -> int:
         return int(self.lifted.shape[0])
@@ -84,6 +88,44 @@ def _fingers(
     return np.concatenate(points, axis=1), np.concatenate(normals, axis=1), T_hand
 
 
+def _check_skill_arrays(ds: SkillDataset, names: tuple[str, ...]) -> None:
+    """Refuse a skill dataset without trajectories, or with NaN or inf where rows read it.
+
+    Args:
+        ds: A pick or place dataset.
+        names: Its per-row arrays the rows read; the tcp trajectories ``ee_commanded`` and
+            ``ee_actual`` are checked too, within each row's ``traj_length``.
+
+    Raises:
+        InputError: Naming the missing trajectories, or the array and row holding NaN or inf.
+    """
+    if not ds.has_trajectories:
+        raise InputError(
+            f"the {ds.skill}'s reaction needs the tcp trajectories; regenerate the dataset with "
+            "trajectories (the default)."
+        )
+    for name in names:
+        _check_finite_rows(name, ds[name])
+    length = ds["traj_length"].astype(int)
+    for name in ("ee_commanded", "ee_actual"):
+        _check_finite_rows(name, ds[name], length)
+
+
+def _tcp_reaction(ds: SkillDataset, T_world_action: np.ndarray) -> np.ndarray:
+    """(N, 2) the tcp's deviation from its commanded end point, in A_t's (y, z) (m).
+
+    Args:
+        ds: A pick or place dataset with trajectories.
+        T_world_action: (N, 4, 4) the rows' action frames A_t.
+    """
+    rows = np.arange(len(ds))
+    end = ds["traj_length"].astype(int) - 1
+    miss = (ds["ee_actual"][rows, end] - ds["ee_commanded"][rows, end]).astype(np.float64)
+    deviation = np.column_stack([miss[:, 0], np.zeros(len(ds)), miss[:, 1]])  # world (x, y, z)
+    in_a = np.einsum("nji,nj->ni", T_world_action[:, :3, :3], deviation)
+    return in_a[:, 1:]
+
+
 def pick_interactions(
     ds: SkillDataset,
     *,
@@ -102,8 +144,9 @@ def pick_interactions(
         One row per pick.
 
     Raises:
-        InputError: For a dataset of another skill, one without trajectories, or a geometry
-            of the wrong type.
+        InputError: For a dataset of another skill, one without trajectories, a geometry of
+            the wrong type, or NaN or inf in an array the rows read (naming the array and its
+            first such row).
     """
     geometry = resolve_geometry(geometry)
     if ds.skill != "pick":
@@ -111,11 +154,7 @@ def pick_interactions(
             f"pick_interactions needs a pick dataset, got a {ds.skill!r} one; generate it "
             "with a pick scene (probaff scenes lists them)."
         )
-    if not ds.has_trajectories:
-        raise InputError(
-            "the pick's reaction needs the tcp trajectories; regenerate the dataset with "
-            "trajectories (the default)."
-        )
+    _check_skill_arrays(ds, ("size", "state_before", "state_after", "target_xz"))
     world = load_sideview() if world is None else world
     rows = np.arange(len(ds))
     slot = ds["target"].astype(int)
@@ -127,15 +166,12 @@ def pick_interactions(
     T_e = T_s.copy()
     T_e[:, 2, 3] += float(ds.meta["lift"])
     X, touches, T_a = geometry.features(t_pts, t_nrm, a_pts, a_nrm, T_s, T_e)
-    end = ds["traj_length"].astype(int) - 1
-    miss = (ds["ee_actual"][rows, end] - ds["ee_commanded"][rows, end]).astype(np.float64)
-    deviation = np.column_stack([miss[:, 0], np.zeros(len(ds)), miss[:, 1]])  # world (x, y, z)
-    in_a = np.einsum("nji,nj->ni", T_a[:, :3, :3], deviation)
     return PickInteractions(
         X,
         touches,
         T_a,
         effect_in_action_frame(T_a, T_before, T_after),
-        in_a[:, 1:],
+        _tcp_reaction(ds, T_a),
         ds["lifted"].copy(),
+        T_before,
     )

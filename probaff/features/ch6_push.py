@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from probaff._checks import check_positive
+from probaff._checks import check_finite, check_positive
 from probaff.data.schema import PushDataset
 from probaff.errors import InputError
 from probaff.features._common import FINGER_LENGTH, meta_float
@@ -77,6 +77,34 @@ class PushInteractions:
 
     def __len__(self) -> int:
         return int(self.push.shape[0])
+
+
+def _check_finite_rows(name: str, values: np.ndarray, length: np.ndarray | None = None) -> None:
+    """Raise `InputError` naming `name` and its first row holding NaN or inf.
+
+    Args:
+        name: The dataset array's name, as ``ds[name]`` reads it.
+        values: (N, ...) the array, or (N, T, ...) a trajectory when `length` is given.
+        length: (N,) valid samples of each row of a trajectory (the rest repeat the last one
+            and are not read); ``None`` checks every entry.
+    """
+    arr = np.asarray(values)
+    n = arr.shape[0]
+    if arr.size == 0:
+        return
+    if length is None:
+        bad = ~np.isfinite(arr.reshape(n, -1))
+    else:
+        steps = arr.shape[1]
+        bad = ~np.isfinite(arr.reshape(n, steps, -1))
+        bad &= (np.arange(steps)[None, :] < np.asarray(length)[:, None])[..., None]
+    rows = np.flatnonzero(bad.reshape(n, -1).any(axis=1))
+    if rows.size:
+        i = int(rows[0])
+        others = rows.size - 1
+        more = f" (and {others} more row{'s' if others > 1 else ''})" if others else ""
+        valid = arr[i] if length is None else arr[i, : int(length[i])]
+        check_finite(f"{name} in row {i}{more}", valid)
 
 
 def _box_sizes(ds: PushDataset) -> np.ndarray:
@@ -166,7 +194,8 @@ def push_interactions(
 
     Raises:
         InputError: For an unknown kind or geometry, circular objects, missing trajectories
-            (``"hand"`` rows need the hand's path) or a dataset without rows.
+            (``"hand"`` rows need the hand's path), a dataset without rows, or NaN or inf in
+            an array the rows read (naming the array and its first such row).
     """
     geometry = resolve_geometry(geometry)
     if kind not in PAIR_KINDS:
@@ -174,10 +203,16 @@ def push_interactions(
     check_positive("min_action", min_action)
     if len(ds) == 0:
         raise InputError("the dataset has no pushes.")
+    for name in ("state_before", "state_after"):
+        _check_finite_rows(name, ds[name])
     sizes = _box_sizes(ds)
     before, after = ds["state_before"], ds["state_after"]
     n, k = before.shape[:2]
     if kind == "hand":
+        for name in ("push_origin", "push_yaw", "push_distance"):
+            _check_finite_rows(name, ds[name])
+        if ds.has_trajectories:
+            _check_finite_rows("traj_hand", ds["traj_hand"])
         t_pts, t_nrm, T_before = _boxes(geometry, sizes[:, 0], before[:, 0])
         a_pts, a_nrm, T_s, T_e = _hand(ds, geometry)
         X, touches, T_a = geometry.features(t_pts, t_nrm, a_pts, a_nrm, T_s, T_e)

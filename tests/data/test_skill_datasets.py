@@ -310,14 +310,18 @@ def test_place_dataset_without_trajectories(tmp_path):
     assert np.all((support == -1) | (support == target - 1))
     low, high = WORLD.place.release_height
     assert np.all((ds["release_height"] >= low) & (ds["release_height"] <= high))
-    assert ds["placed"].all() and ds["grasped"].all() and not ds["lifted"].any()
-    # the cube ends on its target: the table (z = 0) or its support's top
+    assert ds["grasped"].all() and not ds["lifted"].any()
+    placed = ds["placed"]
+    assert placed.any() and not placed.all()  # some cubes fall off their supports
+    # a placed cube ends on its target: the table (z = 0) or its support's top
     top = np.where(
         support < 0,
         0.0,
         ds["state_after"][rows, support, 1] + 0.5 * ds["size"][rows, support, 2],
     )
-    np.testing.assert_allclose(ds["state_after"][rows, target, 1], top + 0.05, atol=0.01)
+    np.testing.assert_allclose(
+        ds["state_after"][rows, target, 1][placed], (top + 0.05)[placed], atol=0.01
+    )
     np.testing.assert_allclose(ds["target_xz"][:, 1], np.where(support < 0, 0.0, top), atol=0.01)
 
 

@@ -46,3 +46,20 @@ def test_pick_rows_refuse_other_data(picks, tmp_path):
         pick_interactions(bare)
     with pytest.raises(InputError, match="geometry"):
         pick_interactions(picks, geometry=object())
+
+
+@pytest.mark.parametrize(
+    ("name", "index", "value"),
+    [
+        ("ee_actual", (3, 1), np.nan),
+        ("ee_commanded", (0, 0), np.inf),
+        ("state_before", (0, 1), np.nan),
+        ("target_xz", (0,), -np.inf),
+    ],
+)
+def test_pick_rows_name_non_finite_values(picks, name, index, value):
+    arr = picks[name].copy()
+    arr[(2, *index)] = value
+    bad = dataclasses.replace(picks, arrays={**picks.arrays, name: arr})
+    with pytest.raises(InputError, match=rf"{name} in row 2 .*NaN or infinite"):
+        pick_interactions(bad)

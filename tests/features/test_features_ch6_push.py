@@ -60,3 +60,21 @@ def test_bad_inputs_are_refused(chain):
     )
     with pytest.raises(InputError, match="trajector"):
         push_interactions(no_traj, "hand")
+
+
+@pytest.mark.parametrize(
+    ("kind", "name", "index", "value"),
+    [
+        ("hand", "traj_hand", (5, 0), np.nan),
+        ("hand", "push_yaw", (), np.inf),
+        ("hand", "push_origin", (1,), np.nan),
+        ("objects", "state_before", (1, 2), np.nan),
+        ("objects", "state_after", (2, 0), -np.inf),
+    ],
+)
+def test_non_finite_values_are_named(chain, kind, name, index, value):
+    arr = chain[name].copy()
+    arr[(4, *index)] = value
+    bad = dataclasses.replace(chain, arrays={**chain.arrays, name: arr})
+    with pytest.raises(InputError, match=rf"{name} in row 4 .*NaN or infinite"):
+        push_interactions(bad, kind)
