@@ -8,6 +8,7 @@ All accept a predictive `torch.distributions.Distribution` over effects of shape
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import torch
 from torch.distributions import Distribution, Independent, MixtureSameFamily, Normal
@@ -15,7 +16,14 @@ from torch.distributions import Distribution, Independent, MixtureSameFamily, No
 from probaff._checks import check_count, check_finite, check_shape
 from probaff.errors import InputError
 
-__all__ = ["interval_coverage", "marginal_components", "nlpd", "rmse", "wilson_interval"]
+__all__ = [
+    "interval_coverage",
+    "marginal_components",
+    "mean_halfwidth",
+    "nlpd",
+    "rmse",
+    "wilson_interval",
+]
 
 
 def marginal_components(dist: Distribution) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -160,3 +168,27 @@ def wilson_interval(successes: int, trials: int, confidence: float = 0.95) -> tu
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
     return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def mean_halfwidth(values: Sequence[float], confidence: float = 0.95) -> float:
+    """Half-width of the Student-t interval of the mean of `values` (0 for fewer than two).
+
+    Args:
+        values: Independent observations, e.g. one score per trial.
+        confidence: Two-sided confidence level in (0, 1).
+
+    Returns:
+        ``t_{(1 + confidence) / 2, n - 1} * sd / sqrt(n)``; NaN values propagate.
+
+    Raises:
+        InputError: For a level outside (0, 1).
+    """
+    from scipy.stats import t
+
+    if not 0 < confidence < 1:
+        raise InputError(f"confidence must lie in (0, 1), got {confidence!r}.")
+    v = [float(x) for x in values]
+    if len(v) < 2:
+        return 0.0
+    sd = math.sqrt(sum((x - sum(v) / len(v)) ** 2 for x in v) / (len(v) - 1))
+    return float(t.ppf(0.5 + confidence / 2, len(v) - 1) * sd / math.sqrt(len(v)))

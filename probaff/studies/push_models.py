@@ -15,7 +15,6 @@ interrupted study resumes where it stopped, never mixes settings, and can run on
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
@@ -33,7 +32,7 @@ from probaff.data.generation import GenerateConfig, generate
 from probaff.data.noise import PoseNoise
 from probaff.errors import InputError
 from probaff.eval.fingerprint import config_fingerprint
-from probaff.eval.metrics import interval_coverage, nlpd, rmse
+from probaff.eval.metrics import interval_coverage, mean_halfwidth, nlpd, rmse
 from probaff.eval.model_figures import (
     plot_effect_clusters,
     plot_metric_vs_experts,
@@ -488,15 +487,6 @@ def _tasks(
     return out
 
 
-def _t_halfwidth(values: list[float]) -> float:
-    """Half-width of the 95 % Student-t interval of the mean of `values` (0 for one value)."""
-    if len(values) < 2:
-        return 0.0
-    from scipy.stats import t
-
-    return float(t.ppf(0.975, len(values) - 1) * np.std(values, ddof=1) / math.sqrt(len(values)))
-
-
 def _summarise(results: list[dict[str, Any]], effects: tuple[str, ...]) -> list[dict[str, Any]]:
     """Mean over folds per (features, method, M)."""
     table: dict[tuple[str, str, int], list[dict[str, Any]]] = {}
@@ -511,7 +501,7 @@ def _summarise(results: list[dict[str, Any]], effects: tuple[str, ...]) -> list[
                 row[f"{metric}.{name}"] = float(mean[e])
         totals = [float(np.sum(r["nlpd"])) for r in rs]
         row["nlpd.total"] = float(np.mean(totals))
-        row["nlpd.total.ci95"] = _t_halfwidth(totals)
+        row["nlpd.total.ci95"] = mean_halfwidth(totals)
         row["seconds"] = float(np.mean([r["seconds"] for r in rs]))
         rows.append(row)
     return rows
