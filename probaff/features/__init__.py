@@ -1,7 +1,8 @@
 """Features computed from data.
 
 Push features of chapters 4 (n = 631) and 5 (n = 101), interaction features of chapter 6
-(n = 169) with their action-frame geometry, and per-voxel warehouse features of chapter 3.
+(n = 169) with their action-frame geometry and the push, pick and place rows built from them,
+and per-voxel warehouse features of chapter 3.
 """
 
 from probaff.features.action_frame import (
@@ -25,11 +26,20 @@ from probaff.features.ch6 import (
     interaction_features,
 )
 from probaff.features.ch6_pick import SIDEVIEW_EFFECT_COLUMNS, PickInteractions, pick_interactions
+from probaff.features.ch6_place import TABLE_SLAB_THICKNESS, PlaceInteractions, place_interactions
 from probaff.features.ch6_push import (
     PAIR_KINDS,
     PLANAR_EFFECT_COLUMNS,
     PushInteractions,
     push_interactions,
+)
+from probaff.features.ch6_scenes import (
+    SCENE_EFFECT_NAMES,
+    PushScenes,
+    push_scenes,
+    scene_effects,
+    scene_feature_names,
+    scene_features,
 )
 from probaff.features.chain_geometry import MOTION_COLUMNS, Ch6Geometry
 from probaff.features.featureset import FeatureSet
@@ -43,13 +53,17 @@ __all__ = [
     "MOTION_COLUMNS",
     "PAIR_KINDS",
     "PLANAR_EFFECT_COLUMNS",
+    "SCENE_EFFECT_NAMES",
     "SIDEVIEW_EFFECT_COLUMNS",
+    "TABLE_SLAB_THICKNESS",
     "Ch6Geometry",
     "FeatureSet",
     "InteractionFeatureConfig",
     "InteractionFeatures",
     "PickInteractions",
+    "PlaceInteractions",
     "PushInteractions",
+    "PushScenes",
     "TableGeometry",
     "VoxelFeatures",
     "action_frame",
@@ -62,10 +76,15 @@ __all__ = [
     "effect_in_action_frame",
     "interaction_features",
     "pick_interactions",
+    "place_interactions",
     "planar_pose_from_sideview",
     "planar_pose_from_tabletop",
     "points_to_push_frame",
     "push_interactions",
+    "push_scenes",
+    "scene_effects",
+    "scene_feature_names",
+    "scene_features",
     "sideview_transform",
     "tabletop_transform",
 ]
