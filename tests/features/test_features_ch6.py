@@ -21,6 +21,7 @@ from probaff.features import (
     sideview_transform,
     tabletop_transform,
 )
+from probaff.features import ch6 as ch6_module
 
 BINARY = ("shape", "contact")
 CONTINUOUS = ("pose", "action")
@@ -458,3 +459,181 @@ def test_config_of_another_type_and_bad_geometry_arguments():
         apply_effect(_pose([0, 0, 0]), _pose([0, 0, 0]), [[0, 0, 0, np.nan, 0, 0]])
     with pytest.raises(ProbaffError, match="T_world_obj_after"):
         effect_in_action_frame(_pose([0, 0, 0]), _pose([0, 0, 0]), _pose([[0, 0, 0], [1, 1, 1]]))
+
+
+def _box_scene(rng, n):
+    """Boxes pushed by boxes: rows at one height, rotated and tilted actors, misses.
+
+    Samples cycle through four kinds: 0, boxes of one size in line (their tops, bottoms and
+    sides are coplanar); 1, boxes of one height a little off line; 2, boxes turned about
+    world up; 3, a turned and tilted actor. Every fifth action stops short of the target and
+    every seventh passes beside it.
+    """
+    kind = np.arange(n) % 4
+    t_size = rng.uniform(0.06, 0.12, (n, 3))
+    a_size = rng.uniform(0.06, 0.12, (n, 3))
+    a_size[kind == 0] = t_size[kind == 0]
+    a_size[kind == 1, 2] = t_size[kind == 1, 2]
+    t_yaw = np.where(kind >= 2, rng.uniform(-np.pi, np.pi, n), 0.0)
+    a_yaw = np.where(kind >= 2, rng.uniform(-np.pi, np.pi, n), 0.0)
+    T_t = tabletop_transform(np.column_stack([np.zeros((n, 2)), t_yaw]), t_size[:, 2])
+    gap = rng.uniform(0.0, 0.05, n)
+    side = np.where(kind == 1, rng.uniform(-0.01, 0.01, n), 0.0)
+    side[kind >= 2] = rng.uniform(-0.05, 0.05, int((kind >= 2).sum()))
+    side[np.arange(n) % 7 == 0] = 0.3
+    back = (t_size[:, 1] + a_size[:, 1]) / 2 + gap
+    back[kind >= 2] += 0.05  # room for the turned corners
+    T_s = tabletop_transform(np.column_stack([side, -back, a_yaw]), a_size[:, 2])
+    tilt = Rotation.from_rotvec(rng.normal(0.0, 0.3, (n, 3))).as_matrix()
+    T_s[kind == 3, :3, :3] = tilt[kind == 3] @ T_s[kind == 3, :3, :3]
+    T_s[kind == 3, 2, 3] += 0.03
+    length = rng.uniform(0.02, 0.15, n) + np.where(kind >= 2, 0.05, 0.0)
+    length[np.arange(n) % 5 == 0] = 0.5 * gap[np.arange(n) % 5 == 0] + 1e-3
+    turn = rng.normal(0.0, 0.03, n)  # the push's direction, a little off world y
+    step = np.column_stack([np.sin(turn), np.cos(turn), rng.normal(0.0, 0.01, n)])
+    T_e = _moved(T_s[:, :3, 3] + length[:, None] * step, T_s)
+    t_pts, t_nrm = box_surface(t_size, T_t, 0.02)
+    a_pts, a_nrm = box_surface(a_size, T_s, 0.02)
+    return t_pts, t_nrm, a_pts, a_nrm, T_s, T_e
+
+
+def _cells(rel, counts, size):
+    """(n, cells) number of points per cell of grids centred at 0, from (n, K, 3) coordinates."""
+    idx = np.floor((rel + 0.5 * size * np.asarray(counts) + 1e-9) / size).astype(int)
+    inside = np.all((idx >= 0) & (idx < np.asarray(counts)), axis=-1)
+    flat = (idx[..., 0] * counts[1] + idx[..., 1]) * counts[2] + idx[..., 2]
+    out = np.zeros((rel.shape[0], int(np.prod(counts))), dtype=int)
+    for i in range(rel.shape[0]):
+        np.add.at(out[i], flat[i][inside[i]], 1)
+    return out
+
+
+def _brute_force(t_pts, t_nrm, a_pts, a_nrm, T_s, T_e, cfg):
+    """The chapter 6 features from every (target, actor) point pair, as the definition says.
+
+    Returns:
+        ``(values (n, 169), touch (n,), T_a, T_b, T_c (n, 4, 4))``.
+    """
+    r = cfg.contact_distance
+    T_a = action_frame(T_s, T_e)
+    R, o = T_a[:, :3, :3], T_a[:, :3, 3]
+    obj = (t_pts - o[:, None]) @ R  # (n, p, 3) in A_t
+    act = (a_pts - o[:, None]) @ R  # (n, q, 3)
+    length = np.linalg.norm(T_e[:, :3, 3] - T_s[:, :3, 3], axis=1)
+    w = obj[:, :, None] - act[:, None]  # (n, p, q, 3) target minus actor
+    across2 = w[..., 0] ** 2 + w[..., 2] ** 2
+    h = np.sqrt(np.clip(r * r - across2, 0.0, None))
+    meets = (across2 < r * r) & (w[..., 1] + h >= 0) & (w[..., 1] - h <= length[:, None, None])
+    s = np.where(meets, np.maximum(w[..., 1] - h, 0.0), np.inf).min(axis=(1, 2))
+    probe = np.minimum(s + r / 2, length)[:, None, None]
+    facing = np.einsum("npi,nqi->npq", t_nrm, a_nrm) < cfg.normal_threshold
+    in_contact = ((across2 + (w[..., 1] - probe) ** 2 < r * r) & facing).any(axis=2)  # (n, p)
+    centre = np.median(obj, axis=1)  # (n, 3) B_t's origin in A_t
+    count = in_contact.sum(axis=1)
+    mean = (in_contact[..., None] * obj).sum(axis=1) / np.maximum(count, 1)[:, None]
+    c = np.where(count[:, None] > 0, mean, centre)
+    shape = _cells(obj - centre[:, None], (5, 5, 5), 0.05) + _cells(
+        act - centre[:, None], (5, 5, 5), 0.05
+    )
+    rel = np.where(in_contact[..., None], obj - c[:, None], np.inf)  # others fall outside
+    contact = _cells(rel, (4, 2, 4), 0.05) > cfg.min_contact_points
+    T_b, T_c = T_a.copy(), T_a.copy()
+    T_b[:, :3, 3] = o + (R @ centre[..., None])[..., 0]
+    T_c[:, :3, 3] = o + (R @ c[..., None])[..., 0]
+    Rt = R.transpose(0, 2, 1)
+    R_s, R_e = T_s[:, :3, :3], T_e[:, :3, :3]
+    pose = np.column_stack(
+        [
+            (Rt @ (T_s[:, :3, 3] - T_b[:, :3, 3])[..., None])[..., 0],
+            Rotation.from_matrix(Rt @ R_s).as_rotvec(),
+        ]
+    )
+    turn = Rotation.from_matrix(R_s.transpose(0, 2, 1) @ R_e).as_rotvec()
+    action = np.column_stack(
+        [
+            (Rt @ (T_e[:, :3, 3] - T_s[:, :3, 3])[..., None])[..., 0],
+            (Rt @ R_s @ turn[..., None])[..., 0],
+        ]
+    )
+    values = np.column_stack([shape > 0, pose, contact, action]).astype(float)
+    return values, s, T_a, T_b, T_c
+
+
+@pytest.mark.parametrize(
+    "cfg",
+    [
+        InteractionFeatureConfig(),
+        InteractionFeatureConfig(contact_distance=0.015, normal_threshold=-0.2),
+        InteractionFeatureConfig(contact_distance=0.025, min_contact_points=0),
+    ],
+)
+def test_box_pushes_match_the_brute_force_definition(cfg):
+    rng = np.random.default_rng(12)
+    scene = _box_scene(rng, 28)
+    out = interaction_features(*scene, cfg, chunk=10)
+    values, touch, T_a, T_b, T_c = _brute_force(*scene, cfg)
+    assert 10 < out.touches.sum() < 28
+    assert out.touches[::4].sum() >= 3  # boxes in line, with coplanar faces, touch
+    assert out.features.select("contact")[out.touches].any(axis=1).mean() > 0.5
+    for g in BINARY:
+        cols = INTERACTION_GROUPS[g]
+        np.testing.assert_array_equal(out.features.select(g), values[:, cols])
+    for g in CONTINUOUS:
+        cols = INTERACTION_GROUPS[g]
+        np.testing.assert_allclose(out.features.select(g), values[:, cols], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(out.touches, np.isfinite(touch))
+    np.testing.assert_allclose(out.touch_distance[out.touches], touch[out.touches], atol=1e-12)
+    for got, want in [(out.T_world_action, T_a), (out.T_world_object, T_b)]:
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(out.T_world_contact, T_c, rtol=0, atol=1e-12)
+    # the action frame's y is the commanded displacement
+    step = scene[5][:, :3, 3] - scene[4][:, :3, 3]
+    np.testing.assert_allclose(
+        out.T_world_action[:, :3, 1], step / out.action_length[:, None], atol=1e-12
+    )
+
+
+def test_touch_searches_by_dense_and_sparse_tables_agree(monkeypatch):
+    rng = np.random.default_rng(13)
+    scenes = [_box_scene(rng, 24), _tabletop_scene(rng, 24)]
+    dense = [interaction_features(*s, chunk=8) for s in scenes]
+    monkeypatch.setattr(ch6_module, "_DENSE_CELLS", 0)
+    monkeypatch.setattr(ch6_module, "_DENSE_CELLS_PER_POINT", 0)
+    for s, d in zip(scenes, dense, strict=True):
+        sparse = interaction_features(*s, chunk=8)
+        np.testing.assert_array_equal(sparse.features.values, d.features.values)
+        np.testing.assert_array_equal(sparse.touch_distance, d.touch_distance)
+        np.testing.assert_array_equal(sparse.T_world_contact, d.T_world_contact)
+        assert d.touches.any() and not d.touches.all()
+
+
+def test_samples_broadcast_from_one_cloud_match_copies_and_are_validated():
+    t_pts, t_nrm, a_pts, a_nrm, T_s, _ = _hand_push([[-0.2, 0.0, 0.05]], [[0.15, 0.0, 0.05]])
+    n = 6
+    T_s = np.repeat(T_s, n, axis=0)
+    end = np.column_stack(
+        [np.linspace(-0.15, 0.2, n), np.linspace(-0.02, 0.02, n), np.full(n, 0.05)]
+    )
+    T_e = _moved(end, T_s)
+
+    def spread(x):
+        return np.broadcast_to(x, (n, *x.shape[1:]))
+
+    view = interaction_features(
+        spread(t_pts), spread(t_nrm), spread(a_pts), spread(a_nrm), T_s, T_e
+    )
+    copy = interaction_features(
+        *(np.repeat(x, n, axis=0) for x in (t_pts, t_nrm, a_pts, a_nrm)), T_s, T_e
+    )
+    assert 0 < view.touches.sum() < n
+    np.testing.assert_array_equal(view.features.values, copy.features.values)
+    np.testing.assert_array_equal(view.touch_distance, copy.touch_distance)
+    np.testing.assert_array_equal(view.T_world_contact, copy.T_world_contact)
+    nan = t_pts.copy()
+    nan[0, 3, 1] = np.nan
+    with pytest.raises(InputError, match="target_points"):
+        interaction_features(spread(nan), spread(t_nrm), spread(a_pts), spread(a_nrm), T_s, T_e)
+    with pytest.raises(InputError, match="actor_normals"):
+        interaction_features(
+            spread(t_pts), spread(t_nrm), spread(a_pts), spread(2 * a_nrm), T_s, T_e
+        )
