@@ -3,6 +3,7 @@
 from probaff.eval.metrics import (
     interval_coverage,
     marginal_components,
+    mean_halfwidth,
     nlpd,
     rmse,
     wilson_interval,
@@ -16,6 +17,7 @@ __all__ = [
     "ResultStore",
     "interval_coverage",
     "marginal_components",
+    "mean_halfwidth",
     "nlpd",
     "plot_pushes",
     "rmse",

@@ -555,7 +555,7 @@ def plot_chain_errors(
     err_ax.set_title("position error (bars: 95 % interval)", fontsize=9)
     cov_ax.set_title("coverage of the 90 % interval (bars: 95 % interval)", fontsize=9)
     handles = [*cov_ax.containers, nominal]
-    fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize=8)
+    fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 6), fontsize=8)
     return _save(fig, path, title, "Chained push predictions along the chain")
 
 
@@ -714,7 +714,7 @@ def plot_modular_vs_monolithic(
     ax.set_ylabel("mean absolute error (cm)")
     ax.grid(axis="y", alpha=0.3)
     ax.set_axisbelow(True)
-    fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize=8)
+    fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 6), fontsize=8)
     return _save(fig, path, title, "Push prediction error, 95 % interval")
 
 
@@ -808,5 +808,5 @@ def plot_learning_curves(
         Line2D([], [], color=colours[s], marker="o", ms=4, lw=1.5, label=s) for s in series
     ]
     handles.append(Patch(fc="0.5", alpha=0.3, label="95 % interval"))
-    fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize=8)
+    fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 5), fontsize=8)
     return _save(fig, path, title, "Learning curves, 95 % intervals")
