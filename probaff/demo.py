@@ -6,8 +6,10 @@ a mixture of GP experts by EM next to a single GP, printing their held-out RMSE,
 interval coverage and drawing both models' predictive density of o2's motion for a push where
 the mixture sees two outcomes (o2 hit or not), and finally explores a small warehouse map,
 pushes a few boxes chosen by information gain on the affordance MRF, and prints the map's
-entropy before and after, and last plans and executes one push-to-edge episode (chapter 4: A*
-over the mixture's predictions, closed loop in the simulator), drawn to a PNG.
+entropy before and after, then plans and executes one push-to-edge episode (chapter 4: A*
+over the mixture's predictions, closed loop in the simulator), drawn to a PNG, and last fits
+chapter 6's per-skill transition models and predicts a pick, a place and a three-object
+chained push, drawn against what the simulator did.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from probaff.models import MixtureOfGPExperts, fit_em
 from probaff.sim.arm import load_arm
 from probaff.sim.config import load_tabletop
 from probaff.studies.affordance_map import demo as affordance_demo
+from probaff.studies.modular import demo as modular_demo
 from probaff.studies.planning import demo as planning_demo
 
 __all__ = ["DemoConfig", "run"]
@@ -96,6 +99,8 @@ def run(config: DemoConfig) -> dict[str, Any]:
     affordance = affordance_demo(out / "affordance_map", seed=config.seed, steps=3)
     print("planning:")
     planning = planning_demo(out / "planning", seed=config.seed, progress=config.progress)
+    print("modular transition models (chapter 6):")
+    modular = modular_demo(out / "modular", seed=config.seed, progress=config.progress)
     return {
         "summary": summary,
         "dataset": os.fspath(ds_path),
@@ -103,6 +108,7 @@ def run(config: DemoConfig) -> dict[str, Any]:
         "models": models,
         "affordance_map": affordance,
         "planning": planning,
+        "modular": {k: modular[k] for k in ("chains", "skills", "files")},
     }
 
 

@@ -144,5 +144,5 @@ def test_bad_config():
         run(ModularStudyConfig(chain_lengths=(7,)))
     with pytest.raises(InputError, match="unknown feature groups"):
         run(ModularStudyConfig(settings=TrialSettings(push_groups=("colour",))))
-    with pytest.raises(InputError, match="settings.chain_samples"):
+    with pytest.raises(InputError, match=r"settings\.chain_samples"):
         run(ModularStudyConfig(settings=TrialSettings(chain_samples=1)))
