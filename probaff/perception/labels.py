@@ -1,0 +1,392 @@
+"""The six affordance labels of chapter 2 and one logistic regression per label.
+
+A segment of an office scene (region growing over its point cloud) is described by a feature
+row, ``features (S, D)``; chapter 2 uses D = 25 geometric features. Each of the six binary
+labels in `LABELS` (pushable forward / backward / left / right in the robot frame, x forward
+and z up; liftable; graspable) gets its own logistic regression, ``p_l(x) = sigma(theta_l0 +
+sum_i theta_li x_i)``, behind a `StandardScaler`, as in the thesis (which trained them with
+WEKA's logistic regression).
+
+`cross_validate_labels` measures the classifiers with K-fold cross-validation grouped by scene
+(no scene in both the training and the test folds of a split; the thesis used 4 folds over 195
+segments from 10 scenes). The metrics pool the out-of-fold probabilities of all folds, as
+WEKA's cross-validation does:
+
+- precision and recall of the decision ``p >= 0.5`` (the natural threshold of a logistic
+  regression), NaN where undefined (no predicted positive for precision, no true positive for
+  recall);
+- average precision and ROC AUC of the probabilities, NaN where a label is constant over all
+  segments; `LabelCVResult.fold_roc_auc` holds each test fold's AUC, NaN where that fold's
+  labels are constant;
+- a reliability diagram per label (`reliability`, 10 equal-width bins on [0, 1] by default).
+
+Thresholds and their source: the decision threshold 0.5 (our choice, the logistic
+regression's own), the regularisation ``C = 1`` (scikit-learn's default; the thesis does not
+give WEKA's ridge), ``max_iter = 2000`` (our choice, ample for standardised features), and the
+thesis's results in `THESIS_PR` (Table 2.2, percent). Fits run on one BLAS thread: on a few
+hundred segments, waking a thread pool costs more than the solver.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Any, NamedTuple
+
+import numpy as np
+from sklearn.linear_model import LogisticRegression
+from sklearn.metrics import average_precision_score, roc_auc_score
+from sklearn.model_selection import GroupKFold
+from sklearn.pipeline import Pipeline, make_pipeline
+from sklearn.preprocessing import StandardScaler
+from threadpoolctl import threadpool_limits
+
+from probaff._checks import (
+    check_count,
+    check_finite,
+    check_positive,
+    check_probability,
+    check_shape,
+)
+from probaff.errors import InputError, NotFittedError
+
+__all__ = [
+    "LABELS",
+    "THESIS_PR",
+    "LabelCVResult",
+    "LabelClassifier",
+    "Reliability",
+    "cross_validate_labels",
+    "label_index",
+    "reliability",
+]
+
+LABELS: tuple[str, ...] = (
+    "push_forward",
+    "push_backward",
+    "push_left",
+    "push_right",
+    "liftable",
+    "graspable",
+)
+
+THESIS_PR = MappingProxyType(
+    {
+        "push_forward": (82.0, 81.0),
+        "push_backward": (82.4, 81.9),
+        "push_left": (82.4, 81.9),
+        "push_right": (78.0, 78.5),
+        "liftable": (78.9, 80.4),
+        "graspable": (86.8, 86.7),
+        "average": (81.8, 81.7),
+    }
+)
+"""Thesis Table 2.2: ``label -> (precision, recall)`` in percent, plus ``"average"``."""
+
+
+def label_index(name: str) -> int:
+    """Column of a label in every ``(S, 6)`` label array.
+
+    Args:
+        name: One of `LABELS`.
+
+    Returns:
+        Its index in `LABELS`.
+
+    Raises:
+        InputError: For an unknown name, listing the known ones.
+    """
+    if name not in LABELS:
+        raise InputError(f"unknown label {name!r}; choose one of {', '.join(LABELS)}.")
+    return LABELS.index(name)
+
+
+def _check_features(name: str, x: Any, width: int | None = None) -> np.ndarray:
+    check_shape(name, x, (None, width))
+    try:
+        arr = np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must hold numbers, one row of features per segment.") from None
+    if arr.shape[0] == 0 or arr.shape[1] == 0:
+        raise InputError(f"{name} is empty (shape {arr.shape}); give at least one segment.")
+    check_finite(name, arr)
+    return arr
+
+
+def _check_labels(name: str, y: Any, n: int) -> np.ndarray:
+    check_shape(name, y, (n, len(LABELS)))
+    arr = np.asarray(y)
+    if arr.dtype != bool:
+        check_finite(name, arr)
+        if not np.all((arr == 0) | (arr == 1)):
+            raise InputError(f"{name} must be bool or 0/1, one column per label in LABELS.")
+    return arr.astype(bool)
+
+
+class LabelClassifier:
+    """One standardised logistic regression per label in `LABELS`.
+
+    A label whose training column is constant needs no regression: it predicts that constant
+    (0 or 1) for every segment, so no solver runs and no warning is raised.
+
+    Args:
+        C: Inverse L2 regularisation strength of each logistic regression (> 0).
+        max_iter: Iteration limit of the solver (a positive integer).
+
+    Raises:
+        InputError: For a non-positive `C` or a `max_iter` that is not a positive integer.
+    """
+
+    def __init__(self, C: float = 1.0, max_iter: int = 2000) -> None:
+        check_positive("C", C)
+        self.C = float(C)
+        self.max_iter = check_count("max_iter", max_iter)
+        self._models: list[Pipeline | float] | None = None
+        self._width: int | None = None
+
+    @property
+    def is_fitted(self) -> bool:
+        """Whether `fit` has run."""
+        return self._models is not None
+
+    def fit(self, X: np.ndarray, Y: np.ndarray) -> LabelClassifier:
+        """Train the six regressions.
+
+        Args:
+            X: (S, D) segment features, finite.
+            Y: (S, 6) bool (or 0/1) ground-truth labels, columns in `LABELS` order.
+
+        Returns:
+            ``self``.
+
+        Raises:
+            InputError: For no segments, non-finite features, or labels of the wrong shape or
+                values.
+        """
+        x = _check_features("X", X)
+        y = _check_labels("Y", Y, x.shape[0])
+        models: list[Pipeline | float] = []
+        for k in range(len(LABELS)):
+            column = y[:, k]
+            if column.all() or not column.any():
+                models.append(float(column[0]))
+                continue
+            model = make_pipeline(
+                StandardScaler(), LogisticRegression(C=self.C, max_iter=self.max_iter)
+            )
+            with threadpool_limits(limits=1):
+                models.append(model.fit(x, column))
+        self._models = models
+        self._width = x.shape[1]
+        return self
+
+    def predict_proba(self, X: np.ndarray) -> np.ndarray:
+        """Label probabilities of segments.
+
+        Args:
+            X: (S, D) segment features, D as in training.
+
+        Returns:
+            (S, 6) probability of each label, columns in `LABELS` order.
+
+        Raises:
+            NotFittedError: Before `fit`.
+            InputError: For features of the wrong width, empty or non-finite.
+        """
+        if self._models is None:
+            raise NotFittedError("the classifier is not trained; call fit(X, Y) first.")
+        x = _check_features("X", X, self._width)
+        out = np.empty((x.shape[0], len(LABELS)))
+        for k, model in enumerate(self._models):
+            out[:, k] = model if isinstance(model, float) else model.predict_proba(x)[:, 1]
+        return out
+
+
+class Reliability(NamedTuple):
+    """A reliability diagram of one label; unpacks as ``(centres, frequency, counts)``.
+
+    Attributes:
+        centres: (B,) bin centres on [0, 1].
+        frequency: (B,) observed share of positives per bin, NaN in an empty bin.
+        counts: (B,) int, how many predictions fell in each bin.
+    """
+
+    centres: np.ndarray
+    frequency: np.ndarray
+    counts: np.ndarray
+
+
+def reliability(p: np.ndarray, y: np.ndarray, n_bins: int = 10) -> Reliability:
+    """Reliability diagram: observed frequency of positives per bin of predicted probability.
+
+    Bins are `n_bins` equal-width intervals ``[k / B, (k + 1) / B)`` of [0, 1], the last one
+    closed so that ``p = 1`` counts. A calibrated predictor's frequencies lie on the diagonal
+    (``frequency ~= centres``) within binomial sampling error.
+
+    Args:
+        p: (N,) predicted probabilities in [0, 1].
+        y: (N,) bool (or 0/1) outcomes.
+        n_bins: Number of bins (a positive integer).
+
+    Returns:
+        A `Reliability` with ``(centres, frequency, counts)``, each of shape (n_bins,); it
+        unpacks as that tuple.
+
+    Raises:
+        InputError: For empty or mismatched inputs, probabilities outside [0, 1], outcomes that
+            are not 0/1, or a bad `n_bins`.
+    """
+    bins = check_count("n_bins", n_bins)
+    check_shape("p", p, (None,))
+    probs = np.asarray(p, dtype=np.float64)
+    if probs.size == 0:
+        raise InputError("p is empty; give at least one predicted probability.")
+    check_probability("p", probs)
+    check_shape("y", y, (probs.shape[0],))
+    outcomes = np.asarray(y)
+    check_finite("y", outcomes)
+    if not np.all((outcomes == 0) | (outcomes == 1)):
+        raise InputError("y must be bool or 0/1 outcomes.")
+    index = np.minimum((probs * bins).astype(np.int64), bins - 1)
+    counts = np.bincount(index, minlength=bins)
+    positives = np.bincount(index, weights=outcomes.astype(np.float64), minlength=bins)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frequency = np.where(counts > 0, positives / np.maximum(counts, 1), np.nan)
+    centres = (np.arange(bins) + 0.5) / bins
+    return Reliability(centres=centres, frequency=frequency, counts=counts)
+
+
+@dataclass(frozen=True, eq=False)
+class LabelCVResult:
+    """Grouped cross-validation of the six label classifiers.
+
+    Attributes:
+        probabilities: (S, 6) out-of-fold probability of each label.
+        folds: (S,) int, the test fold of each segment.
+        precision: (6,) precision of ``p >= 0.5``, pooled over folds; NaN with no predicted
+            positive.
+        recall: (6,) recall of ``p >= 0.5``, pooled; NaN with no true positive.
+        average_precision: (6,) pooled average precision; NaN for a constant label.
+        roc_auc: (6,) pooled ROC AUC; NaN for a constant label.
+        fold_roc_auc: (n_splits, 6) ROC AUC of each test fold; NaN where that fold's labels
+            are constant.
+        reliability: One `Reliability` per label, in `LABELS` order, of the pooled
+            probabilities.
+    """
+
+    probabilities: np.ndarray
+    folds: np.ndarray
+    precision: np.ndarray
+    recall: np.ndarray
+    average_precision: np.ndarray
+    roc_auc: np.ndarray
+    fold_roc_auc: np.ndarray
+    reliability: tuple[Reliability, ...]
+
+    @property
+    def mean_precision(self) -> float:
+        """Mean precision over the labels where it is defined (NaN if none)."""
+        return _nanmean(self.precision)
+
+    @property
+    def mean_recall(self) -> float:
+        """Mean recall over the labels where it is defined (NaN if none)."""
+        return _nanmean(self.recall)
+
+
+def _nanmean(values: np.ndarray) -> float:
+    finite = values[np.isfinite(values)]
+    return float(finite.mean()) if finite.size else float("nan")
+
+
+def _ranking_scores(truth: np.ndarray, prob: np.ndarray) -> tuple[float, float]:
+    """(average precision, ROC AUC) of one label; NaN for constant `truth`."""
+    if truth.all() or not truth.any():
+        return float("nan"), float("nan")
+    return float(average_precision_score(truth, prob)), float(roc_auc_score(truth, prob))
+
+
+def _precision_recall(truth: np.ndarray, predicted: np.ndarray) -> tuple[float, float]:
+    hits = float(np.count_nonzero(truth & predicted))
+    n_pred = np.count_nonzero(predicted)
+    n_true = np.count_nonzero(truth)
+    precision = hits / n_pred if n_pred else float("nan")
+    recall = hits / n_true if n_true else float("nan")
+    return precision, recall
+
+
+def cross_validate_labels(
+    X: np.ndarray,
+    Y: np.ndarray,
+    groups: np.ndarray,
+    *,
+    n_splits: int = 4,
+    seed: int = 0,
+    C: float = 1.0,
+    n_bins: int = 10,
+) -> LabelCVResult:
+    """K-fold cross-validation of `LabelClassifier`, grouped by scene.
+
+    Scenes are shuffled with `seed` and dealt into `n_splits` folds of near-equal segment
+    counts (scikit-learn's `GroupKFold`), so no scene is in both the training and the test
+    folds of a split. A label constant in a training fold predicts that constant.
+
+    Args:
+        X: (S, D) segment features.
+        Y: (S, 6) bool ground-truth labels, columns in `LABELS` order.
+        groups: (S,) scene id of each segment (any sortable values).
+        n_splits: Number of folds, an integer >= 2 and <= the number of scenes.
+        seed: Seed of the scene shuffle.
+        C: Inverse regularisation strength of each regression.
+        n_bins: Bins of each reliability diagram.
+
+    Returns:
+        A `LabelCVResult`.
+
+    Raises:
+        InputError: For bad shapes, no segments, non-finite features, labels that are not 0/1,
+            or `n_splits` outside [2, number of scenes].
+    """
+    x = _check_features("X", X)
+    y = _check_labels("Y", Y, x.shape[0])
+    check_shape("groups", groups, (x.shape[0],))
+    scene = np.asarray(groups)
+    if scene.dtype.kind == "f":
+        check_finite("groups", scene)
+    try:
+        n_scenes = len(np.unique(scene))
+    except TypeError:
+        raise InputError("groups must hold scene ids of one sortable type.") from None
+    splits = check_count("n_splits", n_splits, minimum=2)
+    bins = check_count("n_bins", n_bins)
+    seed = check_count("seed", seed, minimum=0)
+    if splits > n_scenes:
+        raise InputError(
+            f"n_splits={splits} exceeds the {n_scenes} scene(s) in groups; use n_splits <= "
+            f"{n_scenes} or add scenes."
+        )
+    probabilities = np.empty((x.shape[0], len(LABELS)))
+    folds = np.empty(x.shape[0], dtype=np.int64)
+    fold_auc = np.full((splits, len(LABELS)), np.nan)
+    kfold = GroupKFold(n_splits=splits, shuffle=True, random_state=seed)
+    for fold, (train, test) in enumerate(kfold.split(x, groups=scene)):
+        model = LabelClassifier(C=C).fit(x[train], y[train])
+        probabilities[test] = model.predict_proba(x[test])
+        folds[test] = fold
+        for k in range(len(LABELS)):
+            fold_auc[fold, k] = _ranking_scores(y[test, k], probabilities[test, k])[1]
+    predicted = probabilities >= 0.5
+    pr = np.array([_precision_recall(y[:, k], predicted[:, k]) for k in range(len(LABELS))])
+    ranking = np.array([_ranking_scores(y[:, k], probabilities[:, k]) for k in range(len(LABELS))])
+    return LabelCVResult(
+        probabilities=probabilities,
+        folds=folds,
+        precision=pr[:, 0],
+        recall=pr[:, 1],
+        average_precision=ranking[:, 0],
+        roc_auc=ranking[:, 1],
+        fold_roc_auc=fold_auc,
+        reliability=tuple(
+            reliability(probabilities[:, k], y[:, k], n_bins=bins) for k in range(len(LABELS))
+        ),
+    )
