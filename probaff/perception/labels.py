@@ -48,6 +48,7 @@ from probaff._checks import (
     check_probability,
     check_shape,
 )
+from probaff.affordance_labels import LABELS, label_index
 from probaff.errors import InputError, NotFittedError
 
 __all__ = [
@@ -61,14 +62,6 @@ __all__ = [
     "reliability",
 ]
 
-LABELS: tuple[str, ...] = (
-    "push_forward",
-    "push_backward",
-    "push_left",
-    "push_right",
-    "liftable",
-    "graspable",
-)
 
 THESIS_PR = MappingProxyType(
     {
@@ -82,23 +75,6 @@ THESIS_PR = MappingProxyType(
     }
 )
 """Thesis Table 2.2: ``label -> (precision, recall)`` in percent, plus ``"average"``."""
-
-
-def label_index(name: str) -> int:
-    """Column of a label in every ``(S, 6)`` label array.
-
-    Args:
-        name: One of `LABELS`.
-
-    Returns:
-        Its index in `LABELS`.
-
-    Raises:
-        InputError: For an unknown name, listing the known ones.
-    """
-    if name not in LABELS:
-        raise InputError(f"unknown label {name!r}; choose one of {', '.join(LABELS)}.")
-    return LABELS.index(name)
 
 
 def _check_features(name: str, x: Any, width: int | None = None) -> np.ndarray:

@@ -9,6 +9,14 @@ from probaff.sim.arm import (
     sideview_pose,
     topdown_pose,
 )
+from probaff.sim.camera import (
+    CameraSpec,
+    DepthCamera,
+    DepthImage,
+    head_views,
+    load_camera,
+    scan_views,
+)
 from probaff.sim.config import (
     ObjectSpec,
     SceneSpec,
@@ -20,6 +28,17 @@ from probaff.sim.config import (
     worlds_dir,
 )
 from probaff.sim.geometry import push_frame_effect, to_push_frame
+from probaff.sim.office import (
+    OfficeObject,
+    OfficeScene,
+    OfficeSpec,
+    assemble_office_scene,
+    load_office,
+    office_labels,
+    sample_office_scene,
+    sample_office_scenes,
+)
+from probaff.sim.primitives import PrimitiveScene
 from probaff.sim.runner import PushSample, PushSimulator, straight_path, trapezoid_progress
 from probaff.sim.sampling import sample_scene
 from probaff.sim.sensing import Scan, object_cloud, scan_scene, table_cloud
@@ -46,9 +65,16 @@ from probaff.sim.tabletop import PushOutcome, SceneInstance, simulate_push
 
 __all__ = [
     "Arm",
+    "CameraSpec",
+    "DepthCamera",
+    "DepthImage",
     "IKResult",
     "ObjectSpec",
+    "OfficeObject",
+    "OfficeScene",
+    "OfficeSpec",
     "PathIK",
+    "PrimitiveScene",
     "PushOutcome",
     "PushPathIK",
     "PushSample",
@@ -63,24 +89,32 @@ __all__ = [
     "SkillOutcome",
     "SkillPlan",
     "TabletopSpec",
+    "assemble_office_scene",
+    "head_views",
     "list_scenes",
     "list_sideview_scenes",
     "load_arm",
+    "load_camera",
     "load_catalogue",
+    "load_office",
     "load_scene",
     "load_sideview",
     "load_sideview_scene",
     "load_tabletop",
     "object_cloud",
+    "office_labels",
     "pick",
     "place",
     "plan_skills",
     "push_frame_effect",
     "run_sampled",
     "run_skills",
+    "sample_office_scene",
+    "sample_office_scenes",
     "sample_scene",
     "sample_sideview_scenes",
     "scan_scene",
+    "scan_views",
     "sideview_pose",
     "simulate_push",
     "simulate_rest",

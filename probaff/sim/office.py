@@ -62,6 +62,7 @@ from typing import Any
 import numpy as np
 
 from probaff._checks import check_count, check_finite, check_positive, check_shape
+from probaff.affordance_labels import LABELS, label_index
 from probaff.errors import ConfigError, InputError
 from probaff.sim.config import (
     _check_spec,
@@ -98,24 +99,12 @@ __all__ = [
     "sample_office_scenes",
 ]
 
-LABELS = ("push_forward", "push_backward", "push_left", "push_right", "liftable", "graspable")
 KINDS = ("floor", "wall", "table", "chair", "box")
 _WALLS = ("+x", "-x", "+y", "-y")
 # Push directions in the robot frame, in the order of LABELS[:4].
 _ROBOT_DIRECTIONS = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
 
 Range = tuple[float, float]
-
-
-def label_index(name: str) -> int:
-    """The column of label `name` in a label array.
-
-    Raises:
-        InputError: For a name not in `LABELS`, listing them.
-    """
-    if name not in LABELS:
-        raise InputError(f"unknown label {name!r}; the labels are {list(LABELS)}.")
-    return LABELS.index(name)
 
 
 # ----------------------------------------------------------------------------------- the spec
