@@ -5,6 +5,9 @@ import subprocess
 import sys
 
 from probaff.cli import main
+from probaff.data.generation import GenerateConfig, generate
+from probaff.data.noise import PoseNoise
+from probaff.studies.modular import demo as modular_demo
 
 
 def test_generate_and_describe(tmp_path, capsys):
@@ -114,15 +117,26 @@ def test_demo_smoke(tmp_path):
         check=True,
     )
     assert "figure:" in proc.stdout
-    png = tmp_path / "demo_pushes.png"
-    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    # a second run resumes the finished dataset instead of failing
-    subprocess.run(
-        [sys.executable, "-m", "probaff.cli", "demo", "--out", str(tmp_path), "--n", "8"],
-        capture_output=True,
-        text=True,
-        check=True,
+    for png in (
+        tmp_path / "demo_pushes.png",
+        tmp_path / "modular" / "tabletop_predictions.png",
+        tmp_path / "modular" / "sideview_predictions.png",
+    ):
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "three-object chain: position error per object" in proc.stdout
+    assert "pick (" in proc.stdout and "place (" in proc.stdout
+    # a second run finds the finished dataset and the chapter 6 records and resumes them
+    again = generate(
+        GenerateConfig("two_objects", 8, seed=0, shard_size=16, pose_noise=PoseNoise()),
+        tmp_path / "two_objects",
+        resume=True,
+        progress=False,
     )
+    assert len(again) == 8
+    records = sorted((tmp_path / "modular" / "tasks").glob("*.json"))
+    stamp = [p.stat().st_mtime_ns for p in records]
+    modular_demo(tmp_path / "modular", progress=False)
+    assert [p.stat().st_mtime_ns for p in records] == stamp and len(records) == 3
 
 
 def test_scenes_listing(capsys):
