@@ -7,36 +7,28 @@ Tables and figures (Figs. 3.5-3.7) go to results/affordance_map/. Every field of
     python inference/affordance_map.py [--n-maps N] [--workers K | --scheduler ADDR] [--smoke]
 """
 
-import argparse
-import dataclasses
 import json
 import sys
 
 from probaff._cli_errors import run_cli
 from probaff.studies.affordance_map import AffordanceMapConfig, run
-from probaff.studies.config_cli import add_config_arguments, config_from_args
+from probaff.studies.config_cli import study_config, study_parser
 
 SMOKE = {"n_maps": 2, "train_maps": 2, "max_steps": 3, "progress": False}
 
 
 def main() -> None:
     """Parse the command line into a study config and run it."""
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    add_config_arguments(p, AffordanceMapConfig)
+    p = study_parser(AffordanceMapConfig, __doc__)
     p.add_argument(
         "--no-stop",
         action="store_true",
         help="keep the information-gain loop pushing when every gain is negative "
         "(the same as --no-stop-at-no-gain)",
     )
-    p.add_argument("--smoke", action="store_true", help="a tiny run that checks the pipeline")
     a = p.parse_args()
-    cfg = config_from_args(AffordanceMapConfig, a)
-    if a.no_stop:
-        cfg = dataclasses.replace(cfg, stop_at_no_gain=False)
-    if a.smoke:
-        cfg = dataclasses.replace(cfg, **SMOKE)
-    result = run(cfg)
+    extra = {"stop_at_no_gain": False} if a.no_stop else {}
+    result = run(study_config(AffordanceMapConfig, a, SMOKE, **extra))
     print(json.dumps({"files": result["files"], "computed": result["computed"]}, indent=1))
 
 

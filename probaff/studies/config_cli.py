@@ -17,7 +17,7 @@ import types
 import typing
 from typing import Any
 
-__all__ = ["add_config_arguments", "config_from_args"]
+__all__ = ["add_config_arguments", "config_from_args", "study_config", "study_parser"]
 
 
 def _field_help(cls: type) -> dict[str, str]:
@@ -161,3 +161,44 @@ def config_from_args(config_cls: type, args: argparse.Namespace, **overrides: An
         elif f.name in parsed:
             values[f.name] = parsed[f.name]
     return config_cls(**{**values, **overrides})
+
+
+def study_parser(config_cls: type, doc: str) -> argparse.ArgumentParser:
+    """A study script's parser: one flag per config field, and ``--smoke``.
+
+    Args:
+        config_cls: The study's config dataclass.
+        doc: The script's docstring; its first line is the description.
+
+    Returns:
+        The parser; add the script's own flags to it before parsing.
+    """
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
+    add_config_arguments(parser, config_cls)
+    parser.add_argument(
+        "--smoke",
+        action="store_true",
+        help="a tiny run that checks the pipeline (the study's smoke sizes; the other flags "
+        "still apply)",
+    )
+    return parser
+
+
+def study_config(
+    config_cls: type, args: argparse.Namespace, smoke: dict[str, Any], **overrides: Any
+) -> Any:
+    """The config from parsed flags, with the `smoke` sizes on top when ``--smoke`` was given.
+
+    Args:
+        config_cls: The study's config dataclass.
+        args: What a `study_parser` returned from ``parse_args()``.
+        smoke: The study's smoke-sized field values.
+        **overrides: Field values from the script's own flags (applied last).
+
+    Returns:
+        A `config_cls` instance.
+    """
+    cfg = config_from_args(config_cls, args)
+    if args.smoke:
+        cfg = dataclasses.replace(cfg, **smoke)
+    return dataclasses.replace(cfg, **overrides) if overrides else cfg
