@@ -1,0 +1,343 @@
+"""Figures of chapter 2's affordance labels: segments, label probabilities, Algorithm 1, views.
+
+Every figure is a pure function of plain arrays (numpy arrays or nested lists loaded back from
+JSON). Points and centroids are in the robot frame (x forward, y left, z up; metres). Label
+columns follow `probaff.perception.labels.LABELS`. Probabilities, purities, completenesses and
+accuracies are fractions in [0, 1]; entropies are the thesis's ``-sum_l p_l ln p_l`` in nats.
+
+Clouds are drawn from at most ``max_points`` points (default 5 000, our choice: a 320 x 240
+view returns about 75 000, and a scatter of every one is slow to draw and no clearer), taken
+without replacement from a generator seeded with 0 (an even stride would alias with the image
+rows), so the same cloud always gives the same picture.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from probaff._checks import check_count, check_finite, check_probability, check_shape
+from probaff._io import atomic_save_figure
+from probaff.errors import InputError
+from probaff.perception.labels import LABELS
+
+__all__ = [
+    "plot_entropy_tree",
+    "plot_label_probabilities",
+    "plot_merge_views",
+    "plot_reliability",
+    "plot_segment_cloud",
+]
+
+_UNASSIGNED = "0.8"  # grey of points in no segment
+
+
+def _cloud(
+    points: object, point_segments: object, max_points: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Checked (n, 3) points and (n,) segment rows, strided to at most `max_points`."""
+    limit = check_count("max_points", max_points)
+    check_shape("points", points, (None, 3))
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.shape[0] == 0:
+        raise InputError("points is empty; give the (N, 3) cloud of at least one point.")
+    check_finite("points", pts)
+    check_shape("point_segments", point_segments, (pts.shape[0],))
+    seg = np.asarray(point_segments)
+    check_finite("point_segments", seg)
+    if np.any(seg != np.round(seg)) or np.any(seg < -1):
+        raise InputError("point_segments must hold segment rows >= 0, or -1 for no segment.")
+    if pts.shape[0] <= limit:
+        return pts, seg.astype(np.int64)
+    keep = np.sort(np.random.default_rng(0).choice(pts.shape[0], size=limit, replace=False))
+    return pts[keep], seg.astype(np.int64)[keep]
+
+
+def _save(fig: Figure, path: str | os.PathLike[str]) -> str:
+    atomic_save_figure(fig, path, dpi=80)
+    return os.fspath(path)
+
+
+def _scatter_view(ax: Axes, pts: np.ndarray, colour: np.ndarray, axes: tuple[int, int]) -> None:
+    names = "xyz"
+    ax.scatter(pts[:, axes[0]], pts[:, axes[1]], c=colour, s=0.5, linewidths=0)
+    ax.set_xlabel(f"{names[axes[0]]} (m)")
+    ax.set_ylabel(f"{names[axes[1]]} (m)")
+    ax.set_aspect("equal", adjustable="datalim")
+
+
+def plot_segment_cloud(
+    points: object,
+    point_segments: object,
+    path: str | os.PathLike[str],
+    *,
+    max_points: int = 5_000,
+) -> str:
+    """The cloud coloured by segment: a top view (x, y) and a side view (x, z).
+
+    Args:
+        points: (N, 3) points (robot frame, m).
+        point_segments: (N,) segment row of each point, -1 for a point in no segment (grey).
+        path: Output image.
+        max_points: Most points drawn (a positive integer).
+
+    Returns:
+        `path` as a string.
+
+    Raises:
+        InputError: For an empty cloud, mismatched shapes, non-finite values or bad rows.
+    """
+    pts, seg = _cloud(points, point_segments, max_points)
+    from matplotlib import colormaps
+
+    cmap = colormaps["tab20"]
+    colour = cmap(seg % 20)
+    colour[seg < 0] = (0.8, 0.8, 0.8, 1.0)
+    fig = Figure(figsize=(11, 4.5))
+    top, side = fig.subplots(1, 2)
+    _scatter_view(top, pts, colour, (0, 1))
+    top.set_title("top view")
+    _scatter_view(side, pts, colour, (0, 2))
+    side.set_title("side view")
+    n_seg = int(seg.max()) + 1 if seg.size and seg.max() >= 0 else 0
+    fig.suptitle(f"segments by region growing ({n_seg} segments; grey: none)")
+    return _save(fig, path)
+
+
+def plot_label_probabilities(
+    points: object,
+    point_segments: object,
+    probabilities: object,
+    path: str | os.PathLike[str],
+    *,
+    max_points: int = 5_000,
+) -> str:
+    """Each label's predicted probability on the cloud (top view), one panel per label.
+
+    Args:
+        points: (N, 3) points (robot frame, m).
+        point_segments: (N,) segment row of each point, -1 for a point in no segment (grey).
+        probabilities: (S, 6) predicted probability of each label per segment row.
+        path: Output image.
+        max_points: Most points drawn (a positive integer).
+
+    Returns:
+        `path` as a string.
+
+    Raises:
+        InputError: For an empty cloud, mismatched shapes, probabilities outside [0, 1], or a
+            segment row beyond the probabilities' rows.
+    """
+    pts, seg = _cloud(points, point_segments, max_points)
+    check_shape("probabilities", probabilities, (None, len(LABELS)))
+    prob = np.asarray(probabilities, dtype=np.float64)
+    check_probability("probabilities", prob)
+    if seg.size and seg.max() >= prob.shape[0]:
+        raise InputError(
+            f"point_segments refers to row {int(seg.max())} but probabilities has "
+            f"{prob.shape[0]} rows; give one row per segment."
+        )
+    on = seg >= 0
+    fig = Figure(figsize=(13, 7.5))
+    axes = fig.subplots(2, 3, gridspec_kw={"hspace": 0.35, "wspace": 0.3}).ravel()
+    image = None
+    for k, (ax, name) in enumerate(zip(axes, LABELS, strict=True)):
+        ax.scatter(pts[~on, 0], pts[~on, 1], c=_UNASSIGNED, s=0.5, linewidths=0)
+        image = ax.scatter(
+            pts[on, 0],
+            pts[on, 1],
+            c=prob[seg[on], k],
+            cmap="viridis",
+            vmin=0.0,
+            vmax=1.0,
+            s=0.5,
+            linewidths=0,
+        )
+        ax.set_title(name)
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        ax.set_aspect("equal", adjustable="datalim")
+    if image is not None:
+        fig.colorbar(image, ax=list(axes), label="predicted probability", shrink=0.8)
+    fig.suptitle("label probabilities per segment (out-of-fold), top view")
+    return _save(fig, path)
+
+
+def plot_entropy_tree(
+    depth: object,
+    entropy: object,
+    parent: object,
+    path: str | os.PathLike[str],
+    *,
+    leaves: object | None = None,
+) -> str:
+    """Algorithm 1's split tree: each node's entropy against its depth, linked to its parent.
+
+    Args:
+        depth: (M,) depth of each node (0 for the root).
+        entropy: (M,) entropy of each node's centroid (nats).
+        parent: (M,) parent node of each node, -1 for the root; parents come first.
+        path: Output image.
+        leaves: (M,) bool, which nodes are leaves (objects, drawn filled); None marks nodes
+            with no child.
+
+    Returns:
+        `path` as a string.
+
+    Raises:
+        InputError: For no nodes, mismatched shapes, non-finite values, or a parent that is
+            not an earlier node one level up.
+    """
+    check_shape("depth", depth, (None,))
+    d = np.asarray(depth)
+    if d.size == 0:
+        raise InputError("depth is empty; give the tree's nodes (at least the root).")
+    check_finite("depth", d)
+    check_shape("entropy", entropy, (d.size,))
+    h = np.asarray(entropy, dtype=np.float64)
+    check_finite("entropy", h)
+    check_shape("parent", parent, (d.size,))
+    par = np.asarray(parent)
+    check_finite("parent", par)
+    par = par.astype(np.int64)
+    d = d.astype(np.int64)
+    index = np.arange(d.size)
+    child = par >= 0
+    if (
+        par[0] != -1
+        or np.any(par[1:] < 0)
+        or np.any(par >= index)
+        or np.any(d[child] != d[par[child]] + 1)
+    ):
+        raise InputError(
+            "parent must be -1 for the root (node 0) and an earlier node one level up for "
+            "every other node."
+        )
+    if leaves is None:
+        leaf = ~np.isin(index, par[child])
+    else:
+        check_shape("leaves", leaves, (d.size,))
+        leaf = np.asarray(leaves, dtype=bool)
+    fig = Figure(figsize=(7, 4.5))
+    ax = fig.subplots()
+    # Spread the nodes of each depth over a small horizontal offset so siblings separate.
+    offset = np.zeros(d.size)
+    for level in np.unique(d):
+        at = np.flatnonzero(d == level)
+        if len(at) > 1:
+            offset[at] = np.linspace(-0.3, 0.3, len(at))
+    x = d + offset
+    for i in index[child]:
+        ax.plot([x[par[i]], x[i]], [h[par[i]], h[i]], color="0.6", lw=0.8)
+    ax.scatter(x[~leaf], h[~leaf], facecolors="none", edgecolors="C0", label="split set")
+    ax.scatter(x[leaf], h[leaf], color="C1", label="leaf (object)")
+    ax.set_xlabel("depth")
+    ax.set_ylabel("entropy of the set centroid (nats)")
+    ax.set_title("Algorithm 1: split tree")
+    ax.legend(loc="best")
+    return _save(fig, path)
+
+
+def plot_merge_views(
+    n_views: object,
+    purity: object,
+    completeness: object,
+    accuracy: object,
+    path: str | os.PathLike[str],
+) -> str:
+    """Purity, completeness and label accuracy of the merged segments against the views.
+
+    Args:
+        n_views: (K,) number of merged views of each point, positive integers.
+        purity: (K,) object purity of the merged segments.
+        completeness: (K,) object completeness.
+        accuracy: (K,) label accuracy of the merged label vectors.
+        path: Output image.
+
+    Returns:
+        `path` as a string.
+
+    Raises:
+        InputError: For empty or mismatched inputs, non-integer view counts, or values outside
+            [0, 1].
+    """
+    check_shape("n_views", n_views, (None,))
+    v = np.asarray(n_views)
+    if v.size == 0:
+        raise InputError("n_views is empty; give at least one view count.")
+    check_finite("n_views", v)
+    if np.any(v < 1) or np.any(v != np.round(v)):
+        raise InputError("n_views must hold positive integers (views merged).")
+    fig = Figure(figsize=(6, 4))
+    ax = fig.subplots()
+    for name, values, marker in (
+        ("purity", purity, "o"),
+        ("completeness", completeness, "s"),
+        ("label accuracy", accuracy, "^"),
+    ):
+        check_shape(name, values, (v.size,))
+        arr = np.asarray(values, dtype=np.float64)
+        check_probability(name, arr)
+        ax.plot(v, arr, marker=marker, label=name)
+    ax.set_xticks(np.unique(v))
+    ax.set_xlabel("views merged")
+    ax.set_ylabel("fraction")
+    ax.set_ylim(0.0, 1.02)
+    ax.legend(loc="lower right")
+    ax.set_title("multi-view merge")
+    return _save(fig, path)
+
+
+def plot_reliability(
+    centres: object,
+    frequency: object,
+    counts: object,
+    path: str | os.PathLike[str],
+) -> str:
+    """One reliability diagram per label: observed frequency against predicted probability.
+
+    Args:
+        centres: (B,) bin centres in [0, 1].
+        frequency: (6, B) observed share of positives per bin and label, NaN in an empty bin.
+        counts: (6, B) predictions per bin and label.
+        path: Output image.
+
+    Returns:
+        `path` as a string.
+
+    Raises:
+        InputError: For empty or mismatched inputs, centres or frequencies outside [0, 1], or
+            negative counts.
+    """
+    check_shape("centres", centres, (None,))
+    c = np.asarray(centres, dtype=np.float64)
+    if c.size == 0:
+        raise InputError("centres is empty; give the bins' centres.")
+    check_probability("centres", c)
+    check_shape("frequency", frequency, (len(LABELS), c.size))
+    f = np.asarray(frequency, dtype=np.float64)
+    seen = np.isfinite(f)
+    check_probability("frequency", f[seen])
+    check_shape("counts", counts, (len(LABELS), c.size))
+    n = np.asarray(counts, dtype=np.float64)
+    check_finite("counts", n)
+    if np.any(n < 0):
+        raise InputError("counts must be >= 0 (predictions per bin).")
+    fig = Figure(figsize=(12, 7))
+    axes = fig.subplots(2, 3, gridspec_kw={"hspace": 0.4, "wspace": 0.3}).ravel()
+    for k, (ax, name) in enumerate(zip(axes, LABELS, strict=True)):
+        ax.plot([0, 1], [0, 1], color="0.6", ls="--", lw=0.8)
+        ok = seen[k]
+        ax.plot(c[ok], f[k, ok], color="C0", lw=1.0)
+        size = 200.0 * n[k, ok] / max(float(n[k].max()), 1.0)
+        ax.scatter(c[ok], f[k, ok], s=np.maximum(size, 8.0), color="C0", zorder=3)
+        ax.set_xlim(0, 1)
+        ax.set_ylim(0, 1)
+        ax.set_title(name)
+        ax.set_xlabel("predicted probability")
+        ax.set_ylabel("observed frequency")
+    fig.suptitle("reliability of the out-of-fold probabilities (marker area: predictions per bin)")
+    return _save(fig, path)

@@ -1,0 +1,149 @@
+"""The chapter 2 study runs end to end on its smoke configuration, resumes without rescanning,
+and rejects bad configs and bad figure input."""
+
+import csv
+import json
+import runpy
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from probaff.errors import InputError
+from probaff.eval.label_figures import (
+    plot_entropy_tree,
+    plot_label_probabilities,
+    plot_merge_views,
+    plot_reliability,
+    plot_segment_cloud,
+)
+from probaff.perception.labels import LABELS, THESIS_PR
+from probaff.studies.point_cloud_labels import PointCloudStudyConfig, run
+
+ROOT = Path(__file__).resolve().parents[2]
+
+_TABLES = ("labels.csv", "refinement.csv", "merge.csv", "summary.md")
+_FIGURES = (
+    "segments.png",
+    "label_probabilities.png",
+    "entropy_tree.png",
+    "reliability.png",
+    "merge_views.png",
+)
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def _script(out: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]):
+    """Run the study script with ``--smoke`` in this process (its imports are paid once)."""
+    script = str(ROOT / "inference/point_cloud_labels.py")
+    monkeypatch.setattr(sys, "argv", [script, "--smoke", "--out", str(out)])
+    with pytest.raises(SystemExit) as done:
+        runpy.run_path(script, run_name="__main__")
+    assert not done.value.code
+    return json.loads(capsys.readouterr().out)["files"]
+
+
+def test_script_smoke_and_resume(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "pcl"
+    files = _script(out, monkeypatch, capsys)
+    for name in _TABLES + _FIGURES:
+        assert str(out / name) in files and (out / name).stat().st_size > 0
+    scans = sorted((out / "tasks").glob("*.json"))
+    assert [p.name.split(".")[0] for p in scans] == [f"scene_{i:03d}" for i in range(4)]
+    merges = sorted((out / "merge_tasks").glob("*.json"))
+    assert len(merges) == 1
+    arrays = np.load(next((out / "tasks").glob("scene_000.*.npz")))
+    first = json.loads(scans[0].read_text())
+    n_seg = len(first["object_ids"])
+    assert np.asarray(first["features"]).shape == (n_seg, 25)
+    assert arrays["points"].shape == (len(arrays["point_segments"]), 3)
+    assert arrays["point_segments"].max() == n_seg - 1
+    counts = np.bincount(arrays["point_segments"][arrays["point_segments"] >= 0])
+    assert counts.tolist() == first["point_counts"]  # the npz rows are the record's segments
+    assert all(0 < p <= 1 for p in first["purity"])
+
+    labels = _rows(out / "labels.csv")
+    assert [r["label"] for r in labels] == [*LABELS, "average"]
+    total = sum(len(json.loads(p.read_text())["object_ids"]) for p in scans)
+    assert {int(r["segments"]) for r in labels} == {total}
+    for r in labels:
+        assert float(r["thesis_precision_pct"]) == THESIS_PR[r["label"]][0]
+        assert 0.0 <= float(r["auc"]) <= 1.0
+    refinement = _rows(out / "refinement.csv")
+    assert len(refinement) == 1 and float(refinement[0]["purity_before"]) == 1.0
+    assert float(refinement[0]["groups"]) <= float(refinement[0]["segments"])
+    merge = _rows(out / "merge.csv")
+    assert [int(r["views"]) for r in merge] == [1, 2]
+    assert float(merge[1]["segments"]) >= float(merge[0]["segments"])  # more views, more seen
+    text = (out / "summary.md").read_text()
+    assert "195 segments from 10 office scenes" in text and "81.8 / 81.7" in text
+
+    stamp = [p.stat().st_mtime_ns for p in scans + merges]
+    assert _script(out, monkeypatch, capsys) == files  # resumes: no rescans
+    assert [p.stat().st_mtime_ns for p in scans + merges] == stamp
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        ({"n_splits": 1}, "n_splits must be"),
+        ({"n_scenes": 2.5}, "n_scenes must be"),
+        ({"scene_counts": (10, 3)}, "fewer scenes than n_splits"),
+        ({"scene_counts": ()}, "scene_counts is empty"),
+        ({"min_gains": (-0.1,)}, "min_gains must be finite numbers >= 0"),
+        ({"min_gains": (float("nan"),)}, "min_gains must be finite"),
+        ({"view_counts": (1, 8)}, "more than the 4 merge_pans_deg"),
+        ({"view_counts": (0,)}, "view_counts must be"),
+        ({"merge_scenes": 11}, "merge_scenes=11 exceeds n_scenes=10"),
+        ({"perception": {"k": 30}}, "perception must be a PerceptionConfig"),
+        ({"merge_pans_deg": (float("inf"),), "view_counts": (1,)}, "merge_pans_deg must be"),
+    ],
+)
+def test_bad_config(tmp_path, overrides, message):
+    config = PointCloudStudyConfig(out=str(tmp_path / "pcl"), **overrides)
+    with pytest.raises(InputError, match=message):
+        run(config)
+    assert not (tmp_path / "pcl").exists()  # nothing scanned before the check
+
+
+def test_figures_reject_bad_input(tmp_path):
+    png = tmp_path / "f.png"
+    pts = np.zeros((4, 3))
+    with pytest.raises(InputError, match="points is empty"):
+        plot_segment_cloud(np.zeros((0, 3)), np.zeros(0), png)
+    with pytest.raises(InputError, match="points"):
+        plot_segment_cloud([[0.0, np.nan, 0.0]], [0], png)
+    with pytest.raises(InputError, match="point_segments"):
+        plot_segment_cloud(pts, [0, 1, -2, 0], png)
+    with pytest.raises(InputError, match="refers to row 3"):
+        plot_label_probabilities(pts, [0, 1, 2, 3], np.full((2, 6), 0.5), png)
+    with pytest.raises(InputError, match="probabilities"):
+        plot_label_probabilities(pts, [0, 0, 0, 0], np.full((1, 6), 1.5), png)
+    with pytest.raises(InputError, match="parent must be -1 for the root"):
+        plot_entropy_tree([0, 1, 1], [1.0, 0.5, 0.4], [-1, 0, 2], png)
+    with pytest.raises(InputError, match="depth is empty"):
+        plot_entropy_tree([], [], [], png)
+    with pytest.raises(InputError, match="n_views must hold positive integers"):
+        plot_merge_views([0, 2], [1, 1], [1, 1], [1, 1], png)
+    with pytest.raises(InputError, match="accuracy"):
+        plot_merge_views([1, 2], [1, 1], [1, 1], [1, 2], png)
+    with pytest.raises(InputError, match="frequency"):
+        plot_reliability([0.25, 0.75], np.zeros((5, 2)), np.zeros((6, 2)), png)
+    with pytest.raises(InputError, match="counts must be >= 0"):
+        plot_reliability([0.25, 0.75], np.zeros((6, 2)), -np.ones((6, 2)), png)
+    assert not png.exists()
+
+
+def test_entropy_tree_and_merge_figures_are_written(tmp_path):
+    tree = plot_entropy_tree(
+        [0, 1, 1, 2, 2], [1.2, 0.6, 0.9, 0.2, 0.5], [-1, 0, 0, 1, 1], tmp_path / "tree.png"
+    )
+    views = plot_merge_views(
+        [1, 2, 4], [0.9, 0.85, 0.8], [0.6, 0.7, 0.8], [0.7, 0.75, 0.8], tmp_path / "views.png"
+    )
+    assert Path(tree).stat().st_size > 0 and Path(views).stat().st_size > 0
