@@ -93,6 +93,21 @@ def test_normals_match_eigh_on_a_noisy_cloud_and_survive_duplicates():
     assert np.allclose(np.linalg.norm(same.normals, axis=1), 1.0)
 
 
+def test_normals_equal_a_plain_cov_and_eigh_reference_to_1e_12():
+    # a flattened random cloud metres wide and away from the origin, where centring matters
+    rng = np.random.default_rng(11)
+    pts = rng.normal(size=(3000, 3)) * [2.0, 1.0, 0.02] + [5.0, -3.0, 1.0]
+    view = np.array([0.5, 0.2, 1.5])
+    res = estimate_normals(pts, k=30, viewpoint=view)
+    _, idx = cKDTree(pts).query(pts, k=30)
+    assert np.array_equal(res.neighbours, idx)
+    cov = np.stack([np.cov(pts[row], rowvar=False, bias=True) for row in idx])
+    evals, evecs = np.linalg.eigh(cov)
+    normals = evecs[:, :, 0] * np.sign(np.einsum("ij,ij->i", evecs[:, :, 0], view - pts))[:, None]
+    assert np.abs(res.normals - normals).max() < 1e-12
+    assert np.abs(res.curvature - evals[:, 0] / evals.sum(axis=1)).max() < 1e-12
+
+
 def test_nan_points_are_dropped_and_counted():
     g = _grid((0.0, 1.0), (0.0, 1.0), 0.05)
     pts = np.column_stack([g, np.full(len(g), 1.0)])
