@@ -121,51 +121,40 @@ def _curves(
     skills: list[dict[str, Any]],
     chains: list[dict[str, Any]],
 ) -> list[dict[str, Any]]:
-    rows = []
-    for r in backward:
-        rows.append(
-            {
-                "panel": "o1 along the push, hand rows (cm)",
-                "series": r["model"],
-                "train_size": r["n_train"],
-                "value": r["along_cm"],
-                "ci": r["along_ci"],
-            }
+    def point(panel: str, series: str, r: dict[str, Any], value: str, ci: str) -> dict[str, Any]:
+        return {
+            "panel": panel,
+            "series": series,
+            "train_size": r["n_train"],
+            "value": r[value],
+            "ci": r[ci],
+        }
+
+    rows = [
+        point("o1 along the push, hand rows (cm)", r["model"], r, "along_cm", "along_ci")
+        for r in backward
+    ]
+    rows += [
+        point(
+            f"o{r['object']} along the push, two objects (cm)",
+            r["model"],
+            r,
+            "error_cm",
+            "error_ci",
         )
-    for r in two:
-        if r["axis"] == "along":
-            rows.append(
-                {
-                    "panel": f"o{r['object']} along the push, two objects (cm)",
-                    "series": r["model"],
-                    "train_size": r["n_train"],
-                    "value": r["error_cm"],
-                    "ci": r["error_ci"],
-                }
-            )
-    for r in skills:
-        if r["case"] == "all":
-            rows.append(
-                {
-                    "panel": f"{r['skill']} position error (cm)",
-                    "series": r["model"],
-                    "train_size": r["n_train"],
-                    "value": r["error_cm"],
-                    "ci": r["error_ci"],
-                }
-            )
+        for r in two
+        if r["axis"] == "along"
+    ]
+    rows += [
+        point(f"{r['skill']} position error (cm)", r["model"], r, "error_cm", "error_ci")
+        for r in skills
+        if r["case"] == "all"
+    ]
     for r in chains:
         if r["object"] == r["n_objects"]:
             extra = "" if r["training"] == TRAININGS["push"] else f", {r['training']}"
-            rows.append(
-                {
-                    "panel": "last object of a chain (cm)",
-                    "series": f"{r['n_objects']} objects{extra}",
-                    "train_size": r["n_train"],
-                    "value": r["error_cm"],
-                    "ci": r["error_ci"],
-                }
-            )
+            series = f"{r['n_objects']} objects{extra}"
+            rows.append(point("last object of a chain (cm)", series, r, "error_cm", "error_ci"))
     return rows
 
 

@@ -268,13 +268,11 @@ def push_trial(
         ``"reaction_mm"`` (mean |deviation| of the hand in the training rows) and the counts.
     """
     with torch_threads(1):
+        X, Y, R = _push_training_rows(train, train_rows, settings.push_groups)
         hand, objects = _push_rows(train, settings.push_groups)
         use = np.isin(hand.push, train_rows)
         use_o = np.isin(objects.push, train_rows)
         cols = list(PLANAR_EFFECT_COLUMNS)
-        X = np.concatenate([hand.features[use], objects.features[use_o]])
-        Y = np.concatenate([hand.effect[use][:, cols], objects.effect[use_o][:, cols]])
-        R = np.concatenate([hand.reaction[use], objects.reaction[use_o]])
         models, seconds = _fit_skill_models("push", X, Y, R, settings, seed)
 
         ds_train, ds_test = _push_dataset(train), _push_dataset(test)
