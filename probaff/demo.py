@@ -9,7 +9,10 @@ pushes a few boxes chosen by information gain on the affordance MRF, and prints 
 entropy before and after, then plans and executes one push-to-edge episode (chapter 4: A*
 over the mixture's predictions, closed loop in the simulator), drawn to a PNG, and last fits
 chapter 6's per-skill transition models and predicts a pick, a place and a three-object
-chained push, drawn against what the simulator did.
+chained push, drawn against what the simulator did. Then (chapter 2) it scans a few
+office scenes from the robot's head, segments them by region growing, trains the label
+classifiers on all but one and draws the held-out scene's segments and predicted labels to a
+PNG, printing its held-out precision and recall.
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ from probaff.sim.config import load_tabletop
 from probaff.studies.affordance_map import demo as affordance_demo
 from probaff.studies.modular import demo as modular_demo
 from probaff.studies.planning import demo as planning_demo
+from probaff.studies.point_cloud_labels import demo as point_cloud_demo
 
 __all__ = ["DemoConfig", "run"]
 
@@ -70,7 +74,8 @@ def run(config: DemoConfig) -> dict[str, Any]:
         config: Demo settings.
 
     Returns:
-        ``{"summary": ..., "dataset": path, "figure": path}``.
+        ``{"summary": ..., "dataset": path, "figure": path, "models", "affordance_map",
+        "planning", "modular", "point_cloud_labels": each part's summary}``.
     """
     check_count("n", config.n)
     check_count("seed", config.seed, minimum=0)
@@ -96,11 +101,15 @@ def run(config: DemoConfig) -> dict[str, Any]:
     print(f"dataset: {os.fspath(ds_path)}")
     print(f"figure:  {os.fspath(figure)}")
     print("affordance map:")
-    affordance = affordance_demo(out / "affordance_map", seed=config.seed, steps=3)
+    affordance = affordance_demo(out / "affordance_map", seed=config.seed, steps=4)
     print("planning:")
     planning = planning_demo(out / "planning", seed=config.seed, progress=config.progress)
     print("modular transition models (chapter 6):")
     modular = modular_demo(out / "modular", seed=config.seed, progress=config.progress)
+    print("point-cloud labels (chapter 2):")
+    labels = point_cloud_demo(
+        out / "point_cloud_labels", seed=config.seed, progress=config.progress
+    )
     return {
         "summary": summary,
         "dataset": os.fspath(ds_path),
@@ -109,6 +118,7 @@ def run(config: DemoConfig) -> dict[str, Any]:
         "affordance_map": affordance,
         "planning": planning,
         "modular": {k: modular[k] for k in ("chains", "skills", "files")},
+        "point_cloud_labels": labels,
     }
 
 

@@ -22,13 +22,14 @@ from matplotlib.figure import Figure
 from probaff._checks import check_count, check_finite, check_probability, check_shape
 from probaff._io import atomic_save_figure
 from probaff.errors import InputError
-from probaff.perception.labels import LABELS
+from probaff.perception.labels import LABELS, label_index
 
 __all__ = [
     "plot_entropy_tree",
     "plot_label_probabilities",
     "plot_merge_views",
     "plot_reliability",
+    "plot_scanned_scene",
     "plot_segment_cloud",
 ]
 
@@ -104,6 +105,118 @@ def plot_segment_cloud(
     side.set_title("side view")
     n_seg = int(seg.max()) + 1 if seg.size and seg.max() >= 0 else 0
     fig.suptitle(f"segments by region growing ({n_seg} segments; grey: none)")
+    return _save(fig, path)
+
+
+def _camera_angles(pts: np.ndarray, eye: np.ndarray) -> np.ndarray:
+    """(n, 2) azimuth (right positive) and elevation of `pts` (n, 3) seen from `eye` (degrees)."""
+    d = pts - eye
+    ground = np.hypot(d[:, 0], d[:, 1])
+    return np.degrees(np.stack([-np.arctan2(d[:, 1], d[:, 0]), np.arctan2(d[:, 2], ground)], 1))
+
+
+def plot_scanned_scene(
+    points: object,
+    point_segments: object,
+    probabilities: object,
+    path: str | os.PathLike[str],
+    *,
+    labels: tuple[str, ...] = ("push_forward", "liftable", "graspable"),
+    viewpoint: object | None = None,
+    max_points: int = 20_000,
+    title: str | None = None,
+) -> str:
+    """One scanned scene, two panels a row: its segments, then each label's probability.
+
+    With a `viewpoint` each panel shows the points as the camera saw them: azimuth (right
+    positive) against elevation from the viewpoint, far points drawn first so that near ones
+    cover them. Without one it shows the top view (x, y).
+
+    Args:
+        points: (N, 3) points (robot frame, m).
+        point_segments: (N,) segment row of each point, -1 for a point in no segment (grey).
+        probabilities: (S, 6) predicted probability of each label per segment row.
+        path: Output image.
+        labels: The labels drawn after the segments (names in `LABELS`, at least one).
+        viewpoint: (3,) the camera centre (robot frame, m), or None for the top view.
+        max_points: Most points drawn (a positive integer).
+        title: The figure's title; None names the segment count.
+
+    Returns:
+        `path` as a string.
+
+    Raises:
+        InputError: For an empty cloud, mismatched shapes, probabilities outside [0, 1], a
+            segment row beyond the probabilities' rows, no or unknown `labels`, or a bad
+            `viewpoint`.
+    """
+    pts, seg = _cloud(points, point_segments, max_points)
+    check_shape("probabilities", probabilities, (None, len(LABELS)))
+    prob = np.asarray(probabilities, dtype=np.float64)
+    check_probability("probabilities", prob)
+    if seg.size and seg.max() >= prob.shape[0]:
+        raise InputError(
+            f"point_segments refers to row {int(seg.max())} but probabilities has "
+            f"{prob.shape[0]} rows; give one row per segment."
+        )
+    if isinstance(labels, str) or not labels:
+        raise InputError(f"labels must be a non-empty tuple of names in {LABELS}, got {labels!r}.")
+    columns = [label_index(name) for name in labels]
+    if viewpoint is None:
+        xy, names, view = pts[:, :2], ("x (m)", "y (m)"), "top view"
+    else:
+        check_shape("viewpoint", viewpoint, (3,))
+        eye = np.asarray(viewpoint, dtype=np.float64)
+        check_finite("viewpoint", eye)
+        order = np.argsort(-np.linalg.norm(pts - eye, axis=1))
+        pts, seg = pts[order], seg[order]
+        xy = _camera_angles(pts, eye)
+        names, view = ("azimuth, right positive (deg)", "elevation (deg)"), "camera view"
+    from matplotlib import colormaps
+
+    colour = colormaps["tab20"](seg % 20)
+    colour[seg < 0] = (0.8, 0.8, 0.8, 1.0)
+    shades = colormaps["viridis"].with_extremes(bad=_UNASSIGNED)
+    n_seg = int(prob.shape[0])
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    pad = 0.03 * np.maximum(hi - lo, 1e-6)
+    # Two panels a row, each 5 inches wide and as tall as the data's aspect asks.
+    aspect = float(np.clip((hi[1] - lo[1] + 2 * pad[1]) / (hi[0] - lo[0] + 2 * pad[0]), 0.3, 2.0))
+    n_rows = (len(columns) + 2) // 2
+    fig = Figure(figsize=(11.5, n_rows * (5.0 * aspect + 0.9) + 0.6), layout="constrained")
+    grid = fig.subplots(n_rows, 2, squeeze=False)
+    axes = grid.ravel()[: 1 + len(columns)]
+    for spare in grid.ravel()[1 + len(columns) :]:
+        spare.set_axis_off()
+    image = None
+    for i, ax in enumerate(axes):
+        if i == 0:
+            ax.scatter(xy[:, 0], xy[:, 1], c=colour, s=1.0, linewidths=0)
+            ax.set_title(f"{n_seg} segments (grey: none)")
+        else:
+            k = columns[i - 1]
+            shade = np.full(seg.shape, np.nan)  # grey where a point is in no segment
+            shade[seg >= 0] = prob[seg[seg >= 0], k]
+            image = ax.scatter(
+                xy[:, 0],
+                xy[:, 1],
+                c=shade,
+                cmap=shades,
+                vmin=0.0,
+                vmax=1.0,
+                s=1.0,
+                linewidths=0,
+                plotnonfinite=True,
+            )
+            ax.set_title(f"p({labels[i - 1]})")
+        ax.set_xlabel(names[0])
+        ax.set_ylabel(names[1])
+        ax.set_xlim(lo[0] - pad[0], hi[0] + pad[0])
+        ax.set_ylim(lo[1] - pad[1], hi[1] + pad[1])
+        ax.set_aspect("equal", adjustable="box")
+    if image is not None:
+        fig.colorbar(image, ax=list(axes), label="predicted probability", shrink=0.6)
+    fig.suptitle(title or f"scanned scene: {n_seg} segments and predicted labels, {view}")
     return _save(fig, path)
 
 

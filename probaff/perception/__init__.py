@@ -20,7 +20,7 @@ from probaff.perception.labels import (
     cross_validate_labels,
     reliability,
 )
-from probaff.perception.merge import MergedSegments, merge_views
+from probaff.perception.merge import PROXIMITIES, MergedSegments, MergeView, merge_views
 from probaff.perception.normals import Normals, estimate_normals
 from probaff.perception.occupancy import FREE_SPACE, OCCUPIED, UNKNOWN, OccupancyGrid
 from probaff.perception.refinement import (
@@ -47,11 +47,13 @@ __all__ = [
     "FEATURE_NAMES",
     "FREE_SPACE",
     "OCCUPIED",
+    "PROXIMITIES",
     "THESIS_PR",
     "UNKNOWN",
     "Exploration",
     "LabelCVResult",
     "LabelClassifier",
+    "MergeView",
     "MergedSegments",
     "Normals",
     "OccupancyGrid",

@@ -226,10 +226,9 @@ def detect_push(
     dest = np.asarray(cell) + DIRECTION_OFFSETS[direction]
     if 0 <= dest[0] < still.shape[0] and 0 <= dest[1] < still.shape[1]:
         moved[dest[0], dest[1]] = True
-    exact = dataclasses.replace(spec, sensor_noise=0.0)
     rng = np.random.default_rng(0)  # no noise is drawn; the generator is a formality
     scans = [
-        DepthSensor(exact, WarehouseMap(occ, spec.cell_size)).scan(position, rng).points
+        DepthSensor(spec, WarehouseMap(occ, spec.cell_size)).scan(position, rng, exact=True).points
         for occ in (moved, still)
     ]
     d_moved, d_still = (cloud_distance(observed, s) for s in scans)

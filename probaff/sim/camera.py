@@ -52,6 +52,7 @@ noise, quantisation or dropout. Random draws come only from the ``rng`` passed i
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -59,7 +60,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
-from probaff._checks import check_finite, check_shape
+from probaff._checks import check_count, check_finite, check_shape
 from probaff.errors import ConfigError, InputError
 from probaff.sim.config import (
     _check_spec,
@@ -203,6 +204,36 @@ class CameraSpec:
         rays[..., 0] = u[None, :]
         rays[..., 1] = v[:, None]
         return rays
+
+    def binned(self, factor: int) -> CameraSpec:
+        """The same sensor read out at ``1 / factor`` of the resolution (pixel binning).
+
+        The field of view, range, noise, dropouts and registration stay; the disparity step
+        shrinks with the focal length, so that the depth step at a given range is the
+        full-resolution sensor's.
+
+        Args:
+            factor: A positive integer dividing both the width and the height.
+
+        Returns:
+            The binned camera (``self`` for a factor of 1).
+
+        Raises:
+            InputError: If `factor` is not a positive integer dividing both image sides.
+        """
+        factor = check_count("factor", factor)
+        if self.width % factor or self.height % factor:
+            raise InputError(
+                f"factor {factor} must divide the image's {self.width} x {self.height} pixels."
+            )
+        if factor == 1:
+            return self
+        return dataclasses.replace(
+            self,
+            width=self.width // factor,
+            height=self.height // factor,
+            disparity_step=self.disparity_step / factor,
+        )
 
     def sigma(self, depth: np.ndarray | float) -> np.ndarray:
         """Depth noise std ``a + b z^2`` (m) at depths `depth` (m), any shape."""

@@ -12,14 +12,18 @@ import os
 from dataclasses import dataclass, field
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import yaml
 
 from probaff._checks import check_count, check_positive
 from probaff.errors import ConfigError, InputError
 
+if TYPE_CHECKING:
+    from probaff.sim.camera import CameraSpec
+
 __all__ = [
+    "SENSOR_KINDS",
     "ArmSpec",
     "GripperSpec",
     "ObjectSpec",
@@ -373,9 +377,20 @@ class SceneSpec:
     support_load_variation: float = 0.0
 
 
+SENSOR_KINDS: tuple[str, ...] = ("camera", "scanner")
+"""The warehouse robot's depth sensors: the head's depth camera (`probaff.sim.camera`), panned
+round, or an idealised range scanner (Gaussian range noise only, 360 degrees)."""
+
+
 @dataclass(frozen=True)
 class WarehouseSpec:
-    """The grid warehouse (``worlds/warehouse.yaml``); see that file for the fields' meaning."""
+    """The grid warehouse (``worlds/warehouse.yaml``); see that file for the fields' meaning.
+
+    The ``sensor_*`` range fields describe the idealised scanner; with ``sensor_kind ==
+    "camera"`` the robot's sensor is `camera` (a `probaff.sim.camera.CameraSpec`) at
+    ``sensor_height``, panned to ``camera_pans`` azimuths over 360 degrees and tilted down by
+    ``camera_tilt_deg``; its returns below ``floor_band`` (m) count as floor.
+    """
 
     rows: int
     cols: int
@@ -402,11 +417,35 @@ class WarehouseSpec:
     iterations: int
     friction_grid: int
     collision_slop: float
+    sensor_kind: str = "scanner"
+    camera: CameraSpec | None = None
+    camera_pans: int = 8
+    camera_tilt_deg: float = 10.0
+    floor_band: float = 0.15
 
     def __post_init__(self) -> None:
+        if self.sensor_kind not in SENSOR_KINDS:
+            raise ConfigError(
+                f"WarehouseSpec.sensor_kind must be one of {', '.join(SENSOR_KINDS)}, got "
+                f"{self.sensor_kind!r}."
+            )
+        if self.sensor_kind == "camera":
+            from probaff.sim.camera import CameraSpec
+
+            if not isinstance(self.camera, CameraSpec):
+                raise ConfigError(
+                    "WarehouseSpec.camera must be a CameraSpec (see load_camera) when "
+                    f"sensor_kind is 'camera', got {type(self.camera).__name__}."
+                )
+        if not (math.isfinite(self.camera_tilt_deg) and abs(self.camera_tilt_deg) < 90.0):
+            raise ConfigError(
+                f"WarehouseSpec.camera_tilt_deg must lie in (-90, 90) degrees, got "
+                f"{self.camera_tilt_deg!r}."
+            )
         _check_spec(
             self,
             positive=(
+                "floor_band",
                 "cell_size",
                 "box_size",
                 "box_height",
@@ -423,7 +462,7 @@ class WarehouseSpec:
                 "control_rate",
             ),
             nonneg=("box_contact_friction", "sensor_noise", "collision_slop"),
-            counts=("sensor_azimuths", "substeps", "iterations", "friction_grid"),
+            counts=("sensor_azimuths", "substeps", "iterations", "friction_grid", "camera_pans"),
         )
 
 
@@ -439,7 +478,7 @@ def load_warehouse(path: Path | None = None) -> WarehouseSpec:
     Args:
         path: Another warehouse file; defaults to the one in `worlds_dir()`.
     """
-    raw, w, _ = _load_root(path, "warehouse.yaml")
+    raw, w, p = _load_root(path, "warehouse.yaml")
     _no_extra(w, raw, {"grid", "cell_size", "boxes", "box", "wall", "robot", "sensor", "physics"})
     grid = _take(w, raw, "grid")
     if not isinstance(grid, list) or len(grid) != 2:
@@ -463,6 +502,22 @@ def load_warehouse(path: Path | None = None) -> WarehouseSpec:
     elev = _take(f"{w}:sensor", sensor, "elevations")
     if not isinstance(elev, list) or not elev:
         raise ConfigError(f"{w}:sensor.elevations must be a non-empty list of degrees.")
+    _no_extra(
+        f"{w}:sensor",
+        sensor,
+        {"kind", "height", "max_range", "azimuths", "elevations", "noise", "camera"},
+    )
+    kind = sensor.get("kind", "scanner")
+    if kind not in SENSOR_KINDS:
+        raise ConfigError(
+            f"{w}:sensor.kind must be one of {', '.join(SENSOR_KINDS)}, got {kind!r}."
+        )
+    cam = _mapping(f"{w}:sensor.camera", _take(f"{w}:sensor", sensor, "camera"))
+    _no_extra(f"{w}:sensor.camera", cam, {"file", "binning", "pans", "tilt_deg", "floor_band"})
+    camera = _warehouse_camera(w, cam, p.parent)
+    tilt = _field(w, "sensor.camera", cam, "tilt_deg")
+    if abs(tilt) >= 90.0:
+        raise ConfigError(f"{w}:sensor.camera.tilt_deg must lie in (-90, 90), got {tilt}.")
 
     return WarehouseSpec(
         rows=rows,
@@ -490,7 +545,37 @@ def load_warehouse(path: Path | None = None) -> WarehouseSpec:
         iterations=_count_field(w, "physics", phys, "iterations"),
         friction_grid=_count_field(w, "physics", phys, "friction_grid"),
         collision_slop=_field(w, "physics", phys, "collision_slop", nonneg=True),
+        sensor_kind=kind,
+        camera=camera,
+        camera_pans=_count_field(w, "sensor.camera", cam, "pans"),
+        camera_tilt_deg=tilt,
+        floor_band=_field(w, "sensor.camera", cam, "floor_band", positive=True),
     )
+
+
+def _warehouse_camera(w: str, cam: dict[str, Any], folder: Path) -> CameraSpec:
+    """The warehouse's head camera: the named camera file, binned (``sensor.camera``).
+
+    The file is looked up next to the warehouse file, then in `worlds_dir()`.
+    """
+    from probaff.sim.camera import load_camera
+
+    name = _take(f"{w}:sensor.camera", cam, "file")
+    if not isinstance(name, str) or not name:
+        raise ConfigError(f"{w}:sensor.camera.file must name a camera file, got {name!r}.")
+    path = folder / name
+    if not path.is_file():
+        path = worlds_dir() / name
+    if not path.is_file():
+        raise ConfigError(
+            f"{w}:sensor.camera.file {name!r} is neither next to {w} nor in {worlds_dir()}."
+        )
+    binning = _count_field(w, "sensor.camera", cam, "binning")
+    spec = load_camera(path)
+    try:
+        return spec.binned(binning)
+    except InputError as exc:
+        raise ConfigError(f"{w}:sensor.camera.binning: {exc}") from None
 
 
 @cache

@@ -14,6 +14,24 @@ Gaussian noise of standard deviation ``sensor_noise`` along the ray.
 
 Besides the 3-D points, each scan carries one horizontal ray per azimuth at sensor height, whose
 end point bounds the free space seen in the plane: the occupancy grid traces these.
+
+Two sensors share that interface (``spec.sensor_kind``):
+
+* ``"scanner"``: the idealised range scanner above, Gaussian range noise only;
+* ``"camera"``: the head's depth camera of chapter 2 (`probaff.sim.camera`, ``spec.camera``)
+  at ``sensor_height``, panned to ``camera_pans`` azimuths evenly over 360 degrees (the first
+  along +x) and tilted down by ``camera_tilt_deg``. It sees `warehouse_scene`: the obstacles
+  and the floor. Its depth has the camera's range-squared noise, disparity quantisation and
+  dropouts at grazing angles and edges, only returns within its 0.5-4.5 m range, and every view
+  comes back through its own registration error (the points are mapped through the view's
+  estimated pose). Its horizontal rays are the image's columns projected on the floor plane:
+  a column whose returns include an obstacle (a return above ``floor_band``) ends at the
+  nearest such surface (a hit), at the median reach of the column's returns no more than
+  0.15 m behind its nearest one (the nearest alone would be biased short by the noise); a
+  column that sees only floor ends, without a hit, at its farthest floor return, since a floor
+  point in view proves the line of sight to it free (the obstacles are upright boxes standing
+  on the floor). A column with no return carries nothing and is left out; so is an obstacle
+  return farther than ``sensor_range``.
 """
 
 from __future__ import annotations
@@ -24,10 +42,14 @@ import numpy as np
 
 from probaff._checks import check_finite, check_shape
 from probaff.errors import InputError
+from probaff.sim.camera import DepthCamera, DepthImage, head_views, scan_views
 from probaff.sim.config import WarehouseSpec
+from probaff.sim.primitives import PrimitiveScene
 from probaff.sim.warehouse import WarehouseMap
 
-__all__ = ["DepthScan", "DepthSensor", "first_entry", "obstacle_bounds"]
+_SURFACE_DEPTH = 0.15  # m: a column's returns this close behind its nearest are one surface
+
+__all__ = ["DepthScan", "DepthSensor", "first_entry", "obstacle_bounds", "warehouse_scene"]
 
 
 @dataclass(frozen=True)
@@ -71,6 +93,29 @@ def obstacle_bounds(spec: WarehouseSpec, m: WarehouseMap) -> tuple[np.ndarray, n
     wall_lo = np.array([[-t, -t, 0.0], [W, -t, 0.0], [-t, -t, 0.0], [-t, H, 0.0]])
     wall_hi = np.array([[0.0, H + t, h], [W + t, H + t, h], [W + t, 0.0, h], [W + t, H + t, h]])
     return np.concatenate([box_lo, wall_lo]), np.concatenate([box_hi, wall_hi])
+
+
+def warehouse_scene(spec: WarehouseSpec, m: WarehouseMap) -> PrimitiveScene:
+    """What the depth camera sees of a map: its obstacles and the floor, as primitives.
+
+    Args:
+        spec: The warehouse world (box and wall dimensions).
+        m: The map.
+
+    Returns:
+        The boxes of `obstacle_bounds` (object ids ``0 .. K-1``, in that order: the map's boxes,
+        then the four walls) and a 0.1 m floor slab under ``z = 0`` spanning the walls
+        (object id K).
+    """
+    lo, hi = obstacle_bounds(spec, m)
+    rows, cols = m.shape
+    s, t = m.cell_size, spec.wall_thickness
+    floor = np.array([[cols * s / 2, rows * s / 2, -0.05, cols * s + 2 * t, rows * s + 2 * t, 0.1]])
+    boxes = np.column_stack(
+        [np.concatenate([(lo + hi) / 2, floor[:, :3]]), np.concatenate([hi - lo, floor[:, 3:]])]
+    )
+    boxes = np.column_stack([boxes, np.zeros(len(boxes))])
+    return PrimitiveScene(boxes=boxes, box_ids=np.arange(len(boxes)))
 
 
 def first_entry(
@@ -118,6 +163,11 @@ class DepthSensor:
         self.spec = spec
         self.map = m
         self.lo, self.hi = obstacle_bounds(spec, m)
+        if spec.sensor_kind == "camera":
+            assert spec.camera is not None  # WarehouseSpec checks it
+            self._camera = DepthCamera(spec.camera)
+            self._scene = warehouse_scene(spec, m)
+            self._pans = 360.0 * np.arange(spec.camera_pans) / spec.camera_pans
         n_az = spec.sensor_azimuths
         self.azimuths = 2.0 * np.pi * np.arange(n_az) / n_az
         el = np.deg2rad(np.asarray(spec.sensor_elevations, dtype=float))
@@ -166,12 +216,16 @@ class DepthSensor:
             )
         return p
 
-    def scan(self, position: np.ndarray, rng: np.random.Generator) -> DepthScan:
+    def scan(
+        self, position: np.ndarray, rng: np.random.Generator, *, exact: bool = False
+    ) -> DepthScan:
         """Take one scan from a robot position.
 
         Args:
             position: (2,) world frame xy of the robot.
-            rng: Source of the range noise; the same generator state gives the same scan.
+            rng: Source of the sensor noise; the same generator state gives the same scan.
+            exact: Leave out every error (noise, quantisation, dropouts, registration): the
+                scan a perfect sensor would take, as predicted from a believed map.
 
         Returns:
             The scan.
@@ -182,15 +236,66 @@ class DepthSensor:
         xy = self.check_position(position)
         spec = self.spec
         origin = np.array([xy[0], xy[1], spec.sensor_height])
+        if spec.sensor_kind == "camera":
+            return self._camera_scan(origin, rng, exact)
+        noise = 0.0 if exact else spec.sensor_noise
         t = np.minimum(first_entry(origin, self._rays, self.lo, self.hi), self._floor)
         seen = t <= spec.sensor_range
-        r = np.maximum(t + spec.sensor_noise * rng.standard_normal(t.shape), 0.0)
+        r = np.maximum(t + noise * rng.standard_normal(t.shape), 0.0)
         points = origin + r[seen, None] * self._rays[seen]
         t_flat = first_entry(origin, self._flat, self.lo, self.hi)
         hits = t_flat <= spec.sensor_range
-        noisy = np.maximum(t_flat + spec.sensor_noise * rng.standard_normal(t_flat.shape), 0.0)
+        noisy = np.maximum(t_flat + noise * rng.standard_normal(t_flat.shape), 0.0)
         r_flat = np.where(hits, noisy, spec.sensor_range)
         ends = xy + r_flat[:, None] * self._flat[:, :2]
         return DepthScan(
             points=points, origin=origin, azimuths=self.azimuths.copy(), ends=ends, hits=hits
         )
+
+    def _camera_scan(self, origin: np.ndarray, rng: np.random.Generator, exact: bool) -> DepthScan:
+        """One scan by the panned head camera (see the module docstring)."""
+        T_head = np.eye(4)
+        T_head[:3, 3] = origin
+        poses = head_views(T_head, self._pans, [self.spec.camera_tilt_deg])
+        views = scan_views(
+            self._camera, self._scene, poses, rng=rng, registration=not exact, noise=not exact
+        )
+        points = np.concatenate([v.points() for v in views])
+        ends, hits = zip(*(self._columns(v, origin) for v in views), strict=True)
+        end = np.concatenate(ends)
+        delta = end - origin[:2]
+        return DepthScan(
+            points=points,
+            origin=origin,
+            azimuths=np.mod(np.arctan2(delta[:, 1], delta[:, 0]), 2.0 * np.pi),
+            ends=end,
+            hits=np.concatenate(hits),
+        )
+
+    def _columns(self, view: DepthImage, origin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The horizontal rays of one view: ``(ends (A, 2), hits (A,))``, one per seen column."""
+        T = view.T_world_camera_estimated
+        rays = view.spec.pixel_rays()  # (H, W, 3) camera frame
+        pts = (rays * view.depth[..., None]) @ T[:3, :3].T + T[:3, 3]  # (H, W, 3), NaN: none
+        reach = np.hypot(pts[..., 0] - origin[0], pts[..., 1] - origin[1])  # (H, W)
+        valid = np.isfinite(reach)
+        obstacle = valid & (pts[..., 2] > self.spec.floor_band) & (reach <= self.spec.sensor_range)
+        floor = valid & ~obstacle & (pts[..., 2] <= self.spec.floor_band)
+        near = np.where(obstacle, reach, np.inf)
+        first = np.argmin(near, axis=0)  # (W,) row of the nearest obstacle return
+        cols = np.arange(near.shape[1])
+        hit = obstacle.any(axis=0)
+        nearest = near[first, cols]  # (W,)
+        # The hit's reach is the median over the column's returns of that surface (within
+        # _SURFACE_DEPTH of the nearest): the nearest alone is biased short by the noise.
+        surface = obstacle & (reach < nearest[None] + _SURFACE_DEPTH)
+        with np.errstate(invalid="ignore"):
+            hit_reach = np.nanmedian(np.where(surface, reach, np.nan)[:, hit], axis=0)
+        open_reach = np.where(floor & (reach < nearest[None]), reach, -np.inf)
+        last = np.argmax(open_reach, axis=0)  # (W,) row of the farthest free floor return
+        seen_floor = np.isfinite(open_reach[last, cols])
+        ends = pts[last, cols, :2]
+        direction = pts[first[hit], cols[hit], :2] - origin[:2]
+        ends[hit] = origin[:2] + direction * (hit_reach / nearest[hit])[:, None]
+        keep = hit | seen_floor
+        return ends[keep], hit[keep]

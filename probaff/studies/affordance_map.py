@@ -45,7 +45,7 @@ from probaff.maps.options import MRFParams
 from probaff.perception.exploration import explore
 from probaff.planning.classifier import AffordanceClassifier, collect_voxels
 from probaff.planning.manipulation_loop import POLICIES, LoopSnapshot, ManipulationLoop
-from probaff.sim.config import WarehouseSpec, load_warehouse
+from probaff.sim.config import SENSOR_KINDS, WarehouseSpec, load_warehouse
 from probaff.sim.warehouse import WarehouseMap, generate_map, rule_affordances
 
 __all__ = [
@@ -60,9 +60,8 @@ __all__ = [
 ]
 
 NOISY_SENSOR = 0.2
-"""Range noise (m) of the degraded sensor option: the world file's 0.01 m makes the classifier
-almost certain; 0.2 m (a Kinect-class sensor near its 8 m range limit) leaves it unsure of a few
-boxes per map."""
+"""Range noise (m) of the degraded idealised scanner (``sensor="scanner"``): the world file's
+0.01 m makes the classifier almost certain; 0.2 m leaves it unsure of a few boxes per map."""
 
 _SNAPSHOTS = 4  # loop states kept per map for Fig. 3.6
 _STREAM_TRAIN, _STREAM_TEST, _STREAM_LOOP = 0, 1, 2  # independent seed streams
@@ -86,7 +85,11 @@ class AffordanceMapConfig:
         workers: 0 runs in this process; K > 0 or None uses a local Dask cluster.
         scheduler: Address of an existing Dask scheduler; overrides `workers`.
         progress: Show a progress bar.
-        sensor_noise: Range noise (m) of the depth sensor; None keeps the world file's value.
+        sensor_noise: Range noise (m) of the idealised scanner; None keeps the world file's
+            value. Only with ``sensor="scanner"``.
+        sensor: The robot's sensor, one of `SENSOR_KINDS`: ``"camera"`` (the head's depth
+            camera of chapter 2) or ``"scanner"`` (the idealised range scanner); None keeps
+            the world file's (the camera).
         stop_at_no_gain: Stop the information-gain loop when every ``G < 0`` (the thesis's
             rule); False keeps it pushing to `max_steps`, for a step-by-step comparison.
     """
@@ -101,6 +104,7 @@ class AffordanceMapConfig:
     scheduler: str | None = None
     progress: bool = True
     sensor_noise: float | None = None
+    sensor: str | None = None
     stop_at_no_gain: bool = True
     alpha: InitVar[float | None] = None
     coupling: InitVar[float | None] = None
@@ -149,6 +153,7 @@ class AffordanceMapConfig:
             math.isfinite(self.sensor_noise) and self.sensor_noise >= 0
         ):
             raise InputError(f"sensor_noise must be a number >= 0, got {self.sensor_noise!r}.")
+        world(self.sensor_noise, self.sensor)  # the sensor's name and noise, checked
         workers = check_workers(self.workers)
         return dataclasses.replace(
             self,
@@ -183,14 +188,30 @@ for _name in ("alpha", "coupling", "symmetry_coupling", "along_coupling"):
 del _name
 
 
-def world(sensor_noise: float | None = None) -> WarehouseSpec:
-    """The warehouse world, with the sensor's range noise replaced if given."""
+def world(sensor_noise: float | None = None, sensor: str | None = None) -> WarehouseSpec:
+    """The warehouse world, with its sensor and the scanner's range noise replaced if given.
+
+    Args:
+        sensor_noise: Range noise (m) of the idealised scanner; None keeps the world file's.
+        sensor: One of `SENSOR_KINDS`; None keeps the world file's.
+
+    Raises:
+        InputError: For an unknown sensor, or a range noise given for the camera (whose noise
+            model lives in ``worlds/camera.yaml``).
+    """
     spec = load_warehouse()
-    return (
-        spec
-        if sensor_noise is None
-        else dataclasses.replace(spec, sensor_noise=float(sensor_noise))
-    )
+    if sensor is not None:
+        if sensor not in SENSOR_KINDS:
+            raise InputError(f"sensor must be one of {', '.join(SENSOR_KINDS)}, got {sensor!r}.")
+        spec = dataclasses.replace(spec, sensor_kind=sensor)
+    if sensor_noise is None:
+        return spec
+    if spec.sensor_kind != "scanner":
+        raise InputError(
+            "sensor_noise sets the idealised scanner's range noise; pass sensor='scanner' "
+            "(--sensor scanner) with it, or leave it out for the camera (worlds/camera.yaml)."
+        )
+    return dataclasses.replace(spec, sensor_noise=float(sensor_noise))
 
 
 def train_classifier(
@@ -482,7 +503,13 @@ def _fmt(v: Any, digits: int = 3) -> str:
 
 def _markdown(config: AffordanceMapConfig, s: dict[str, Any], steps: int) -> str:
     ig, ex = s["policies"]["information_gain"], s["policies"]["exhaustive"]
-    noise = "world file" if config.sensor_noise is None else f"{config.sensor_noise} m"
+    spec = world(config.sensor_noise, config.sensor)
+    noise = (
+        f"the head camera ({spec.camera_pans} views of {spec.camera.width} x "
+        f"{spec.camera.height} pixels per scan, worlds/camera.yaml's noise model)"
+        if spec.camera is not None and spec.sensor_kind == "camera"
+        else f"the idealised scanner, range noise {spec.sensor_noise} m"
+    )
     mrf = config.mrf
     lines = [
         "# Affordance map by interactive manipulation (chapter 3)",
@@ -491,7 +518,7 @@ def _markdown(config: AffordanceMapConfig, s: dict[str, Any], steps: int) -> str
         f"{config.seed}; alpha = {mrf.alpha}, J = {mrf.coupling}, J_along = "
         f"{mrf.along_coupling if mrf.along_coupling is not None else mrf.coupling}, "
         "J_sym = "
-        f"{mrf.symmetry_coupling}, at most {config.max_steps} pushes; sensor noise: {noise}; "
+        f"{mrf.symmetry_coupling}, at most {config.max_steps} pushes; sensor: {noise}; "
         + (
             "the information-gain loop stops when every G < 0."
             if config.stop_at_no_gain
@@ -569,7 +596,7 @@ def run(config: AffordanceMapConfig) -> dict[str, Any]:
     fp = config.fingerprint()
     keys = [f"map-{i:03d}-{fp}" for i in range(config.n_maps)]
     missing = sum(not store.done(k) for k in keys)
-    spec = world(config.sensor_noise)
+    spec = world(config.sensor_noise, config.sensor)
     train_key = f"classifier-{fp}"
     classifier = None
     if missing:
@@ -610,51 +637,71 @@ def run(config: AffordanceMapConfig) -> dict[str, Any]:
 def demo(
     out_dir: str | os.PathLike[str],
     seed: int = 0,
-    steps: int = 3,
-    sensor_noise: float | None = NOISY_SENSOR,
+    steps: int = 4,
+    train_maps: int = 2,
+    sensor: str | None = None,
 ) -> dict[str, Any]:
-    """Explore one small map, push a few boxes by information gain, and report the entropy.
+    """Explore one small map, push boxes by information gain, and report the entropy per step.
 
-    The map is 8 x 8 cells with 8 to 14 boxes; the classifier is trained on six other maps of
-    that size. The loop may stop before `steps` pushes when no push is worth its travel.
+    The map is 8 x 8 cells with 8 to 14 boxes, seen by the world file's sensor (the head
+    camera). The classifier is trained on only `train_maps` other maps of that size, so that
+    some of its predictions are unsure: that is what the loop's pushes are for. The loop
+    pushes its best candidate `steps` times even when no push is worth its travel (the study's
+    ``stop_at_no_gain=False``), so that each step's effect on the map entropy shows; a push
+    that moves a box gives the box fresh, unsure variables in its new cell.
 
     Args:
         out_dir: Folder of the figure ``loop_steps.png`` (created).
         seed: Seed of the maps and the sensor noise (an integer >= 0).
-        steps: Most pushes (an integer >= 0).
-        sensor_noise: Range noise (m) of the sensor; None keeps the world file's value.
+        steps: Pushes (an integer >= 0).
+        train_maps: Maps the classifier is trained on (a positive integer).
+        sensor: One of `SENSOR_KINDS`; None keeps the world file's.
 
     Returns:
-        ``{"entropy_before", "entropy_after", "pushes", "stop", "figure"}``.
+        ``{"entropy", "accuracy", "pushes", "moved", "stop", "figure"}``: the map entropy
+        (nats) and the MAP accuracy at each step (``steps + 1`` values), the pushes
+        ``[row, col, direction]``, whether each moved its box, and the stop reason.
 
     Raises:
-        InputError: If `seed` or `steps` is not an integer >= 0.
+        InputError: If `seed` or `steps` is not an integer >= 0, `train_maps` not a positive
+            integer, or `sensor` unknown.
     """
     seed = check_count("seed", seed, minimum=0)
     steps = check_count("steps", steps, minimum=0)
-    spec = dataclasses.replace(world(sensor_noise), rows=8, cols=8, boxes=(8, 14))
-    classifier, _ = train_classifier(spec, 6, seed)
+    train_maps = check_count("train_maps", train_maps)
+    spec = dataclasses.replace(world(sensor=sensor), rows=8, cols=8, boxes=(8, 14))
+    classifier, _ = train_classifier(spec, train_maps, seed)
     rng = np.random.default_rng((seed, _STREAM_TEST, 0))
     m = generate_map(spec, rng)
     free = np.argwhere(~m.occupancy)
     exploration = explore(spec, m, free[rng.integers(len(free))], rng)
     loop = ManipulationLoop(
-        spec, m, exploration, classifier, rng=np.random.default_rng((seed, _STREAM_LOOP, 0))
+        spec,
+        m,
+        exploration,
+        classifier,
+        rng=np.random.default_rng((seed, _STREAM_LOOP, 0)),
+        stop_at_no_gain=False,
     )
     result = loop.run(steps, snapshots=steps + 1)
     figure = Path(out_dir) / "loop_steps.png"
     plot_loop_steps(result.snapshots, figure, title="information-gain loop on a small map")
-    before, after = result.steps[0].entropy, result.steps[-1].entropy
-    pushes = [list(s.push) for s in result.steps[1:] if s.push is not None]
+    entropy = [s.entropy for s in result.steps]
+    accuracy = [s.accuracy for s in result.steps]
+    done = [s for s in result.steps[1:] if s.push is not None]
+    pushes = [list(s.push) for s in done if s.push is not None]
+    moved = [bool(s.moved) for s in done]
+    trail = " -> ".join(f"{h:.2f}" for h in entropy)
     print(
-        f"map entropy before: {before:.3f} nats; after {len(pushes)} push(es): {after:.3f} "
-        f"nats (stop: {result.stop})"
+        f"map entropy by step (nats, classifier trained on {train_maps} maps): {trail}; "
+        f"{len(pushes)} push(es), {sum(moved)} moved a box (stop: {result.stop})"
     )
-    print(f"figure: {os.fspath(figure)}")
+    print(f"MAP accuracy: {accuracy[0]:.3f} -> {accuracy[-1]:.3f}; figure: {os.fspath(figure)}")
     return {
-        "entropy_before": before,
-        "entropy_after": after,
+        "entropy": entropy,
+        "accuracy": accuracy,
         "pushes": pushes,
+        "moved": moved,
         "stop": result.stop,
         "figure": os.fspath(figure),
     }

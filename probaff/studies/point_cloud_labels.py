@@ -7,7 +7,8 @@ is one resumable task (one JSON per scene under ``out/tasks/``), so a killed run
 the missing scenes; the first scene's per-point arrays (points, segment rows, object ids, all
 views stacked) go to an ``.npz`` next to its JSON, for the figures. The multi-view merge scans
 the first ``merge_scenes`` scenes once more with the ``merge_pans_deg`` views (stream
-``[seed, i, 1]``), one task each under ``out/merge_tasks/``.
+``[seed, i, 1]``), one task each under ``out/merge_tasks/``, whose segments' points (all views
+stacked) go to an ``.npz`` next to its JSON, for the point proximity of the merge.
 
 Then, in the main process:
 
@@ -22,11 +23,13 @@ Then, in the main process:
   95 % Student-t interval (`mean_halfwidth`);
 * ``merge.csv``: for each merge scene, a classifier trained on the other scenes of the
   ``n_scenes`` set labels every view's segments; the first V views of ``merge_pans_deg`` are
-  merged (`merge_views`, the thesis's 0.05 m and 0.7) for each V of ``view_counts``. Purity
-  and completeness are point-weighted over the merged segments against the views' majority
-  objects; label accuracy is the share of (merged segment, label) pairs whose ``p >= 0.5``
-  matches the labels of the merged segment's point-weighted majority object. Means over
-  scenes with 95 % intervals;
+  merged (`merge_views`, the thesis's 0.05 m and 0.7) for each V of ``view_counts`` and each
+  proximity of ``merge_proximities`` (segments close by their nearest points, or by their
+  centroids). Purity and completeness are point-weighted over the merged segments against the
+  views' majority objects; label accuracy is the share of (merged segment, label) pairs whose
+  ``p >= 0.5`` matches the labels of the merged segment's point-weighted majority object
+  (each merged segment counts once; ``weighted_accuracy`` weights it by its points). Means
+  over scenes with 95 % intervals;
 * ``summary.md`` with the tables and the thesis's numbers (195 segments from 10 scenes,
   average precision / recall 81.8 / 81.7), and the figures of `probaff.eval.label_figures`.
 
@@ -66,7 +69,7 @@ from probaff.perception.labels import (
     LabelCVResult,
     cross_validate_labels,
 )
-from probaff.perception.merge import merge_views
+from probaff.perception.merge import PROXIMITIES, MergeView, merge_views
 from probaff.perception.refinement import SplitTree, purity_completeness, refine_segments
 from probaff.perception.scan_labels import PerceptionConfig, head_pose, scan_segments
 from probaff.sim.camera import DepthCamera, load_camera
@@ -78,6 +81,7 @@ __all__ = [
     "SMOKE_OVERRIDES",
     "THESIS_SEGMENTS",
     "PointCloudStudyConfig",
+    "demo",
     "merge_task",
     "run",
     "scan_task",
@@ -94,6 +98,7 @@ RUN_ONLY = ("out", "workers", "scheduler", "progress")
 """Fields that decide where and how the study runs, not what it computes."""
 
 _VERSION = 1
+_MERGE_VERSION = 2  # 2: merge records keep their segments' points (an .npz beside each JSON)
 _WORLD = ("office.yaml", "camera.yaml")
 _SCAN_FIELDS = ("seed", "perception")  # the fields that shape a scene scan
 _MERGE_FIELDS = ("seed", "perception", "merge_pans_deg")  # ... and a merge scan
@@ -117,6 +122,9 @@ class PointCloudStudyConfig:
         view_counts: Views merged in the merge study (each at most the merge views).
         merge_pans_deg: Pan angles of the merge scans (degrees, left positive), centre out.
         merge_scenes: How many of the first scenes the merge study scans again.
+        merge_proximities: How the merge reads "segments lie close", each of `PROXIMITIES`
+            (``"points"``: nearest points; ``"centroid"``: centroids); the first one is drawn
+            in the figure.
         workers: 0 runs in this process; K > 0 or None uses a local Dask cluster.
         scheduler: Address of an existing Dask scheduler.
         progress: Show progress bars.
@@ -132,6 +140,7 @@ class PointCloudStudyConfig:
     view_counts: tuple[int, ...] = (1, 2, 4)
     merge_pans_deg: tuple[float, ...] = (-10.0, 10.0, -30.0, 30.0)
     merge_scenes: int = 3
+    merge_proximities: tuple[str, ...] = PROXIMITIES
     workers: int | None = 0
     scheduler: str | None = None
     progress: bool = True
@@ -180,6 +189,16 @@ class PointCloudStudyConfig:
                 f"merge_scenes={merged} exceeds n_scenes={self.n_scenes}; the merge scenes "
                 "are among the first n_scenes."
             )
+        proximities = self.merge_proximities
+        if (
+            not proximities
+            or any(p not in PROXIMITIES for p in proximities)
+            or len(set(proximities)) < len(proximities)
+        ):
+            raise InputError(
+                f"merge_proximities must hold distinct names among {', '.join(PROXIMITIES)}, "
+                f"got {proximities!r}."
+            )
         check_workers(self.workers)
         check_output_dir("out", self.out)
 
@@ -203,13 +222,13 @@ SMOKE_OVERRIDES: dict[str, Any] = {
 """Sizes of a tiny run that checks the whole pipeline in seconds."""
 
 
-def _tag(config: PointCloudStudyConfig, fields: tuple[str, ...]) -> str:
-    """Fingerprint of `fields` of `config` and of the office and camera world files."""
+def _tag(config: PointCloudStudyConfig, fields: tuple[str, ...], version: int = _VERSION) -> str:
+    """Fingerprint of `fields` of `config` (code `version`) and of the world files."""
     digest = hashlib.sha256()
     for name in _WORLD:
         digest.update((worlds_dir() / name).read_bytes())
     others = tuple(f.name for f in dataclasses.fields(config) if f.name not in fields)
-    tag = config_fingerprint(config, exclude=others, version=_VERSION, length=10)
+    tag = config_fingerprint(config, exclude=others, version=version, length=10)
     return f"{tag}{digest.hexdigest()[:6]}"
 
 
@@ -276,9 +295,23 @@ def scan_task(
 
 
 def merge_task(
-    seed: int, index: int, perception: PerceptionConfig, pans_deg: tuple[float, ...]
+    seed: int,
+    index: int,
+    perception: PerceptionConfig,
+    pans_deg: tuple[float, ...],
+    npz_path: str | None = None,
 ) -> dict[str, Any]:
     """One merge scan (Dask workers import it): scene `index` seen from each of `pans_deg`.
+
+    Args:
+        seed: The study's seed (scenes and scan streams).
+        index: The scene's index i (stream ``[seed, i, 1]``).
+        perception: The pipeline's settings; its views are replaced by `pans_deg`.
+        pans_deg: Pan angles of the views (degrees).
+        npz_path: Where to write the points of the views' segments: ``points`` (N, 3)
+            float32 (robot frame, m), ``point_segments`` (N,) int32 each point's segment row
+            in its view, ``point_views`` (N,) int8 its view; points of no segment are left
+            out. None writes none.
 
     Returns:
         ``index`` and ``views``: per view ``features`` (S_v, 25), ``labels`` (S_v, 6) 0/1,
@@ -288,6 +321,18 @@ def merge_task(
     index = check_count("index", index, minimum=0)
     cfg = dataclasses.replace(perception, pans_deg=tuple(pans_deg))
     _, scan = _scan(seed, index, cfg, (seed, index, 1))
+    if npz_path is not None:
+        on = [v.point_segments >= 0 for v in scan.views]
+        points = [v.points[m] for v, m in zip(scan.views, on, strict=True)]
+        rows = [v.point_segments[m] for v, m in zip(scan.views, on, strict=True)]
+        buf = io.BytesIO()
+        np.savez_compressed(
+            buf,
+            points=np.concatenate(points).astype(np.float32),
+            point_segments=np.concatenate(rows).astype(np.int32),
+            point_views=np.repeat(np.arange(len(on)), [len(r) for r in rows]).astype(np.int8),
+        )
+        atomic_write_bytes(npz_path, buf.getvalue())
     views = [
         {
             "features": v.features.tolist(),
@@ -434,35 +479,50 @@ def summarise_refinement(
 
 
 def _merge_scores(
-    views: list[dict[str, Any]], probs: list[np.ndarray]
-) -> tuple[float, float, float, int]:
-    """(purity, completeness, label accuracy, merged segments) of merging `views`."""
+    views: list[dict[str, Any]],
+    probs: list[np.ndarray],
+    proximity: str,
+    points: list[tuple[np.ndarray, np.ndarray]] | None,
+) -> tuple[float, float, float, float, int]:
+    """(purity, completeness, label accuracy, its point-weighted mean, merged segments).
+
+    Args:
+        views: The merge record's views (`merge_task`).
+        probs: (S_v, 6) predicted label probabilities of each view's segments.
+        proximity: `merge_views`'s proximity.
+        points: Per view its segments' points (P_v, 3) and their rows (P_v,), or None (for
+            the ``"centroid"`` proximity only).
+    """
+    given = points if points is not None else [(None, None)] * len(views)
     merged = merge_views(
         [
-            (np.reshape(v["centroids"], (-1, 3)), p, v["point_counts"])
-            for v, p in zip(views, probs, strict=True)
-        ]
+            MergeView(np.reshape(v["centroids"], (-1, 3)), p, np.asarray(v["point_counts"]), *pts)
+            for v, p, pts in zip(views, probs, given, strict=True)
+        ],
+        proximity=proximity,
     )
     groups = np.concatenate(merged.membership)
     oids = np.concatenate([np.asarray(v["object_ids"], np.int64) for v in views])
     labels = np.concatenate([np.reshape(v["labels"], (-1, len(LABELS))) for v in views])
     weights = np.concatenate([np.asarray(v["point_counts"], np.float64) for v in views])
     purity, completeness = purity_completeness(groups, oids, weights)
-    hits, total = 0, 0
+    hits = np.zeros(len(merged.point_counts))
     for g in range(len(merged.point_counts)):
         on = groups == g
         ids, inverse = np.unique(oids[on], return_inverse=True)
         top = int(np.argmax(np.bincount(inverse, weights=weights[on])))
         truth = labels[on][np.flatnonzero(ids[inverse] == ids[top])[0]].astype(bool)
-        hits += int(np.count_nonzero((merged.label_vectors[g] >= 0.5) == truth))
-        total += len(LABELS)
-    return purity, completeness, hits / total, len(merged.point_counts)
+        hits[g] = np.count_nonzero((merged.label_vectors[g] >= 0.5) == truth) / len(LABELS)
+    weighted = float(np.average(hits, weights=merged.point_counts))
+    return purity, completeness, float(hits.mean()), weighted, len(merged.point_counts)
 
 
 def summarise_merge(
     records: list[dict[str, Any]],
     scans: list[dict[str, Any]],
     view_counts: tuple[int, ...],
+    proximities: tuple[str, ...] = ("centroid",),
+    points: list[list[tuple[np.ndarray, np.ndarray]]] | None = None,
 ) -> list[dict[str, Any]]:
     """Merge the first V views of each merge scan, labelled by a classifier of the other scenes.
 
@@ -470,13 +530,31 @@ def summarise_merge(
         records: The merge tasks' records (`merge_task`).
         scans: The scene records (`scan_task`) of the classifiers' scenes.
         view_counts: The numbers of views merged.
+        proximities: `merge_views`'s proximities to measure, each of `PROXIMITIES`.
+        points: Per record, per view, its segments' points (P_v, 3) (robot frame, m) and each
+            point's segment row (P_v,) (the arrays `merge_task` writes); needed for
+            ``"points"``.
 
     Returns:
-        Rows (one per view count) with ``views``, ``scenes``, ``segments`` (merged, mean per
-        scene), ``purity``, ``completeness``, ``accuracy`` and their ``*_ci`` half-widths.
+        Rows (one per proximity and view count) with ``proximity``, ``views``, ``scenes``,
+        ``segments`` (merged, mean per scene), ``purity``, ``completeness``, ``accuracy``
+        (mean over merged segments), ``weighted_accuracy`` (each merged segment weighted by
+        its points) and their ``*_ci`` half-widths.
+
+    Raises:
+        InputError: For ``"points"`` among `proximities` without `points`, or `points` not
+            one entry per record.
     """
-    per_view: dict[int, list[tuple[float, float, float, int]]] = {v: [] for v in view_counts}
-    for rec in records:
+    if "points" in proximities and points is None:
+        raise InputError("summarise_merge needs points (per record and view) for 'points'.")
+    if points is not None and len(points) != len(records):
+        raise InputError(
+            f"points holds {len(points)} entries for {len(records)} records; give one per record."
+        )
+    per_view: dict[tuple[str, int], list[tuple[float, float, float, float, int]]] = {
+        (p, v): [] for p in proximities for v in view_counts
+    }
+    for r, rec in enumerate(records):
         train = _stack([s for s in scans if s["index"] != rec["index"]])
         model = LabelClassifier().fit(train["features"], train["labels"])
         views = rec["views"]
@@ -486,18 +564,39 @@ def summarise_merge(
             else np.zeros((0, len(LABELS)))
             for v in views
         ]
-        for n in view_counts:
-            if sum(len(v["point_counts"]) for v in views[:n]):
-                per_view[n].append(_merge_scores(views[:n], probs[:n]))
+        for proximity in proximities:
+            for n in view_counts:
+                if sum(len(v["point_counts"]) for v in views[:n]):
+                    pts = None if points is None else points[r][:n]
+                    per_view[proximity, n].append(
+                        _merge_scores(views[:n], probs[:n], proximity, pts)
+                    )
     rows = []
-    for n in view_counts:
-        scores = per_view[n]
-        row: dict[str, Any] = {"views": n, "scenes": len(scores)}
-        row["segments"] = float(np.mean([s[3] for s in scores])) if scores else math.nan
-        for k, name in enumerate(("purity", "completeness", "accuracy")):
+    for proximity, n in per_view:
+        scores = per_view[proximity, n]
+        row: dict[str, Any] = {"proximity": proximity, "views": n, "scenes": len(scores)}
+        row["segments"] = float(np.mean([s[4] for s in scores])) if scores else math.nan
+        for k, name in enumerate(("purity", "completeness", "accuracy", "weighted_accuracy")):
             row[name], row[f"{name}_ci"] = _stat([s[k] for s in scores])
         rows.append(row)
     return rows
+
+
+def _merge_points(
+    config: PointCloudStudyConfig, index: int, npz: Path
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per view of merge scene `index`, its segments' points (P_v, 3) and rows (P_v,).
+
+    Reads `npz` (`merge_task`'s arrays); scans the scene again when the record survived but
+    its arrays did not.
+    """
+    if not npz.is_file():
+        merge_task(config.seed, index, config.perception, config.merge_pans_deg, str(npz))
+    with np.load(npz) as arrays:
+        points = arrays["points"].astype(np.float64)
+        rows = arrays["point_segments"].astype(np.int64)
+        views = arrays["point_views"].astype(np.int64)
+    return [(points[views == v], rows[views == v]) for v in range(len(config.merge_pans_deg))]
 
 
 # ------------------------------------------------------------------ report
@@ -566,11 +665,15 @@ def _report(
         "## Multi-view merge (xyz < 0.05 m, label vectors < 0.7)",
         "",
         f"Views: the first V of pans {list(config.merge_pans_deg)} degrees; each scene's "
-        "classifier is trained on the other scenes.",
+        "classifier is trained on the other scenes. `proximity`: segments of two views are "
+        "close when their nearest points (`points`) or their centroids (`centroid`, the "
+        "thesis's literal reading) lie closer than 0.05 m. `accuracy` counts each merged "
+        "segment once, `weighted_accuracy` weights it by its points.",
         "",
         markdown_table(
             merge,
             [
+                "proximity",
                 "views",
                 "scenes",
                 "segments",
@@ -580,6 +683,8 @@ def _report(
                 "completeness_ci",
                 "accuracy",
                 "accuracy_ci",
+                "weighted_accuracy",
+                "weighted_accuracy_ci",
             ],
             digits=3,
         ),
@@ -620,7 +725,7 @@ def _figures(
             out / "reliability.png",
         ),
     ]
-    done = [r for r in merge if r["scenes"]]
+    done = [r for r in merge if r["scenes"] and r["proximity"] == config.merge_proximities[0]]
     if done:
         files.append(
             lf.plot_merge_views(
@@ -681,11 +786,15 @@ def run(config: PointCloudStudyConfig) -> dict[str, Any]:
         desc="chapter 2 scans",
         **common,
     )
-    mtag = _tag(config, _MERGE_FIELDS)
+    mtag = _tag(config, _MERGE_FIELDS, version=_MERGE_VERSION)
+    mnpz = [out / "merge_tasks" / f"merge_{i:03d}.{mtag}.npz" for i in range(config.merge_scenes)]
     merge_records = run_tasks(
         merge_task,
         [
-            (f"merge_{i:03d}.{mtag}", (config.seed, i, config.perception, config.merge_pans_deg))
+            (
+                f"merge_{i:03d}.{mtag}",
+                (config.seed, i, config.perception, config.merge_pans_deg, str(mnpz[i])),
+            )
             for i in range(config.merge_scenes)
         ],
         ResultStore(out / "merge_tasks"),
@@ -693,6 +802,7 @@ def run(config: PointCloudStudyConfig) -> dict[str, Any]:
         desc="chapter 2 merge scans",
         **common,
     )
+    merge_points = [_merge_points(config, i, path) for i, path in enumerate(mnpz)]
     cvs = {n: _cross_validate(config, scans[:n]) for n in sorted({*config.scene_counts})}
     if config.n_scenes not in cvs:
         cvs[config.n_scenes] = _cross_validate(config, scans[: config.n_scenes])
@@ -701,7 +811,13 @@ def run(config: PointCloudStudyConfig) -> dict[str, Any]:
     refinement, trees = summarise_refinement(
         head_data, head.probabilities, config.min_gains, config.seed
     )
-    merge = summarise_merge(merge_records, scans[: config.n_scenes], config.view_counts)
+    merge = summarise_merge(
+        merge_records,
+        scans[: config.n_scenes],
+        config.view_counts,
+        config.merge_proximities,
+        merge_points,
+    )
     files = [
         write_csv(out / "labels.csv", label_rows),
         write_csv(out / "refinement.csv", refinement),
@@ -725,3 +841,113 @@ def run(config: PointCloudStudyConfig) -> dict[str, Any]:
 def smoke_config(out: str) -> PointCloudStudyConfig:
     """The smoke-sized config writing to `out`."""
     return dataclasses.replace(PointCloudStudyConfig(out=out), **SMOKE_OVERRIDES)
+
+
+_DEMO_SCENES = 4  # scene 0 is held out, scenes 1-3 train the classifier
+_DEMO_PERCEPTION = PerceptionConfig(pans_deg=(0.0,))  # the head's centre view only, as smoke
+
+
+def _mean_precision_recall(truth: np.ndarray, probabilities: np.ndarray) -> tuple[float, float]:
+    """Mean over labels of the precision and recall of ``p >= 0.5`` (fractions).
+
+    Args:
+        truth: (S, 6) bool ground-truth labels.
+        probabilities: (S, 6) predicted probabilities.
+
+    Returns:
+        ``(precision, recall)``, each averaged over the labels where it is defined (a
+        predicted positive for precision, a true positive for recall); NaN where none is.
+    """
+    predicted = probabilities >= 0.5
+    hits = np.count_nonzero(truth & predicted, axis=0).astype(np.float64)
+    n_pred = np.count_nonzero(predicted, axis=0)
+    n_true = np.count_nonzero(truth, axis=0)
+    precision = hits[n_pred > 0] / n_pred[n_pred > 0]
+    recall = hits[n_true > 0] / n_true[n_true > 0]
+    return (
+        float(precision.mean()) if precision.size else math.nan,
+        float(recall.mean()) if recall.size else math.nan,
+    )
+
+
+def demo(out: str | Path, *, seed: int = 0, progress: bool = True) -> dict[str, Any]:
+    """One scanned office scene, segmented and labelled by a classifier of other scenes.
+
+    ``probaff demo`` calls it. It samples 4 office scenes with `seed` and scans each from its
+    robot's head (the centre view only; stream ``[seed, i]`` for scene i, as `run` does, so
+    scene 0 is the study's first scene scanned with the smoke perception), trains a
+    `LabelClassifier` on the segments of scenes 1-3 and predicts the labels of the segments of
+    scene 0, held out. It writes ``scanned_scene.png`` (the held-out cloud as the camera saw
+    it, coloured by segment and by the predicted probability of three labels) and prints two
+    lines: the segments found, and the held-out precision and recall of ``p >= 0.5`` averaged
+    over the labels, beside the thesis's.
+
+    Args:
+        out: Output folder (created).
+        seed: Seed of the scenes and the scans (an integer >= 0).
+        progress: Show a progress bar over the scans.
+
+    Returns:
+        ``{"scenes", "train_segments", "segments", "points", "unassigned", "precision_pct",
+        "recall_pct", "file"}``: scenes sampled, segments of the training scenes, segments
+        and returned points of the held-out scene, its points in no segment, the mean
+        held-out precision and recall (percent) and the figure's path.
+
+    Raises:
+        InputError: For a bad `seed` or an `out` that cannot be a folder.
+    """
+    from tqdm.auto import tqdm
+
+    from probaff.eval.label_figures import plot_scanned_scene
+
+    seed = check_count("seed", seed, minimum=0)
+    folder = check_output_dir("out", out)
+    folder.mkdir(parents=True, exist_ok=True)
+    cfg = _DEMO_PERCEPTION
+    camera = DepthCamera(load_camera())
+    scenes = sample_office_scenes(load_office(), _DEMO_SCENES, seed)
+    scans = [
+        scan_segments(
+            scene, camera, head_pose(scene, cfg.head_height), cfg, np.random.default_rng([seed, i])
+        )
+        for i, scene in enumerate(
+            tqdm(scenes, desc="chapter 2 demo scans", disable=not progress, leave=False)
+        )
+    ]
+    held, train = scans[0], scans[1:]
+    model = LabelClassifier().fit(
+        np.concatenate([s.features for s in train]), np.concatenate([s.labels for s in train])
+    )
+    view = held.views[0]
+    probabilities = model.predict_proba(view.features)
+    precision, recall = _mean_precision_recall(view.labels, probabilities)
+    file = plot_scanned_scene(
+        view.points,
+        view.point_segments,
+        probabilities,
+        folder / "scanned_scene.png",
+        viewpoint=view.viewpoint,
+        title=f"held-out office scene (seed {seed}): segments and predicted labels, camera view",
+    )
+    summary: dict[str, Any] = {
+        "scenes": len(scenes),
+        "train_segments": int(sum(len(s.labels) for s in train)),
+        "segments": view.n_segments,
+        "points": len(view.points),
+        "unassigned": view.n_unassigned,
+        "precision_pct": _pct(precision),
+        "recall_pct": _pct(recall),
+        "file": file,
+    }
+    print(
+        f"held-out office scene: {summary['segments']} segments from {summary['points']} "
+        f"points ({summary['unassigned']} in no segment); classifier trained on "
+        f"{summary['train_segments']} segments of {len(train)} other scenes"
+    )
+    thesis_p, thesis_r = THESIS_PR["average"]
+    print(
+        f"held-out precision / recall (p >= 0.5, mean over labels): "
+        f"{summary['precision_pct']:.1f} / {summary['recall_pct']:.1f} % "
+        f"(thesis: {thesis_p} / {thesis_r} %); figure: {file}"
+    )
+    return summary

@@ -1,5 +1,7 @@
 """Per-voxel features of an explored warehouse: shapes, meaning of columns, bad input."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -12,7 +14,8 @@ from probaff.sim.warehouse import WarehouseMap, generate_map
 
 @pytest.fixture(scope="module")
 def spec():
-    return load_warehouse()
+    """The idealised scanner: its grid is exact, so voxels lie on boxes only."""
+    return dataclasses.replace(load_warehouse(), sensor_kind="scanner")
 
 
 @pytest.fixture(scope="module")

@@ -13,7 +13,7 @@ from probaff.perception.labels import (
     label_index,
     reliability,
 )
-from probaff.perception.merge import merge_views
+from probaff.perception.merge import MergeView, merge_views
 from probaff.perception.refinement import label_entropy, purity_completeness, refine_segments
 
 # ---------------------------------------------------------------- labels
@@ -302,7 +302,7 @@ def test_merge_links_two_views_shifted_by_a_centimetre(rng):
     c2 = c + np.array([0.01, 0.0, 0.0])
     lab2 = np.clip(lab + rng.normal(scale=0.05, size=lab.shape), 0, 1)
     n2 = rng.integers(50, 500, size=len(n))
-    merged = merge_views([(c, lab, n), (c2, lab2, n2)])
+    merged = merge_views([(c, lab, n), (c2, lab2, n2)], proximity="centroid")
     assert len(merged.point_counts) == 5
     np.testing.assert_array_equal(merged.membership[0], np.arange(5))
     np.testing.assert_array_equal(merged.membership[1], np.arange(5))
@@ -319,31 +319,155 @@ def test_merge_keeps_distant_or_different_segments_apart():
     here = np.zeros((1, 3))
     far = np.array([[0.10, 0.0, 0.0]])
     one = np.array([100])
-    assert len(merge_views([(here, lab, one), (far, lab, one)]).point_counts) == 2
-    assert len(merge_views([(here, lab, one), (here, other, one)]).point_counts) == 2
+
+    def count(a, b, **kw):
+        return len(merge_views([a, b], proximity="centroid", **kw).point_counts)
+
+    assert count((here, lab, one), (far, lab, one)) == 2
+    assert count((here, lab, one), (here, other, one)) == 2
     # The label threshold is strict at 0.7: 0.69 links, 0.71 does not.
     near = np.array([[0.0, 0.0, 0.04]])
     for step, expected in ((0.69, 1), (0.71, 2)):
         shifted = lab.copy()
         shifted[0, 0] -= step
-        merged = merge_views([(here, lab, one), (near, shifted, one)])
-        assert len(merged.point_counts) == expected
+        assert count((here, lab, one), (near, shifted, one)) == expected
     # A larger proximity threshold links the 10 cm pair.
-    assert len(merge_views([(here, lab, one), (far, lab, one)], max_distance=0.2).centroids) == 1
+    assert count((here, lab, one), (far, lab, one), max_distance=0.2) == 1
 
 
 def test_merge_never_links_within_a_view_but_joins_through_another():
     lab = np.full((2, 6), 0.5)
     pair = np.array([[0.0, 0.0, 0.0], [0.04, 0.0, 0.0]])
     counts = np.array([10, 30])
-    alone = merge_views([(pair, lab, counts)])
+    alone = merge_views([(pair, lab, counts)], proximity="centroid")
     np.testing.assert_array_equal(alone.membership[0], [0, 1])
-    bridge = merge_views([(pair, lab, counts), (np.array([[0.02, 0.0, 0.0]]), lab[:1], [20])])
+    bridge = merge_views(
+        [(pair, lab, counts), (np.array([[0.02, 0.0, 0.0]]), lab[:1], [20])],
+        proximity="centroid",
+    )
     assert len(bridge.point_counts) == 1 and bridge.point_counts[0] == 60
     np.testing.assert_allclose(bridge.centroids[0], [(0.04 * 30 + 0.02 * 20) / 60, 0, 0])
     # An empty view is allowed and gets an empty membership.
-    with_empty = merge_views([(pair, lab, counts), (np.zeros((0, 3)), np.zeros((0, 6)), [])])
+    with_empty = merge_views(
+        [(pair, lab, counts), (np.zeros((0, 3)), np.zeros((0, 6)), [])], proximity="centroid"
+    )
     assert with_empty.membership[1].shape == (0,)
+
+
+def _strip(x0, x1, y=0.0, z=0.0, step=0.01):
+    """A row of points along x from x0 to x1 (m) at (y, z), `step` apart."""
+    x = np.arange(x0, x1 + step / 2, step)
+    return np.stack([x, np.full(len(x), y), np.full(len(x), z)], axis=1)
+
+
+def _point_view(strips, labels, noise=None):
+    """A `MergeView` of one segment per strip: its centroid, label vector and points."""
+    pts = np.concatenate(strips)
+    rows = np.repeat(np.arange(len(strips)), [len(s) for s in strips])
+    if noise is not None:  # points of no segment, row -1
+        pts, rows = np.concatenate([pts, noise]), np.concatenate([rows, np.full(len(noise), -1)])
+    return MergeView(
+        centroids=np.array([s.mean(axis=0) for s in strips]),
+        label_vectors=np.asarray(labels, dtype=float),
+        point_counts=np.array([len(s) for s in strips]),
+        points=pts,
+        point_segments=rows,
+    )
+
+
+def test_merge_points_links_overlapping_segments_whose_centroids_lie_far_apart():
+    lab = np.array([[0.9, 0.9, 0.1, 0.1, 0.9, 0.1]])
+    # One table edge seen by two views: x in [0, 1] m and [0.6, 1.6] m, overlapping by 0.4 m;
+    # the centroids lie 0.6 m apart.
+    a = _point_view([_strip(0.0, 1.0)], lab)
+    b = _point_view([_strip(0.6, 1.6)], lab)
+    assert np.linalg.norm(a.centroids[0] - b.centroids[0]) == pytest.approx(0.6)
+    merged = merge_views([a, b], proximity="points")
+    assert len(merged.point_counts) == 1 and merged.point_counts[0] == 101 + 101
+    np.testing.assert_array_equal(merged.n_views, [2])
+    np.testing.assert_allclose(merged.centroids[0], [0.8, 0.0, 0.0])
+    assert len(merge_views([a, b], proximity="centroid").point_counts) == 2
+    assert len(merge_views([a, b]).point_counts) == 1  # the points proximity is the default
+
+
+def test_merge_points_threshold_is_the_gap_between_the_nearest_points():
+    lab = np.array([[0.9, 0.9, 0.1, 0.1, 0.9, 0.1]])
+    a = _point_view([_strip(0.0, 1.0)], lab)
+    # Abutting strips: 4 cm and 6 cm past the first strip's end (x = 1 m), and beside it.
+    for gap, expected in ((0.04, 1), (0.06, 2)):
+        b = _point_view([_strip(1.0 + gap, 2.0 + gap)], lab)
+        assert len(merge_views([a, b]).point_counts) == expected, gap
+        side = _point_view([_strip(0.0, 1.0, y=gap)], lab)
+        assert len(merge_views([a, side]).point_counts) == expected, gap
+    # A larger threshold links the 6 cm pair; points of no segment (row -1) play no part.
+    b = _point_view([_strip(1.06, 2.06)], lab, noise=_strip(1.01, 1.05))
+    assert len(merge_views([a, b]).point_counts) == 2
+    assert len(merge_views([a, b], max_distance=0.07).point_counts) == 1
+
+
+def test_merge_points_label_distance_still_gates_and_views_do_not_self_link():
+    lab = np.array([[0.9, 0.9, 0.1, 0.1, 0.9, 0.1]])
+    other = np.array([[0.1, 0.1, 0.9, 0.9, 0.9, 0.1]])  # 1.6 from lab
+    a = _point_view([_strip(0.0, 1.0)], lab)
+    b = _point_view([_strip(0.5, 1.5)], other)
+    assert len(merge_views([a, b]).point_counts) == 2
+    for step, expected in ((0.69, 1), (0.71, 2)):
+        shifted = lab.copy()
+        shifted[0, 0] -= step
+        c = _point_view([_strip(0.5, 1.5)], shifted)
+        assert len(merge_views([a, c]).point_counts) == expected
+    # Two touching segments of one view stay apart, and join through a third of another view:
+    # a small segment next to the big one (8 cm to its right), bridged by one in between.
+    pair = _point_view([_strip(0.0, 1.0), _strip(1.08, 1.3)], np.repeat(lab, 2, axis=0))
+    np.testing.assert_array_equal(merge_views([pair]).membership[0], [0, 1])
+    bridge = _point_view([_strip(1.0, 1.1)], lab)
+    merged = merge_views([pair, bridge])
+    assert len(merged.point_counts) == 1 and merged.point_counts[0] == 101 + 23 + 11
+    # A view without segments (its points, if any, in none) takes no part.
+    empty = MergeView(np.zeros((0, 3)), np.zeros((0, 6)), np.zeros(0), _strip(1, 2), [-1] * 101)
+    merged = merge_views([pair, empty, bridge])
+    assert len(merged.point_counts) == 1 and merged.membership[1].shape == (0,)
+
+
+def test_merge_points_nearest_pair_not_hidden_by_a_closer_segment():
+    # Each point of `a` is nearer to b's segment 0 than to its segment 1, yet a lies within
+    # 4 cm of segment 1; segment 0's labels differ from a's.
+    lab = np.array([[0.9, 0.9, 0.1, 0.1, 0.9, 0.1]])
+    other = np.array([[0.1, 0.1, 0.9, 0.9, 0.9, 0.1]])
+    a = _point_view([_strip(0.0, 0.2)], lab)
+    b = _point_view([_strip(0.0, 0.2, z=0.01), _strip(0.0, 0.2, z=0.04)], np.vstack([other, lab]))
+    merged = merge_views([a, b])
+    np.testing.assert_array_equal(merged.membership[0], [0])
+    np.testing.assert_array_equal(merged.membership[1], [1, 0])
+
+
+def test_merge_points_matches_brute_force(rng):
+    # Random blobs in three views: the merged segments are the connected components of the
+    # links found from all pairwise point distances.
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial.distance import cdist
+
+    views, sets = [], []
+    for v in range(3):
+        centres = rng.uniform(0, 0.6, size=(6, 3))
+        blobs = [c + rng.normal(scale=0.03, size=(int(rng.integers(5, 40)), 3)) for c in centres]
+        lab = np.clip(0.5 + rng.normal(scale=0.3, size=(6, 6)), 0, 1)
+        views.append(_point_view(blobs, lab))
+        sets += [(v, b, lab[k]) for k, b in enumerate(blobs)]
+    links = np.array(
+        [
+            [
+                vi != vj and cdist(bi, bj).min() < 0.05 and np.linalg.norm(li - lj) < 0.7
+                for vj, bj, lj in sets
+            ]
+            for vi, bi, li in sets
+        ]
+    )
+    assert 0 < links.sum() < links.size / 4  # some links, not all
+    _, component = connected_components(links, directed=False)
+    group = np.concatenate(merge_views(views).membership)
+    # The same partition: equal groups exactly where the components are equal.
+    np.testing.assert_array_equal(group[:, None] == group, component[:, None] == component)
 
 
 def test_merge_errors(rng):
@@ -355,21 +479,55 @@ def test_merge_errors(rng):
     bad = c.copy()
     bad[1, 2] = np.inf
     with pytest.raises(InputError, match=r"views\[0\] centroids contains 1 NaN or infinite"):
-        merge_views([(bad, lab, n)])
+        merge_views([(bad, lab, n)], proximity="centroid")
     with pytest.raises(InputError, match=r"views\[1\] label_vectors must lie in \[0, 1\]"):
-        merge_views([(c, lab, n), (c, lab + 1, n)])
+        merge_views([(c, lab, n), (c, lab + 1, n)], proximity="centroid")
     with pytest.raises(InputError, match="label_vectors has shape"):
-        merge_views([(c, lab[:, :5], n)])
+        merge_views([(c, lab[:, :5], n)], proximity="centroid")
     with pytest.raises(InputError, match="point_counts has shape"):
-        merge_views([(c, lab, n[:2])])
+        merge_views([(c, lab, n[:2])], proximity="centroid")
     with pytest.raises(InputError, match="positive integers"):
-        merge_views([(c, lab, n * 0)])
+        merge_views([(c, lab, n * 0)], proximity="centroid")
     with pytest.raises(InputError, match="positive integers"):
-        merge_views([(c, lab, n + 0.5)])
+        merge_views([(c, lab, n + 0.5)], proximity="centroid")
     with pytest.raises(InputError, match="no segments"):
-        merge_views([(np.zeros((0, 3)), np.zeros((0, 6)), np.zeros(0))])
+        merge_views([(np.zeros((0, 3)), np.zeros((0, 6)), np.zeros(0))], proximity="centroid")
     with pytest.raises(InputError, match="max_distance"):
-        merge_views([(c, lab, n)], max_distance=0.0)
+        merge_views([(c, lab, n)], proximity="centroid", max_distance=0.0)
     with pytest.raises(InputError, match="numeric"):
-        merge_views([(c, lab, ["a", "b", "c"])])
+        merge_views([(c, lab, ["a", "b", "c"])], proximity="centroid")
     assert issubclass(InputError, ProbaffError)
+
+
+def test_merge_proximity_and_point_errors():
+    lab = np.full((2, 6), 0.5)
+    view = _point_view([_strip(0.0, 0.1), _strip(0.5, 0.6)], lab)
+    c, n = view.centroids, view.point_counts
+    pts, rows = view.points, view.point_segments
+
+    def with_points(points, point_segments):
+        return MergeView(c, lab, n, points, point_segments)
+
+    with pytest.raises(InputError, match="proximity must be one of 'points', 'centroid'"):
+        merge_views([view], proximity="centroids")
+    with pytest.raises(InputError, match=r"views \[0\] give no points.*proximity='centroid'"):
+        merge_views([(c, lab, n)])
+    with pytest.raises(InputError, match=r"views\[0\] points has shape"):
+        merge_views([with_points(pts[:, :2], rows)])
+    with pytest.raises(InputError, match=r"views\[0\] point_segments has shape"):
+        merge_views([with_points(pts, rows[:-1])])
+    nan = pts.copy()
+    nan[3, 1] = np.nan
+    with pytest.raises(InputError, match=r"views\[0\] points contains 1 NaN"):
+        merge_views([with_points(nan, rows)])
+    # Point rows must name the view's segments: a row past them, or a segment without points.
+    with pytest.raises(InputError, match=r"row in \[0, 2\)"):
+        merge_views([with_points(pts, np.where(rows == 1, 2, rows))])
+    with pytest.raises(InputError, match=r"row in \[0, 2\)"):
+        merge_views([with_points(pts, rows - 0.5)])
+    with pytest.raises(InputError, match=r"no point to segment\(s\) \[1\] of its 2"):
+        merge_views([with_points(pts, np.where(rows == 1, -1, rows))])
+    with pytest.raises(InputError, match="without point_segments"):
+        merge_views([with_points(pts, None)])
+    with pytest.raises(InputError, match="MergeView or a"):
+        merge_views(["abc"])

@@ -1,5 +1,7 @@
 """The occupancy grid: exact ray traversal, states, per-cell summaries and frontiers."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -12,7 +14,8 @@ from probaff.sim.warehouse import WarehouseMap
 
 @pytest.fixture(scope="module")
 def spec():
-    return load_warehouse()
+    """The idealised scanner, whose rays reach the walls (the analytic cases below)."""
+    return dataclasses.replace(load_warehouse(), sensor_kind="scanner")
 
 
 def _scan(origin, ends, hits):
@@ -106,3 +109,17 @@ def test_bad_scan():
         g.update(_scan([0.5, 0.5], [[np.nan, 0.5]], [True]))
     with pytest.raises(InputError):
         g.update(_scan([0.5, 0.5], [[1.0, 0.5]], [True, False]))
+
+
+def test_one_camera_scan_of_one_box():
+    spec = load_warehouse()  # the head camera: 4.5 m range, floor returns prove free space
+    m = WarehouseMap.from_boxes((12, 12), [(6, 8)])
+    scan = DepthSensor(spec, m).scan(m.cell_centre(np.array([6, 5])), np.random.default_rng(0))
+    g = OccupancyGrid(m.shape, m.cell_size)
+    g.update(scan)
+    states = g.cell_states()
+    assert states[6, 8] == OCCUPIED  # the box's face, 2.5 m ahead
+    assert states[6, 9] == UNKNOWN  # in its shadow
+    assert (states[6, 6:8] == FREE_SPACE).all() and (states[5:8, 4] == FREE_SPACE).all()
+    assert (states[0] == UNKNOWN).all()  # the walls are beyond the camera's range
+    assert (states == OCCUPIED).sum() == 1

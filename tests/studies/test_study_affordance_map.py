@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from probaff.errors import InputError
-from probaff.studies.affordance_map import AffordanceMapConfig, demo, run
+from probaff.studies.affordance_map import AffordanceMapConfig, demo, run, world
 
 pytestmark = pytest.mark.slow
 
@@ -62,9 +62,21 @@ def test_bad_config(tmp_path):
 
 def test_demo(tmp_path, capsys):
     out = demo(tmp_path, seed=0, steps=2)
-    assert out["entropy_before"] > 0 and out["entropy_after"] >= 0
-    assert len(out["pushes"]) <= 2 and Path(out["figure"]).stat().st_size > 0
-    assert "map entropy before" in capsys.readouterr().out
+    assert len(out["entropy"]) == len(out["accuracy"]) == len(out["pushes"]) + 1 == 3
+    assert out["entropy"][0] > 0.5  # a classifier trained on two maps is unsure of some boxes
+    assert out["entropy"][2] < out["entropy"][0]  # the pushes resolve some of it
+    assert len(out["moved"]) == 2 and Path(out["figure"]).stat().st_size > 0
+    assert "map entropy by step" in capsys.readouterr().out
+
+
+def test_sensor_choice_is_checked(tmp_path):
+    with pytest.raises(InputError, match="sensor must be one of camera, scanner"):
+        AffordanceMapConfig(sensor="lidar", out=str(tmp_path)).validate()
+    with pytest.raises(InputError, match="scanner's range noise"):
+        AffordanceMapConfig(sensor_noise=0.2, out=str(tmp_path)).validate()
+    config = AffordanceMapConfig(sensor_noise=0.2, sensor="scanner", out=str(tmp_path))
+    assert config.validate().fingerprint() != AffordanceMapConfig(sensor="scanner").fingerprint()
+    assert world(0.2, "scanner").sensor_noise == 0.2 and world().sensor_kind == "camera"
 
 
 def test_script_smoke(tmp_path):

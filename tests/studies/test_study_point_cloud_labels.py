@@ -19,7 +19,7 @@ from probaff.eval.label_figures import (
     plot_segment_cloud,
 )
 from probaff.perception.labels import LABELS, THESIS_PR
-from probaff.studies.point_cloud_labels import PointCloudStudyConfig, run
+from probaff.studies.point_cloud_labels import PointCloudStudyConfig, run, summarise_merge
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -77,15 +77,35 @@ def test_script_smoke_and_resume(tmp_path, monkeypatch, capsys):
     refinement = _rows(out / "refinement.csv")
     assert len(refinement) == 1 and float(refinement[0]["purity_before"]) == 1.0
     assert float(refinement[0]["groups"]) <= float(refinement[0]["segments"])
-    merge = _rows(out / "merge.csv")
-    assert [int(r["views"]) for r in merge] == [1, 2]
-    assert float(merge[1]["segments"]) >= float(merge[0]["segments"])  # more views, more seen
+    merge = {(r["proximity"], int(r["views"])): r for r in _rows(out / "merge.csv")}
+    assert list(merge) == [("points", 1), ("points", 2), ("centroid", 1), ("centroid", 2)]
+    centroid, points = merge["centroid", 2], merge["points", 2]
+    assert float(centroid["segments"]) >= float(merge["centroid", 1]["segments"])  # more seen
+    # One view merges nothing either way; over two, the points link more than the centroids.
+    assert merge["points", 1] == {**merge["centroid", 1], "proximity": "points"}
+    assert float(points["segments"]) < float(centroid["segments"])
+    assert float(points["completeness"]) > float(centroid["completeness"])
+    record = json.loads(merges[0].read_text())
+    with np.load(merges[0].with_suffix(".npz")) as merged_points:
+        for v, view in enumerate(record["views"]):  # the npz's points are the views' segments'
+            on = merged_points["point_views"] == v
+            rows = np.bincount(merged_points["point_segments"][on], minlength=1)
+            assert rows.tolist() == view["point_counts"]
+            assert merged_points["points"][on].shape == (int(on.sum()), 3)
     text = (out / "summary.md").read_text()
     assert "195 segments from 10 office scenes" in text and "81.8 / 81.7" in text
 
+    merges += [p.with_suffix(".npz") for p in merges]
     stamp = [p.stat().st_mtime_ns for p in scans + merges]
     assert _script(out, monkeypatch, capsys) == files  # resumes: no rescans
     assert [p.stat().st_mtime_ns for p in scans + merges] == stamp
+
+
+def test_summarise_merge_needs_points_for_the_points_proximity():
+    with pytest.raises(InputError, match="needs points"):
+        summarise_merge([], [], (1,), ("points", "centroid"))
+    with pytest.raises(InputError, match="1 records; give one per record"):
+        summarise_merge([{"index": 0, "views": []}], [], (1,), ("points",), [])
 
 
 @pytest.mark.parametrize(
@@ -102,6 +122,9 @@ def test_script_smoke_and_resume(tmp_path, monkeypatch, capsys):
         ({"merge_scenes": 11}, "merge_scenes=11 exceeds n_scenes=10"),
         ({"perception": {"k": 30}}, "perception must be a PerceptionConfig"),
         ({"merge_pans_deg": (float("inf"),), "view_counts": (1,)}, "merge_pans_deg must be"),
+        ({"merge_proximities": ("centroids",)}, "merge_proximities must hold distinct names"),
+        ({"merge_proximities": ("points", "points")}, "merge_proximities must hold distinct"),
+        ({"merge_proximities": ()}, "merge_proximities must hold distinct names among points"),
     ],
 )
 def test_bad_config(tmp_path, overrides, message):
