@@ -1,9 +1,9 @@
 """A bad flag to a study script or to `probaff generate` prints one line and exits 2.
 
 The study scripts (inference/affordance_map.py, inference/push_models.py,
-inference/planning.py) run in this process through `runpy`, with the studies' first heavy step
-replaced by a tripwire: every case must be refused before any work starts. One case runs in a
-real subprocess.
+inference/planning.py, inference/point_cloud_labels.py) run in this process through `runpy`,
+with the studies' first heavy step replaced by a tripwire: every case must be refused before
+any work starts. One case runs in a real subprocess.
 """
 
 import re
@@ -22,6 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 AFFORDANCE = ROOT / "inference" / "affordance_map.py"
 PUSH_MODELS = ROOT / "inference" / "push_models.py"
 PLANNING = ROOT / "inference" / "planning.py"
+POINT_CLOUD = ROOT / "inference" / "point_cloud_labels.py"
 FILE = "<a regular file>"  # replaced by a file in tmp_path
 
 CASES = [
@@ -31,6 +32,11 @@ CASES = [
     (AFFORDANCE, ["--alpha", "5"], r"alpha must lie in \[0, 1\]"),
     (AFFORDANCE, ["--sensor-noise", "-1"], "sensor_noise must be a number >= 0"),
     (AFFORDANCE, ["--n-maps", "0"], "n_maps must be a positive integer, got 0"),
+    (AFFORDANCE, ["--sensor", "lidar"], "sensor must be one of camera, scanner, got 'lidar'"),
+    (AFFORDANCE, ["--sensor-noise", "0.2"], "sensor_noise sets the idealised scanner's range"),
+    (POINT_CLOUD, ["--n-scenes", "0"], "n_scenes must be an integer >= 2, got 0"),
+    (POINT_CLOUD, ["--min-gains", "-1"], "min_gains must be finite numbers >= 0"),
+    (POINT_CLOUD, ["--merge-proximities", "foo"], "merge_proximities must hold distinct names"),
     (PUSH_MODELS, ["--seed", "-1"], "seed must be an integer >= 0, got -1"),
     (PUSH_MODELS, ["--workers", "-2"], "workers must be None or an integer >= 0, got -2"),
     (PUSH_MODELS, ["--methods", "foo"], "unknown method 'foo'"),
@@ -48,15 +54,16 @@ CASES = [
 def _studies():
     import probaff.studies.affordance_map as am
     import probaff.studies.planning as pl
+    import probaff.studies.point_cloud_labels as pc
     import probaff.studies.push_models as pm
 
-    return am, pm, pl
+    return am, pm, pl, pc
 
 
 @pytest.fixture
 def tripwire(monkeypatch, _studies):
     """Fail the test if a study gets past its validation into real work."""
-    am, pm, pl = _studies
+    am, pm, pl, pc = _studies
 
     def work(*args, **kwargs):
         raise AssertionError("a bad flag passed validation and the study started")
@@ -65,6 +72,7 @@ def tripwire(monkeypatch, _studies):
     monkeypatch.setattr(am, "run_tasks", work)
     monkeypatch.setattr(pm, "generate", work)
     monkeypatch.setattr(pl, "generate", work)
+    monkeypatch.setattr(pc, "run_tasks", work)
 
 
 def _run_script(monkeypatch, script, args):

@@ -68,9 +68,13 @@ def test_script_smoke_and_resume(tmp_path, monkeypatch, capsys):
     assert all(0 < p <= 1 for p in first["purity"])
 
     labels = _rows(out / "labels.csv")
-    assert [r["label"] for r in labels] == [*LABELS, "average"]
-    total = sum(len(json.loads(p.read_text())["object_ids"]) for p in scans)
-    assert {int(r["segments"]) for r in labels} == {total}
+    assert [r["label"] for r in labels] == [*LABELS, "average"] * 2
+    assert [r["min_points"] for r in labels] == ["50"] * 7 + ["300"] * 7
+    records = [json.loads(p.read_text()) for p in scans]
+    total = sum(len(r["object_ids"]) for r in records)
+    large = sum(int(n >= 300) for r in records for n in r["point_counts"])
+    assert {int(r["segments"]) for r in labels[:7]} == {total}
+    assert {int(r["segments"]) for r in labels[7:]} == {large} and large < total
     for r in labels:
         assert float(r["thesis_precision_pct"]) == THESIS_PR[r["label"]][0]
         assert 0.0 <= float(r["auc"]) <= 1.0
