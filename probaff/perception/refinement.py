@@ -26,6 +26,10 @@ H(C2))``, with equality only when ``C1 = C2``. With the thesis's rule (``min_gai
 set of two or more distinct label vectors is therefore split, and the tree only stops at sets of
 identical label vectors, at `min_size` or at `max_depth`. ``min_gain > 0`` (our addition) stops
 splits that lower the entropy by less, e.g. splits within one object's noisy label vectors.
+Measured on the chapter 2 study's 10 scanned scenes (``inference/point_cloud_labels.py``;
+point-weighted purity / completeness of the groups, from 1.00 / 0.57 before): 1.00 / 0.57 at
+``min_gain = 0``, 0.96 / 0.70 at 0.05, 0.88 / 0.78 at 0.1 and 0.73 / 0.88 at 0.2. We use 0.1,
+the best harmonic mean of the two (0.83); the default stays the thesis's 0.
 
 Other limits (our choices): a child must hold at least `min_size` segments (default 1, no
 limit); `max_depth` bounds the depth of the tree (default none; the tree has at most ``2 S - 1``

@@ -39,6 +39,7 @@ from probaff._threads import torch_threads
 from probaff.errors import InputError
 from probaff.eval.fingerprint import config_fingerprint
 from probaff.eval.map_figures import plot_loop_steps, plot_mrf_smoothing, plot_step_curves
+from probaff.eval.metrics import mean_halfwidth
 from probaff.eval.tasks import ResultStore, run_tasks
 from probaff.grid import DIRECTION_NAMES
 from probaff.maps.options import MRFParams
@@ -90,6 +91,8 @@ class AffordanceMapConfig:
         sensor: The robot's sensor, one of `SENSOR_KINDS`: ``"camera"`` (the head's depth
             camera of chapter 2) or ``"scanner"`` (the idealised range scanner); None keeps
             the world file's (the camera).
+        entropy_target: The map entropy to reach, as a share of the map's initial one (both
+            under the MRF): the summary counts each policy's steps until its map gets there.
         stop_at_no_gain: Stop the information-gain loop when every ``G < 0`` (the thesis's
             rule); False keeps it pushing to `max_steps`, for a step-by-step comparison.
     """
@@ -105,6 +108,7 @@ class AffordanceMapConfig:
     progress: bool = True
     sensor_noise: float | None = None
     sensor: str | None = None
+    entropy_target: float = 0.5
     stop_at_no_gain: bool = True
     alpha: InitVar[float | None] = None
     coupling: InitVar[float | None] = None
@@ -154,6 +158,11 @@ class AffordanceMapConfig:
         ):
             raise InputError(f"sensor_noise must be a number >= 0, got {self.sensor_noise!r}.")
         world(self.sensor_noise, self.sensor)  # the sensor's name and noise, checked
+        if not (isinstance(self.entropy_target, (int, float)) and 0 < self.entropy_target < 1):
+            raise InputError(
+                f"entropy_target must be a share in (0, 1) of the initial map entropy, got "
+                f"{self.entropy_target!r}."
+            )
         workers = check_workers(self.workers)
         return dataclasses.replace(
             self,
@@ -169,7 +178,7 @@ class AffordanceMapConfig:
         return config_fingerprint(self, exclude=RUN_ONLY, version=2)
 
 
-RUN_ONLY = frozenset({"n_maps", "out", "workers", "scheduler", "progress"})
+RUN_ONLY = frozenset({"n_maps", "out", "workers", "scheduler", "progress", "entropy_target"})
 """Fields of `AffordanceMapConfig` that do not change any map's result (each map's result is
 keyed by its index, so more maps only add results)."""
 
@@ -434,6 +443,20 @@ def _auc(curve: np.ndarray) -> float:
     return float(np.sum(0.5 * (c[1:] + c[:-1]))) if c.size > 1 else float(c.sum())
 
 
+def _steps_to(curve: np.ndarray, target: float) -> float:
+    """First step at which a map's curve falls to `target` times its start; NaN if never."""
+    reached = np.flatnonzero(curve <= target * curve[0])
+    return float(reached[0]) if reached.size and curve[0] > 0 else math.nan
+
+
+def _mean_ci(values: list[float]) -> tuple[float | None, float | None]:
+    """Mean and 95 % Student-t half-width of the finite values (None when there are none)."""
+    v = [x for x in values if math.isfinite(x)]
+    if not v:
+        return None, None
+    return float(np.mean(v)), (mean_halfwidth(v) if len(v) > 1 else None)
+
+
 def _summarise(
     config: AffordanceMapConfig, results: list[dict[str, Any]], training: dict[str, Any] | None
 ) -> tuple[dict[str, Any], str, dict[str, dict[str, np.ndarray]]]:
@@ -493,6 +516,21 @@ def _summarise(
                 for reason in ("no_gain", "no_candidate", "max_steps")
             },
         }
+    per_map_auc = {p: [_auc(c) for c in curves[p]["entropy_mrf"]] for p in POLICIES}
+    for p in POLICIES:
+        reach = [_steps_to(c, config.entropy_target) for c in curves[p]["entropy_mrf"]]
+        _, auc_ci = _mean_ci(per_map_auc[p])  # the mean is the AUC of the mean curve
+        steps_mean, steps_ci = _mean_ci(reach)
+        summary["policies"][p].update(
+            {
+                "entropy_mrf_auc_ci": auc_ci,
+                "steps_to_target": steps_mean,
+                "steps_to_target_ci": steps_ci,
+                "reached_target": int(sum(math.isfinite(x) for x in reach)),
+            }
+        )
+    diff = [a - b for a, b in zip(*(per_map_auc[p] for p in POLICIES), strict=True)]
+    summary["auc_difference"] = dict(zip(("mean", "ci"), _mean_ci(diff), strict=True))
     summary["task_seconds"] = float(sum(r["seconds"] for r in results))
     return summary, "\n".join(csv) + "\n", curves
 
@@ -556,7 +594,26 @@ def _markdown(config: AffordanceMapConfig, s: dict[str, Any], steps: int) -> str
             f"{_fmt(d['detection_agreement'], 3)} | {st['no_gain']} / {st['no_candidate']} / "
             f"{st['max_steps']} |"
         )
+    diff = s["auc_difference"]
     lines += [
+        "",
+        f"Per map, under the MRF (± 95 % Student-t half-width over maps): area under the "
+        f"entropy curve and steps until the map entropy falls to {config.entropy_target:g} "
+        "of its start (over the maps that got there).",
+        "",
+        "| policy | AUC H (MRF) | steps to target | maps reaching it |",
+        "|---|---|---|---|",
+    ]
+    for p, d in (("information gain", ig), ("exhaustive", ex)):
+        lines.append(
+            f"| {p} | {_fmt(d['entropy_mrf_auc'], 2)} ± {_fmt(d['entropy_mrf_auc_ci'], 2)} | "
+            f"{_fmt(d['steps_to_target'], 1)} ± {_fmt(d['steps_to_target_ci'], 1)} | "
+            f"{d['reached_target']} / {s['maps']} |"
+        )
+    lines += [
+        "",
+        f"AUC H (MRF), information gain minus exhaustive, paired by map: "
+        f"{_fmt(diff['mean'], 2)} ± {_fmt(diff['ci'], 2)}.",
         "",
         "## Per step (means over maps)",
         "",

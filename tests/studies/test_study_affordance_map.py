@@ -1,10 +1,13 @@
 """The affordance-map study runs end to end on a shrunken configuration and resumes."""
 
+import dataclasses
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from probaff.errors import InputError
@@ -86,3 +89,15 @@ def test_script_smoke(tmp_path):
     files = json.loads(proc.stdout)["files"]
     for name in FILES:
         assert str(out / name) in files.values() and (out / name).stat().st_size > 0
+
+
+def test_steps_to_the_entropy_target():
+    from probaff.studies.affordance_map import _steps_to
+
+    assert _steps_to(np.array([4.0, 3.0, 2.0, 1.0]), 0.5) == 2.0
+    assert math.isnan(_steps_to(np.array([4.0, 3.5, 3.0]), 0.5))
+    assert math.isnan(_steps_to(np.array([0.0, 0.0]), 0.5))  # nothing to reduce
+    with pytest.raises(InputError, match="entropy_target"):
+        AffordanceMapConfig(entropy_target=1.5).validate()
+    base = AffordanceMapConfig(sensor="scanner")
+    assert dataclasses.replace(base, entropy_target=0.25).fingerprint() == base.fingerprint()
