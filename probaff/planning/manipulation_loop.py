@@ -21,7 +21,10 @@ Each step:
 4. update (the push's record is a `VerifiedPush`): the true map, and the confirmed
    affordances. When the robot concludes that the box moved, the two cells the move changed
    (the one it left and the one it entered) take what the new scan saw of them: their
-   occupancy sub-cells and their points are replaced by the scan's.
+   occupancy sub-cells and their points are replaced by the scan's; with ``carry_points`` (the
+   default, our addition) the box also takes the points of its old cell along, moved one cell,
+   since the scan from the access cell sees only its near face and a half-seen box would get
+   unsure unaries again.
    The rest of the map keeps its exploration, so that one noisy scan cannot outvote it (with a
    noisy sensor, a single scan's stray hits in rarely-crossed sub-cells would raise phantom
    boxes). The unaries of the changed cells and their 4-neighbours are then recomputed from the
@@ -375,6 +378,8 @@ class ManipulationLoop:
         stop_at_no_gain: Stop the information-gain policy when every ``G < 0`` (the thesis's
             rule); False keeps pushing the best candidate until `run`'s step limit, to compare
             the policies' choices step by step.
+        carry_points: When a box is seen to move, move its old cell's points with it (one
+            cell), besides what the new scan saw of the two cells; False keeps only the scan's.
 
     Raises:
         InputError: For an unknown policy, ``alpha`` outside [0, 1], a bad coupling, or a
@@ -398,6 +403,7 @@ class ManipulationLoop:
         free_fraction: float = 0.75,
         method: str = "auto",
         stop_at_no_gain: bool = True,
+        carry_points: bool = True,
     ) -> None:
         if policy not in POLICIES:
             raise InputError(f"policy must be one of {POLICIES}, got {policy!r}.")
@@ -426,6 +432,7 @@ class ManipulationLoop:
         self.classifier = classifier
         self.method = method
         self.stop_at_no_gain = bool(stop_at_no_gain)
+        self.carry_points = bool(carry_points)
         self.free_fraction = float(free_fraction)
         self.rng = rng if rng is not None else np.random.default_rng(0)
         self.true_map = true_map
@@ -629,12 +636,19 @@ class ManipulationLoop:
         fine = np.kron(mask, np.ones((self.grid.per_cell,) * 2, dtype=bool))
         self.grid.passes[fine] = seen.passes[fine]
         self.grid.hits[fine] = seen.hits[fine]
-        self.points = np.concatenate(
-            [
-                self.points[~self._in_cells(self.points, mask)],
-                scan.points[self._in_cells(scan.points, mask)],
-            ]
-        )
+        kept = [
+            self.points[~self._in_cells(self.points, mask)],
+            scan.points[self._in_cells(scan.points, mask)],
+        ]
+        if self.carry_points and len(changed) == 2:
+            # The box took its points along: those of its old cell, moved one cell (world xy).
+            step = self.grid.cell_size * np.array(
+                [DIRECTION_OFFSETS[d][1], -DIRECTION_OFFSETS[d][0], 0.0]
+            )
+            source = np.zeros(shape, dtype=bool)
+            source[cell] = True
+            kept.append(self.points[self._in_cells(self.points, source)] + step)
+        self.points = np.concatenate(kept)
         self.confirmed = {
             (r, c, e): v
             for (r, c, e), v in self.confirmed.items()

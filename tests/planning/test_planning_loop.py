@@ -7,6 +7,7 @@ import pytest
 import torch
 
 from probaff.errors import InputError
+from probaff.grid import DIRECTION_OFFSETS
 from probaff.maps.entropy import map_entropy
 from probaff.maps.inference import affordance_marginals
 from probaff.maps.options import MRFParams
@@ -196,3 +197,39 @@ def test_old_loop_module_warns_and_aliases_the_renamed_outcome():
         old = importlib.import_module("probaff.maps.loop")
     assert old.PushOutcome is VerifiedPush and old.ManipulationLoop is ManipulationLoop
     assert VerifiedPush is not tabletop.PushOutcome
+
+
+def test_a_moved_box_takes_its_points_along(world, classifier):
+    m, ex = world
+    loops = {
+        carry: ManipulationLoop(
+            SPEC,
+            m,
+            ex,
+            classifier,
+            policy="exhaustive",
+            rng=np.random.default_rng(3),
+            carry_points=carry,
+        )
+        for carry in (False, True)
+    }
+    while True:  # both loops make the same pushes until the first move
+        choices = {carry: loop.choose()[0] for carry, loop in loops.items()}
+        assert choices[False] is not None and choices[False].cell == choices[True].cell
+        old = {carry: loop.points.copy() for carry, loop in loops.items()}
+        outcome = {carry: loops[carry].execute(choices[carry]) for carry in loops}
+        if outcome[True].observed:
+            break
+    cell, d = choices[True].cell, choices[True].direction
+    dest = (cell[0] + DIRECTION_OFFSETS[d][0], cell[1] + DIRECTION_OFFSETS[d][1])
+    source = m.cell_of(old[True][:, :2])
+    carried = old[True][(source[:, 0] == cell[0]) & (source[:, 1] == cell[1])]
+    step = np.array([DIRECTION_OFFSETS[d][1], -DIRECTION_OFFSETS[d][0], 0.0])  # one 1 m cell
+    in_dest = {
+        carry: loop.points[(m.cell_of(loop.points[:, :2]) == dest).all(1)]
+        for carry, loop in loops.items()
+    }
+    assert len(carried) > 0
+    assert len(in_dest[True]) == len(in_dest[False]) + len(carried)
+    moved = in_dest[True][-len(carried) :]
+    np.testing.assert_allclose(np.sort(moved, 0), np.sort(carried + step, 0))
