@@ -175,7 +175,7 @@ class AffordanceMapConfig:
 
     def fingerprint(self) -> str:
         """Short hash of every setting that changes a map's result (see `RUN_ONLY`)."""
-        return config_fingerprint(self, exclude=RUN_ONLY, version=2)
+        return config_fingerprint(self, exclude=RUN_ONLY, version=3)  # 3: carried points, camera
 
 
 RUN_ONLY = frozenset({"n_maps", "out", "workers", "scheduler", "progress", "entropy_target"})
