@@ -57,6 +57,22 @@ def _cloud(
     return pts[keep], seg.astype(np.int64)[keep]
 
 
+def _cloud_probabilities(
+    points: object, point_segments: object, probabilities: object, max_points: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`_cloud`'s points and rows, and the (S, 6) probabilities checked against those rows."""
+    pts, seg = _cloud(points, point_segments, max_points)
+    check_shape("probabilities", probabilities, (None, len(LABELS)))
+    prob = np.asarray(probabilities, dtype=np.float64)
+    check_probability("probabilities", prob)
+    if seg.size and seg.max() >= prob.shape[0]:
+        raise InputError(
+            f"point_segments refers to row {int(seg.max())} but probabilities has "
+            f"{prob.shape[0]} rows; give one row per segment."
+        )
+    return pts, seg, prob
+
+
 def _save(fig: Figure, path: str | os.PathLike[str]) -> str:
     atomic_save_figure(fig, path, dpi=80)
     return os.fspath(path)
@@ -150,15 +166,7 @@ def plot_scanned_scene(
             segment row beyond the probabilities' rows, no or unknown `labels`, or a bad
             `viewpoint`.
     """
-    pts, seg = _cloud(points, point_segments, max_points)
-    check_shape("probabilities", probabilities, (None, len(LABELS)))
-    prob = np.asarray(probabilities, dtype=np.float64)
-    check_probability("probabilities", prob)
-    if seg.size and seg.max() >= prob.shape[0]:
-        raise InputError(
-            f"point_segments refers to row {int(seg.max())} but probabilities has "
-            f"{prob.shape[0]} rows; give one row per segment."
-        )
+    pts, seg, prob = _cloud_probabilities(points, point_segments, probabilities, max_points)
     if isinstance(labels, str) or not labels:
         raise InputError(f"labels must be a non-empty tuple of names in {LABELS}, got {labels!r}.")
     columns = [label_index(name) for name in labels]
@@ -244,15 +252,7 @@ def plot_label_probabilities(
         InputError: For an empty cloud, mismatched shapes, probabilities outside [0, 1], or a
             segment row beyond the probabilities' rows.
     """
-    pts, seg = _cloud(points, point_segments, max_points)
-    check_shape("probabilities", probabilities, (None, len(LABELS)))
-    prob = np.asarray(probabilities, dtype=np.float64)
-    check_probability("probabilities", prob)
-    if seg.size and seg.max() >= prob.shape[0]:
-        raise InputError(
-            f"point_segments refers to row {int(seg.max())} but probabilities has "
-            f"{prob.shape[0]} rows; give one row per segment."
-        )
+    pts, seg, prob = _cloud_probabilities(points, point_segments, probabilities, max_points)
     on = seg >= 0
     fig = Figure(figsize=(13, 7.5))
     axes = fig.subplots(2, 3, gridspec_kw={"hspace": 0.35, "wspace": 0.3}).ravel()

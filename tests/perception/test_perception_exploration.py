@@ -33,15 +33,20 @@ def test_grid_distances():
     assert grid_distances(~passable, (1, 0))[0, 0] == -1
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_every_reachable_cell_is_observed(spec, seed):
+def _explored(spec, seed):
+    """A generated map explored from a random free cell: map, start, run, states, reachable."""
     rng = np.random.default_rng(seed)
     m = generate_map(spec, rng)
     free = np.argwhere(~m.occupancy)
     start = free[rng.integers(len(free))]
     run = explore(spec, m, start, rng)
-    states = run.grid.cell_states()
     reach = grid_distances(~m.occupancy, tuple(start)) >= 0
+    return m, start, run, run.grid.cell_states(), reach
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_every_reachable_cell_is_observed(spec, seed):
+    m, start, run, states, reach = _explored(spec, seed)
     assert (states[reach] == FREE_SPACE).all()
     assert (states[_next_to(reach) & m.occupancy] == OCCUPIED).all()
     assert not (states[m.occupancy] == FREE_SPACE).any()
@@ -105,13 +110,7 @@ def test_camera_exploration_knows_the_reachable_cells():
     spec = load_warehouse()  # the head camera: noisy, registered views, 4.5 m range
     phantoms = 0
     for seed in range(3):
-        rng = np.random.default_rng(seed)
-        m = generate_map(spec, rng)
-        free = np.argwhere(~m.occupancy)
-        start = free[rng.integers(len(free))]
-        run = explore(spec, m, start, rng)
-        states = run.grid.cell_states()
-        reach = grid_distances(~m.occupancy, tuple(start)) >= 0
+        m, _, _, states, reach = _explored(spec, seed)
         assert not (states[reach] == UNKNOWN).any()
         assert (states[_next_to(reach) & m.occupancy] == OCCUPIED).all()
         assert not (states[m.occupancy] == FREE_SPACE).any()

@@ -31,6 +31,17 @@ def exact(spec):
     return dataclasses.replace(spec, sensor_noise=0.0)
 
 
+def _assert_deterministic(sensor, xy):
+    """The same generator state gives the same scan, another a different one; returns one."""
+    a = sensor.scan(xy, np.random.default_rng(3))
+    b = sensor.scan(xy, np.random.default_rng(3))
+    c = sensor.scan(xy, np.random.default_rng(4))
+    np.testing.assert_array_equal(a.points, b.points)
+    np.testing.assert_array_equal(a.ends, b.ends)
+    assert not np.array_equal(a.points, c.points)
+    return a
+
+
 def test_first_entry_slab():
     lo, hi = np.array([[2.0, -1.0], [5.0, -1.0]]), np.array([[3.0, 1.0], [6.0, 1.0]])
     dirs = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.96, 0.28]])
@@ -88,12 +99,7 @@ def test_range_noise_and_determinism(spec):
     ends = np.array([sensor.scan(xy, rng).ends[0, 0] for _ in range(300)])
     assert ends.mean() == pytest.approx(8.02, abs=0.003)
     assert ends.std() == pytest.approx(spec.sensor_noise, rel=0.2)
-    a = sensor.scan(xy, np.random.default_rng(3))
-    b = sensor.scan(xy, np.random.default_rng(3))
-    c = sensor.scan(xy, np.random.default_rng(4))
-    np.testing.assert_array_equal(a.points, b.points)
-    np.testing.assert_array_equal(a.ends, b.ends)
-    assert not np.array_equal(a.points, c.points)
+    _assert_deterministic(sensor, xy)
 
 
 def test_range_limit(exact):
@@ -146,7 +152,9 @@ def test_camera_scan_sees_a_box_face_and_the_floor_exactly(camera_spec):
     # the column straight ahead (azimuth 0) hits the face; the floor-only columns do not hit
     ahead = np.argmin(np.abs(np.angle(np.exp(1j * scan.azimuths))))
     assert scan.hits[ahead]
-    np.testing.assert_allclose(scan.ends[ahead, 0], 8.02, atol=1e-9)
+    # at the median reach of the column's face returns: a tilted column's rays fan out a little
+    # in azimuth, so the reach along +x differs from the face's distance by micrometres
+    np.testing.assert_allclose(scan.ends[ahead, 0], 8.02, atol=1e-4)
     open_ends = scan.ends[~scan.hits]
     assert len(open_ends) > 0
     assert np.hypot(*(open_ends - xy).T).max() <= cam.max_range / math.cos(
@@ -160,12 +168,7 @@ def test_camera_scan_noise_registration_and_determinism(camera_spec):
     sensor = DepthSensor(camera_spec, m)
     xy = np.array([5.5, 5.5])
     exact = sensor.scan(xy, np.random.default_rng(0), exact=True)
-    a = sensor.scan(xy, np.random.default_rng(3))
-    b = sensor.scan(xy, np.random.default_rng(3))
-    c = sensor.scan(xy, np.random.default_rng(4))
-    np.testing.assert_array_equal(a.points, b.points)
-    np.testing.assert_array_equal(a.ends, b.ends)
-    assert not np.array_equal(a.points, c.points)
+    a = _assert_deterministic(sensor, xy)
     assert len(a.points) < len(exact.points)  # dropouts at edges and grazing angles
     face = a.points[(a.points[:, 0] > 7.8) & (np.abs(a.points[:, 1] - 5.5) < 0.4)]
     face = face[face[:, 2] > 0.2]
