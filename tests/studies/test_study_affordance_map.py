@@ -28,8 +28,16 @@ FILES = (
 
 
 def test_run_writes_everything_and_resumes(tmp_path):
+    # The idealised scanner keeps this test of the bookkeeping quick; the script's smoke run
+    # below uses the world file's camera.
     cfg = AffordanceMapConfig(
-        n_maps=2, train_maps=2, max_steps=3, workers=0, out=str(tmp_path / "am"), progress=False
+        n_maps=2,
+        train_maps=2,
+        max_steps=3,
+        workers=0,
+        out=str(tmp_path / "am"),
+        progress=False,
+        sensor="scanner",
     )
     first = run(cfg)
     assert first["computed"] == 2
@@ -39,6 +47,8 @@ def test_run_writes_everything_and_resumes(tmp_path):
     assert rows[0].startswith("policy,step,entropy_mean") and len(rows) == 1 + 2 * 4
     text = (tmp_path / "am" / "summary.md").read_text()
     assert "| information gain |" in text and "| exhaustive |" in text and "| up |" in text
+    assert "information gain minus exhaustive, paired by map" in text
+    assert "idealised scanner" in text
     tasks = sorted((tmp_path / "am" / "tasks").glob("map-*.json"))
     assert len(tasks) == 2
     saved = json.loads(tasks[0].read_text())
