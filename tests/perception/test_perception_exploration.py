@@ -107,7 +107,8 @@ def test_bad_starts(spec, start):
 
 
 def test_camera_exploration_knows_the_reachable_cells():
-    spec = load_warehouse()  # the head camera: noisy, registered views, 4.5 m range
+    # the head camera (noisy, registered views, 4.5 m range) on 8 x 8 maps, to keep it quick
+    spec = dataclasses.replace(load_warehouse(), rows=8, cols=8, boxes=(8, 14))
     phantoms = 0
     for seed in range(3):
         m, _, _, states, reach = _explored(spec, seed)
@@ -115,4 +116,4 @@ def test_camera_exploration_knows_the_reachable_cells():
         assert (states[_next_to(reach) & m.occupancy] == OCCUPIED).all()
         assert not (states[m.occupancy] == FREE_SPACE).any()
         phantoms += int((states[~m.occupancy] == OCCUPIED).sum())
-    assert phantoms <= 6  # stray hits by the walls, of about 300 reachable cells
+    assert phantoms <= 3  # stray hits by the walls (2 here), of about 150 free cells
