@@ -636,10 +636,8 @@ class ManipulationLoop:
         fine = np.kron(mask, np.ones((self.grid.per_cell,) * 2, dtype=bool))
         self.grid.passes[fine] = seen.passes[fine]
         self.grid.hits[fine] = seen.hits[fine]
-        kept = [
-            self.points[~self._in_cells(self.points, mask)],
-            scan.points[self._in_cells(scan.points, mask)],
-        ]
+        in_changed = self._in_cells(self.points, mask)
+        kept = [self.points[~in_changed], scan.points[self._in_cells(scan.points, mask)]]
         if self.carry_points and len(changed) == 2:
             # The box took its points along: those of its old cell, moved one cell (world xy).
             step = self.grid.cell_size * np.array(
@@ -647,7 +645,8 @@ class ManipulationLoop:
             )
             source = np.zeros(shape, dtype=bool)
             source[cell] = True
-            kept.append(self.points[self._in_cells(self.points, source)] + step)
+            old = self.points[in_changed]
+            kept.append(old[self._in_cells(old, source)] + step)
         self.points = np.concatenate(kept)
         self.confirmed = {
             (r, c, e): v

@@ -260,8 +260,12 @@ class DepthSensor:
         views = scan_views(
             self._camera, self._scene, poses, rng=rng, registration=not exact, noise=not exact
         )
-        points = np.concatenate([v.points() for v in views])
-        ends, hits = zip(*(self._columns(v, origin) for v in views), strict=True)
+        clouds = [v.points() for v in views]  # (M_v, 3), world frame, estimated poses
+        ends, hits = zip(
+            *(self._columns(v, c, origin) for v, c in zip(views, clouds, strict=True)),
+            strict=True,
+        )
+        points = np.concatenate(clouds)
         end = np.concatenate(ends)
         delta = end - origin[:2]
         return DepthScan(
@@ -272,11 +276,18 @@ class DepthSensor:
             hits=np.concatenate(hits),
         )
 
-    def _columns(self, view: DepthImage, origin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The horizontal rays of one view: ``(ends (A, 2), hits (A,))``, one per seen column."""
-        T = view.T_world_camera_estimated
-        rays = view.spec.pixel_rays()  # (H, W, 3) camera frame
-        pts = (rays * view.depth[..., None]) @ T[:3, :3].T + T[:3, 3]  # (H, W, 3), NaN: none
+    def _columns(
+        self, view: DepthImage, cloud: np.ndarray, origin: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The horizontal rays of one view: ``(ends (A, 2), hits (A,))``, one per seen column.
+
+        Args:
+            view: The view.
+            cloud: (M, 3) its `DepthImage.points`, the valid pixels in row-major order.
+            origin: (3,) the sensor position (world frame).
+        """
+        pts = np.full((*view.depth.shape, 3), np.nan)  # (H, W, 3), NaN: no return
+        pts[view.valid] = cloud
         reach = np.hypot(pts[..., 0] - origin[0], pts[..., 1] - origin[1])  # (H, W)
         valid = np.isfinite(reach)
         obstacle = valid & (pts[..., 2] > self.spec.floor_band) & (reach <= self.spec.sensor_range)

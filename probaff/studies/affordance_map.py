@@ -546,9 +546,10 @@ def _fmt(v: Any, digits: int = 3) -> str:
     return "n/a" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.{digits}f}"
 
 
-def _markdown(config: AffordanceMapConfig, s: dict[str, Any], steps: int) -> str:
+def _markdown(
+    config: AffordanceMapConfig, spec: WarehouseSpec, s: dict[str, Any], steps: int
+) -> str:
     ig, ex = s["policies"]["information_gain"], s["policies"]["exhaustive"]
-    spec = world(config.sensor_noise, config.sensor)
     noise = (
         f"the head camera ({spec.camera_pans} views of {spec.camera.width} x "
         f"{spec.camera.height} pixels per scan, worlds/camera.yaml's noise model)"
@@ -694,7 +695,7 @@ def run(config: AffordanceMapConfig) -> dict[str, Any]:
     atomic_write_text(out / "entropy.csv", csv)
     files.update(_write_figures(results, curves, out))
     summary["runtime_s"] = time.perf_counter() - t0
-    atomic_write_text(out / "summary.md", _markdown(config, summary, config.max_steps))
+    atomic_write_text(out / "summary.md", _markdown(config, spec, summary, config.max_steps))
     return {"summary": summary, "files": files, "computed": missing}
 
 
