@@ -14,9 +14,11 @@ import torch
 from probaff.errors import InputError
 
 __all__ = [
+    "as_float_array",
     "check_count",
     "check_finite",
     "check_output_dir",
+    "check_output_file",
     "check_positive",
     "check_probability",
     "check_shape",
@@ -27,6 +29,41 @@ def _as_array(x: Any) -> np.ndarray:
     if isinstance(x, torch.Tensor):
         return x.detach().cpu().numpy()
     return np.asarray(x)
+
+
+def as_float_array(name: str, x: Any, *, copy: bool = False) -> np.ndarray:
+    """Return `x` as a float64 numpy array, or raise `InputError` when it is not numeric.
+
+    The one conversion of user arrays in probaff: strings, ``None``, objects and ragged
+    nested lists are refused with the argument's name instead of numpy's own error.
+
+    Args:
+        name: What `x` is, as the user knows it (e.g. ``"points"``).
+        x: Array-like or tensor of any shape.
+        copy: Always return a new array (else `x` itself when it already is float64).
+
+    Returns:
+        `x` as a float64 array of the same shape.
+    """
+    if isinstance(x, torch.Tensor):
+        x = x.detach().cpu().numpy()
+    try:
+        return np.array(x, dtype=np.float64) if copy else np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(
+            f"{name} must be a numeric array (numbers of one shape), got "
+            f"{_describe(x)}; convert it to floats first."
+        ) from None
+
+
+def _describe(x: Any) -> str:
+    """A short description of a value that is not a numeric array, for error messages."""
+    if isinstance(x, np.ndarray):
+        return f"an array of dtype {x.dtype}"
+    if isinstance(x, (list, tuple)) and x:
+        inner = {type(v).__name__ for v in x}
+        return f"a {type(x).__name__} of {', '.join(sorted(inner))}"
+    return repr(x)[:60]
 
 
 def check_finite(name: str, x: Any) -> None:
@@ -53,7 +90,16 @@ def check_shape(name: str, x: Any, shape: Sequence[int | None]) -> None:
         x: Array-like or tensor.
         shape: Expected shape; ``None`` entries are wildcards.
     """
-    actual = tuple(x.shape) if isinstance(x, torch.Tensor) else tuple(_as_array(x).shape)
+    if isinstance(x, torch.Tensor):
+        actual = tuple(x.shape)
+    else:
+        try:
+            actual = tuple(_as_array(x).shape)
+        except ValueError:  # a ragged nested list
+            raise InputError(
+                f"{name} is a ragged nested list (rows of different lengths); give an array "
+                "whose rows all have the same length."
+            ) from None
     ok = len(actual) == len(shape) and all(
         e is None or e == a for e, a in zip(shape, actual, strict=True)
     )
@@ -122,6 +168,32 @@ def check_probability(name: str, x: Any) -> None:
         )
 
 
+def _check_parents(name: str, p: Path, exists: bool) -> None:
+    """Raise `InputError` unless the nearest existing folder at or above `p` is writable.
+
+    Args:
+        name: The argument's name.
+        p: The output path.
+        exists: Whether `p` itself exists (and is then the folder to check).
+    """
+    if exists:
+        existing = p
+    else:
+        existing = next(
+            (a for a in p.absolute().parents if a.exists() or a.is_symlink()), Path(p.anchor or ".")
+        )
+        if not existing.is_dir():
+            raise InputError(
+                f"{name} {p} lies under {existing}, which is a file, not a folder; choose an "
+                "output path whose parents are folders (or do not exist yet)."
+            )
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(
+            f"{name} {p}: the folder {existing} is not writable; choose an output path you "
+            "may write to."
+        )
+
+
 def check_output_dir(name: str, path: Any) -> Path:
     """Return `path` as a `Path`, or raise `InputError` unless it is, or can become, a folder.
 
@@ -142,24 +214,39 @@ def check_output_dir(name: str, path: Any) -> Path:
         raise InputError(f"{name} must be a folder path, got {path!r}.") from None
     if str(p) == "":
         raise InputError(f"{name} is empty; give the output folder's path.")
-    if p.exists():
-        if not p.is_dir():
-            raise InputError(
-                f"{name} {p} is a file, not a folder; choose a folder path for the output."
-            )
-        existing = p
-    else:
-        existing = next(
-            (a for a in p.absolute().parents if a.exists() or a.is_symlink()), Path(p.anchor or ".")
-        )
-        if not existing.is_dir():
-            raise InputError(
-                f"{name} {p} lies under {existing}, which is a file, not a folder; choose an "
-                "output path whose parents are folders (or do not exist yet)."
-            )
-    if not os.access(existing, os.W_OK | os.X_OK):
+    if p.exists() and not p.is_dir():
         raise InputError(
-            f"{name} {p}: the folder {existing} is not writable; choose an output path you "
-            "may write to."
+            f"{name} {p} is a file, not a folder; choose a folder path for the output."
         )
+    _check_parents(name, p, p.exists())
+    return p
+
+
+def check_output_file(name: str, path: Any) -> Path:
+    """Return `path` as a `Path`, or raise `InputError` unless a file can be written there.
+
+    The file counterpart of `check_output_dir`: catches an output path that is a folder, lies
+    under a regular file (``/etc/passwd/model.pt``), or lies in a folder that cannot be
+    written. Missing parent folders are allowed (writers create them); nothing is created.
+
+    Args:
+        name: The argument's name, as the user wrote it (e.g. ``"path"``).
+        path: The output file.
+
+    Returns:
+        `path` as a `Path`.
+    """
+    try:
+        raw = os.fspath(path)
+    except TypeError:
+        raise InputError(f"{name} must be a file path, got {path!r}.") from None
+    if isinstance(raw, bytes) or raw == "":
+        raise InputError(f"{name} must be a non-empty file path (str or Path), got {path!r}.")
+    p = Path(raw)
+    if p.is_dir():
+        raise InputError(
+            f"{name} {p} is a folder, not a file; give a file path inside it "
+            f"(e.g. {p / 'out.bin'})."
+        )
+    _check_parents(name, p, False)
     return p

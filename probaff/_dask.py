@@ -12,7 +12,7 @@ from tqdm.auto import tqdm
 from probaff._checks import check_count
 from probaff.errors import InputError
 
-__all__ = ["check_workers", "dask_client", "run_batch"]
+__all__ = ["check_scheduler", "check_workers", "dask_client", "run_batch"]
 
 
 def check_workers(workers: int | None) -> int | None:
@@ -33,6 +33,48 @@ def check_workers(workers: int | None) -> int | None:
         raise InputError(f"workers must be None or an integer >= 0, got {workers!r}.") from None
 
 
+_HOW_TO_START = (
+    "start one with `dask scheduler` (and `dask worker ADDRESS` on each machine), or leave "
+    "the scheduler out to use a local cluster (--workers K)"
+)
+
+
+def check_scheduler(scheduler: str | None) -> str | None:
+    """Return `scheduler` unchanged, or raise `InputError` unless it is a Dask address.
+
+    Checks the address's form only (a scheme Dask knows, a host and a port); whether a
+    scheduler listens there is found out when `dask_client` connects.
+
+    Args:
+        scheduler: ``None`` (a local cluster) or an address such as ``tcp://host:8786``.
+
+    Returns:
+        `scheduler`.
+    """
+    if scheduler is None:
+        return None
+    if not isinstance(scheduler, str) or not scheduler.strip():
+        raise InputError(
+            f"scheduler must be a Dask scheduler address such as tcp://127.0.0.1:8786, got "
+            f"{scheduler!r}."
+        )
+    from distributed.comm.addressing import parse_address, parse_host_port
+    from distributed.comm.registry import backends
+
+    try:
+        scheme, location = parse_address(scheduler)
+        if scheme not in backends:
+            raise ValueError(f"unknown scheme {scheme!r}; Dask knows {sorted(backends)}")
+        if scheme in ("tcp", "tls", "ws", "wss"):
+            parse_host_port(location)
+    except (ValueError, TypeError) as err:
+        raise InputError(
+            f"scheduler {scheduler!r} is not a Dask scheduler address ({err}); give one such "
+            "as tcp://127.0.0.1:8786."
+        ) from None
+    return scheduler
+
+
 @contextlib.contextmanager
 def dask_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
     """A Dask client: on `scheduler` if given, else on a new local cluster.
@@ -43,12 +85,23 @@ def dask_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
 
     Yields:
         A connected `dask.distributed.Client`.
+
+    Raises:
+        InputError: For a malformed `scheduler` address, or one where no scheduler answers
+            within Dask's connect timeout (``distributed.comm.timeouts.connect``).
     """
     import dask
     from dask.distributed import Client, LocalCluster
 
     if scheduler:
-        with Client(scheduler) as client:
+        check_scheduler(scheduler)
+        try:
+            client = Client(scheduler)
+        except OSError as err:  # Dask's connect timeout, refused connections, unknown hosts
+            raise InputError(
+                f"no Dask scheduler could be reached at {scheduler} ({err}); {_HOW_TO_START}."
+            ) from None
+        with client:
             yield client
         return
     n = workers or os.cpu_count() or 1
@@ -114,29 +167,33 @@ def run_batch(
     workers = check_workers(workers)
     shared = dict(shared or {})
     weigh = size or (lambda key: 1)
-    bar = tqdm(
-        total=total if total is not None else done + sum(weigh(k) for k, _ in todo),
-        initial=done,
-        unit=unit,
-        desc=desc,
-        disable=not progress,
-    )
-    try:
-        if todo and workers == 0 and not scheduler:
+    serial = workers == 0 and not scheduler
+    with contextlib.ExitStack() as stack:
+        # Connect before the bar starts: an unreachable scheduler is one line, not a bar.
+        client = (
+            stack.enter_context(dask_client(workers, scheduler)) if todo and not serial else None
+        )
+        bar = stack.enter_context(
+            tqdm(
+                total=total if total is not None else done + sum(weigh(k) for k, _ in todo),
+                initial=done,
+                unit=unit,
+                desc=desc,
+                disable=not progress,
+            )
+        )
+        if client is None:
             for key, args in todo:
                 on_result(key, fn(*args, **shared))
                 bar.update(weigh(key))
-        elif todo:
-            from dask.distributed import as_completed
+            return
+        from dask.distributed import as_completed
 
-            with dask_client(workers, scheduler) as client:
-                # A one-element list: Dask would scatter a dict's values one by one.
-                remote = {k: client.scatter([v], broadcast=True)[0] for k, v in shared.items()}
-                futures = [client.submit(fn, *args, **remote, pure=False) for _, args in todo]
-                by_future = {f.key: key for f, (key, _) in zip(futures, todo, strict=True)}
-                for fut in as_completed(futures):
-                    key = by_future[fut.key]
-                    on_result(key, fut.result())
-                    bar.update(weigh(key))
-    finally:
-        bar.close()
+        # A one-element list: Dask would scatter a dict's values one by one.
+        remote = {k: client.scatter([v], broadcast=True)[0] for k, v in shared.items()}
+        futures = [client.submit(fn, *args, **remote, pure=False) for _, args in todo]
+        by_future = {f.key: key for f, (key, _) in zip(futures, todo, strict=True)}
+        for fut in as_completed(futures):
+            key = by_future[fut.key]
+            on_result(key, fut.result())
+            bar.update(weigh(key))

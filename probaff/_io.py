@@ -2,35 +2,53 @@
 
 from __future__ import annotations
 
+import io
 import os
 from pathlib import Path
 from typing import Any
+
+from probaff._checks import check_output_file
 
 __all__ = ["atomic_save_figure", "atomic_write_bytes", "atomic_write_text"]
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
-    """Write `data` to `path` through a flushed temporary file and a rename."""
+    """Write `data` to `path` through a flushed temporary file and a rename.
+
+    Missing parent folders are created. Public writers check their path first with
+    `probaff._checks.check_output_file`, so that a bad one is named in an `InputError`.
+
+    Raises:
+        OSError: If the file cannot be written (a file in the way, a full disk, ...).
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    with open(tmp, "wb") as fh:
-        fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
-    """Write UTF-8 `text` to `path` atomically."""
+    """Write UTF-8 `text` to `path` atomically (see `atomic_write_bytes`)."""
     atomic_write_bytes(path, text.encode("utf-8"))
 
 
 def atomic_save_figure(fig: Any, path: str | os.PathLike[str], **savefig_kwargs: Any) -> None:
-    """Save a matplotlib figure to `path` atomically (format from the suffix)."""
-    import io
+    """Save a matplotlib figure to `path` atomically (format from the suffix).
 
+    Raises:
+        InputError: If `path` is a folder, lies under a regular file or in a folder that
+            cannot be written (checked before the figure is rendered).
+    """
+    target = check_output_file("path", path)
     buf = io.BytesIO()
-    fmt = Path(path).suffix.lstrip(".") or "png"
+    fmt = target.suffix.lstrip(".") or "png"
     fig.savefig(buf, format=fmt, **savefig_kwargs)
-    atomic_write_bytes(path, buf.getvalue())
+    atomic_write_bytes(target, buf.getvalue())

@@ -58,7 +58,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--resume", action="store_true", help="finish an interrupted dataset")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
 
-    d = sub.add_parser("describe", help="print a JSON summary of a dataset")
+    d = sub.add_parser("describe", help="print a JSON summary of a push or skill dataset")
     d.add_argument("path")
 
     sub.add_parser("scenes", help="list the scene templates (tabletop and side view)")
@@ -102,10 +102,19 @@ def _dispatch(args: argparse.Namespace) -> None:
         what = "pushes" if kind == "push" else f"{ds.meta.get('skill', 'skill')}s"
         print(f"wrote {len(ds)} {what} to {args.out}")
     elif args.command == "describe":
-        from probaff.data.store import load_dataset
+        from pathlib import Path
+
+        from probaff.data.store import (
+            load_dataset,
+            load_skill_dataset,
+            manifest_kind,
+            read_manifest,
+        )
         from probaff.data.summary import summarize
 
-        print(json.dumps(summarize(load_dataset(args.path)), indent=1))
+        kind = manifest_kind(read_manifest(Path(args.path)))
+        load = load_skill_dataset if kind == "skill" else load_dataset
+        print(json.dumps(summarize(load(args.path)), indent=1))
     elif args.command == "scenes":
         from probaff.sim.config import list_scenes, load_scene
         from probaff.sim.sideview_config import list_sideview_scenes, load_sideview_scene

@@ -1,9 +1,10 @@
 """A bad flag to a study script or to `probaff generate` prints one line and exits 2.
 
 The study scripts (inference/affordance_map.py, inference/push_models.py,
-inference/planning.py, inference/point_cloud_labels.py) run in this process through `runpy`,
-with the studies' first heavy step replaced by a tripwire: every case must be refused before
-any work starts. One case runs in a real subprocess.
+inference/planning.py, inference/point_cloud_labels.py, inference/modular.py) run in this
+process through `runpy`, with the studies' first heavy step replaced by a tripwire: every case
+must be refused before any work starts, with and without ``--smoke`` (whose sizes never
+replace or hide a value the user typed). One case runs in a real subprocess.
 """
 
 import re
@@ -23,6 +24,7 @@ AFFORDANCE = ROOT / "inference" / "affordance_map.py"
 PUSH_MODELS = ROOT / "inference" / "push_models.py"
 PLANNING = ROOT / "inference" / "planning.py"
 POINT_CLOUD = ROOT / "inference" / "point_cloud_labels.py"
+MODULAR = ROOT / "inference" / "modular.py"
 FILE = "<a regular file>"  # replaced by a file in tmp_path
 
 CASES = [
@@ -43,27 +45,44 @@ CASES = [
     (PUSH_MODELS, ["--gate", "bar"], "unknown gate 'bar'"),
     (PUSH_MODELS, ["--out", FILE], "--out .* is a file, not a folder"),
     (PLANNING, ["--trials", "0"], "trials must be a positive integer, got 0"),
-    (PLANNING, ["--planners", "astar-lstm"], "unknown or no planners"),
+    (PLANNING, ["--planners", "astar-lstm"], "planners: unknown or no planners"),
     (PLANNING, ["--train-pushes", "3"], "train_pushes must be at least 10"),
     (PLANNING, ["--workers", "-2"], "workers must be None or an integer >= 0, got -2"),
     (PLANNING, ["--out", FILE], "--out .* is a file, not a folder"),
+    (PLANNING, ["--tool-planners", "teleport"], "tool_planners"),
+    (POINT_CLOUD, ["--n-splits", "1"], "n_splits must be an integer >= 2, got 1"),
+    (MODULAR, ["--n-experts", "0"], "n_experts must be a positive integer, got 0"),
+    (MODULAR, ["--em-iterations", "0"], "em_iterations must be a positive integer, got 0"),
+    (MODULAR, ["--push-groups", "pose,pose"], r"push_groups names \['pose'\] more than once"),
+    (MODULAR, ["--skill-groups", "pose,colour"], r"skill_groups: unknown feature groups"),
+    (MODULAR, ["--trials", "0"], "trials must be a positive integer, got 0"),
+    (MODULAR, ["--chain-lengths", "7"], "chain_lengths may hold 3, 4 and 5"),
+    (MODULAR, ["--scheduler", "garbage"], "scheduler 'garbage' is not a Dask scheduler address"),
+    (PUSH_MODELS, ["--em-init", "nan"], "em_init: unknown initialisation 'nan'"),
+    (PUSH_MODELS, ["--scheduler", "foo://x:1"], "scheduler 'foo://x:1' is not a Dask scheduler"),
+]
+SMOKE_CASES = [
+    pytest.param(script, [*args, "--smoke"], message, id=f"{script.stem}{''.join(args)}--smoke")
+    for script, args, message in CASES
+    if "--out" not in args
 ]
 
 
 @pytest.fixture(scope="module")
 def _studies():
     import probaff.studies.affordance_map as am
+    import probaff.studies.modular as md
     import probaff.studies.planning as pl
     import probaff.studies.point_cloud_labels as pc
     import probaff.studies.push_models as pm
 
-    return am, pm, pl, pc
+    return am, pm, pl, pc, md
 
 
 @pytest.fixture
 def tripwire(monkeypatch, _studies):
     """Fail the test if a study gets past its validation into real work."""
-    am, pm, pl, pc = _studies
+    am, pm, pl, pc, md = _studies
 
     def work(*args, **kwargs):
         raise AssertionError("a bad flag passed validation and the study started")
@@ -73,6 +92,9 @@ def tripwire(monkeypatch, _studies):
     monkeypatch.setattr(pm, "generate", work)
     monkeypatch.setattr(pl, "generate", work)
     monkeypatch.setattr(pc, "run_tasks", work)
+    monkeypatch.setattr(md, "generate", work)
+    monkeypatch.setattr(md, "generate_skills", work)
+    monkeypatch.setattr(md, "run_tasks", work)
 
 
 def _run_script(monkeypatch, script, args):
@@ -87,7 +109,11 @@ def _case_id(case):
     return script.stem + "".join(args)
 
 
-@pytest.mark.parametrize(("script", "args", "message"), CASES, ids=[_case_id(c) for c in CASES])
+@pytest.mark.parametrize(
+    ("script", "args", "message"),
+    CASES + SMOKE_CASES,
+    ids=[_case_id(c) for c in CASES + SMOKE_CASES],
+)
 def test_bad_flag_prints_one_line_and_exits_2(
     monkeypatch, capsys, tmp_path, tripwire, script, args, message
 ):
@@ -193,3 +219,55 @@ def test_store_write_failure_is_a_dataset_error(tmp_path):
     regular.write_text("x")
     with pytest.raises(DatasetError, match=r"cannot write .*manifest\.json \(Not a directory\)"):
         write_manifest(regular / "ds", {})
+
+
+# 6. `--scheduler` where no scheduler listens: one line naming the address and the way out
+
+
+@pytest.fixture
+def _quick_connect():
+    import dask
+
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        yield
+
+
+def test_unreachable_scheduler_is_one_clear_error(_quick_connect):
+    from probaff._dask import dask_client
+
+    with (
+        pytest.raises(
+            InputError, match=r"no Dask scheduler could be reached at tcp://127\.0\.0\.1:9"
+        ) as info,
+        dask_client(None, "tcp://127.0.0.1:9"),
+    ):
+        pass
+    assert "dask scheduler" in str(info.value) and "--workers K" in str(info.value)
+
+
+def test_generate_with_an_unreachable_scheduler_exits_2(capsys, tmp_path, _quick_connect):
+    argv = ["generate", "--scene", "single_free", "--n", "2", "--out", str(tmp_path / "ds")]
+    assert probaff_main([*argv, "--scheduler", "tcp://127.0.0.1:9"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith(
+        "probaff generate: error: no Dask scheduler could be reached at tcp://127.0.0.1:9"
+    )
+
+
+@pytest.mark.parametrize(
+    ("address", "message"),
+    [
+        ("", "scheduler must be a Dask scheduler address"),
+        (8786, "scheduler must be a Dask scheduler address"),
+        ("tcp://host", "is not a Dask scheduler address"),
+        ("carrier-pigeon://loft:1", "unknown scheme 'carrier-pigeon'"),
+    ],
+)
+def test_malformed_scheduler_addresses(address, message):
+    from probaff._dask import check_scheduler
+
+    with pytest.raises(InputError, match=message):
+        check_scheduler(address)
+    assert check_scheduler(None) is None
+    assert check_scheduler("tcp://127.0.0.1:8786") == "tcp://127.0.0.1:8786"

@@ -32,7 +32,7 @@ from probaff.data.store import (
     load_skill_dataset,
     read_manifest,
 )
-from probaff.data.summary import summarize
+from probaff.data.summary import summarize, summarize_skills
 
 __all__ = [
     "GROUND_TRUTH_ARRAYS",
@@ -63,4 +63,5 @@ __all__ = [
     "scene_kind",
     "skill_dimensions",
     "summarize",
+    "summarize_skills",
 ]

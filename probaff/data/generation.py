@@ -25,7 +25,7 @@ from typing import Any, cast
 import numpy as np
 
 from probaff._checks import check_count, check_output_dir, check_positive
-from probaff._dask import check_workers, run_batch
+from probaff._dask import check_scheduler, check_workers, run_batch
 from probaff._threads import torch_threads
 from probaff.data.noise import PoseNoise, observe_poses
 from probaff.data.queries import world_meta
@@ -503,6 +503,7 @@ def _run(
             f"generate it with probaff.data.{other} (or `probaff generate`)."
         )
     workers = check_workers(workers)
+    check_scheduler(scheduler)
     path = check_output_dir("out", out)
     manifest = _prepare(path, config, resume)
     _adopt_orphans(path, config, manifest)

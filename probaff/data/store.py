@@ -36,6 +36,7 @@ import hashlib
 import io
 import json
 import os
+import warnings
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
@@ -151,15 +152,21 @@ def read_shard(root: Path, index: int, sha256: str | None = None) -> dict[str, n
     """Read one shard, checking its checksum when given.
 
     Raises:
-        DatasetError: If the file is missing, truncated, corrupt or fails its checksum.
+        DatasetError: If the file is missing, not a file, truncated, corrupt or fails its
+            checksum.
     """
     path = shard_path(root, index)
     try:
         data = path.read_bytes()
-    except OSError as exc:
+    except FileNotFoundError as exc:
         raise DatasetError(
             f"shard {path} is missing ({exc}); rerun `probaff generate ... --resume` to "
             "recreate it."
+        ) from exc
+    except OSError as exc:
+        raise DatasetError(
+            f"cannot read shard {path} ({exc.strerror or exc}); delete it and rerun "
+            "`probaff generate ... --resume`."
         ) from exc
     if sha256 is not None and hashlib.sha256(data).hexdigest() != sha256:
         raise DatasetError(
@@ -169,9 +176,10 @@ def read_shard(root: Path, index: int, sha256: str | None = None) -> dict[str, n
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as npz:
             return {k: npz[k] for k in npz.files}
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+    except Exception as exc:  # damaged archives fail in many ways (zlib.error, KeyError, ...)
+        why = str(exc) or type(exc).__name__
         raise DatasetError(
-            f"shard {path} is corrupt ({exc}); delete it and rerun `probaff generate ... --resume`."
+            f"shard {path} is corrupt ({why}); delete it and rerun `probaff generate ... --resume`."
         ) from exc
 
 
@@ -200,8 +208,15 @@ def read_manifest(root: Path) -> dict[str, Any]:
         )
     try:
         manifest = json.loads(path.read_text())
+    except OSError as exc:
+        raise DatasetError(
+            f"cannot read {path} ({exc.strerror or exc}); check that you may read the dataset."
+        ) from exc
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise DatasetError(f"{path} is truncated or not JSON ({exc}).") from exc
+        raise DatasetError(
+            f"{path} is truncated or not JSON ({exc}); regenerate the dataset with "
+            "`probaff generate`."
+        ) from exc
     if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
         raise DatasetError(f"{path} does not describe a {FORMAT_NAME}.")
     version = manifest.get("schema_version")
@@ -218,12 +233,45 @@ def read_manifest(root: Path) -> dict[str, Any]:
             f"{_readable()}; read it with the probaff release that wrote it, or regenerate it "
             "with `probaff generate`."
         )
-    if version == 1 and manifest.get("plan", {}).get("pose_noise") is not None:
+    problem = _layout_problem(manifest)
+    if problem:
+        raise DatasetError(
+            f"{path} is malformed: {problem}; the manifest was edited or is corrupt: regenerate "
+            "the dataset with `probaff generate`."
+        )
+    if version == 1 and manifest["plan"].get("pose_noise") is not None:
         raise DatasetError(
             f"{path} records pose noise under schema version 1, which has none; the manifest "
             "was edited or is corrupt: regenerate the dataset with `probaff generate`."
         )
     return manifest
+
+
+def _is_count(value: Any, minimum: int) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= minimum
+
+
+def _layout_problem(manifest: dict[str, Any]) -> str | None:
+    """What is wrong with the entries every reader of a manifest uses, or ``None``."""
+    plan = manifest.get("plan")
+    if not isinstance(plan, dict):
+        return "its 'plan' is not a mapping"
+    if not _is_count(plan.get("n"), 0) or not _is_count(plan.get("shard_size"), 1):
+        return "its plan's 'n' and 'shard_size' must be integers (n >= 0, shard_size >= 1)"
+    names = manifest.get("object_names")
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        return "its 'object_names' is not a list of names"
+    if not isinstance(manifest.get("meta"), dict):
+        return "its 'meta' is not a mapping"
+    shards = manifest.get("shards", {})
+    if not isinstance(shards, dict) or not all(
+        isinstance(e, dict)
+        and _is_count(e.get("rows"), 0)
+        and isinstance(e.get("sha256") or "", str)
+        for e in shards.values()
+    ):
+        return "its 'shards' must map shard numbers to {'rows': R, 'sha256': HEX}"
+    return None
 
 
 def _load_parts(
@@ -244,16 +292,32 @@ def _load_parts(
             f"{root} is incomplete: {len(missing)} of {n_shards} shards are missing (first: "
             f"{missing[0]}); finish it with `probaff generate ... --resume`."
         )
+    unchecked = [i for i in range(n_shards) if shards[f"{i:05d}"].get("sha256") is None]
+    if unchecked:
+        warnings.warn(
+            f"{len(unchecked)} of the {n_shards} shards of {root} have no checksum in "
+            f"manifest.json (first: {unchecked[0]}), so damage to them may go unnoticed; rerun "
+            "`probaff generate ... --resume` to recompute them with checksums.",
+            UserWarning,
+            stacklevel=3,
+        )
     parts = []
     for i in range(n_shards):
         entry = shards[f"{i:05d}"]
-        arrays = read_shard(root, i, entry["sha256"])
+        arrays = read_shard(root, i, entry.get("sha256"))
         rows = count_rows(arrays)
         if rows != entry["rows"]:
             raise DatasetError(
-                f"shard {i} of {root} has {rows} rows, manifest says {entry['rows']}."
+                f"shard {shard_path(root, i)} has {rows} rows, manifest.json says "
+                f"{entry['rows']}; delete it and rerun `probaff generate ... --resume`."
             )
-        parts.append(make(arrays))
+        try:
+            parts.append(make(arrays))
+        except DatasetError as exc:
+            raise DatasetError(
+                f"shard {shard_path(root, i)} does not hold a valid dataset ({exc}); delete it "
+                "and rerun `probaff generate ... --resume`."
+            ) from exc
     return parts
 
 

@@ -1,4 +1,4 @@
-"""A JSON-ready summary of a push dataset (what `probaff describe` prints)."""
+"""A JSON-ready summary of a push or skill dataset (what `probaff describe` prints)."""
 
 from __future__ import annotations
 
@@ -8,14 +8,23 @@ from typing import Any
 import numpy as np
 
 from probaff.data.schema import PushDataset
+from probaff.data.skill_schema import SkillDataset
 
-__all__ = ["MOVED_THRESHOLD", "summarize"]
+__all__ = ["MOVED_THRESHOLD", "SKILL_OUTCOMES", "summarize", "summarize_skills"]
 
 MOVED_THRESHOLD = 0.01  # an object "moved" when its centre travelled more than 1 cm
+SKILL_OUTCOMES: dict[str, tuple[str, ...]] = {
+    "pick": ("grasped", "lifted", "slipped"),
+    "place": ("grasped", "slipped", "placed"),
+}
+"""The outcome flags of each skill that `summarize_skills` reports (the others are constant)."""
 
 
-def summarize(ds: PushDataset) -> dict[str, Any]:
+def summarize(ds: PushDataset | SkillDataset) -> dict[str, Any]:
     """Counts and effect statistics per object slot (o1 is the pushed object).
+
+    A `SkillDataset` is summarised by `summarize_skills`; the rest of this docstring
+    describes push datasets.
 
     Every statistic describes what the simulator did: the mean |effect| and the "moved"
     fractions use the exact effect (`PushDataset.true_effect`), never a noisy observation, and
@@ -33,6 +42,8 @@ def summarize(ds: PushDataset) -> dict[str, Any]:
         fraction in which it fell off the table, contact rates and, with pose noise,
         ``observed_effect_error_std`` (m, m, rad).
     """
+    if isinstance(ds, SkillDataset):
+        return summarize_skills(ds)
     eff = ds.true_effect
     moved = np.hypot(eff[..., 0], eff[..., 1]) > MOVED_THRESHOLD
     names = Counter(n for i in range(len(ds)) for n in ds.objects_of(i))
@@ -71,5 +82,90 @@ def summarize(ds: PushDataset) -> dict[str, Any]:
         "fraction_objects_touching": float(ds["object_contact"].any(axis=(1, 2)).mean())
         if len(ds)
         else 0.0,
+        "objects": slots,
+    }
+
+
+def _mean(x: np.ndarray) -> float:
+    """Mean of `x`, 0 when it is empty."""
+    return float(np.mean(x)) if np.size(x) else 0.0
+
+
+def _effect(e: np.ndarray) -> dict[str, float]:
+    """Column means of `e` (M, 3), side-view (dx, dz, dphi), 0 when it has no rows."""
+    return {
+        "dx_m": _mean(e[:, 0]),
+        "dz_m": _mean(e[:, 1]),
+        "dphi_rad": _mean(e[:, 2]),
+    }
+
+
+def summarize_skills(ds: SkillDataset) -> dict[str, Any]:
+    """Counts, outcome rates and effect statistics of a side-view pick or place dataset.
+
+    The effect of an object is ``state_after - state_before``, world (dx, dz, dphi) in the
+    side-view plane. Per object slot, statistics cover the rows where the slot holds an
+    object (the others are padding).
+
+    Args:
+        ds: A skill dataset.
+
+    Returns:
+        A JSON-serialisable dict: ``scene``, ``skill``, ``seed``, ``n_samples``,
+        ``n_object_slots``; ``object_counts`` (objects present over all rows) and
+        ``target_counts`` (the picked or held object); ``has_trajectories``,
+        ``record_rate_hz`` and ``n_trajectory_samples``; ``outcomes``, the fraction of rows
+        with each flag of `SKILL_OUTCOMES` for the skill (all four for an unknown one);
+        ``target`` (the acted-on object: its ``mean_effect``, signed, and
+        ``mean_abs_effect``); ``fraction_on_table_support`` (place: the target is the
+        table; ``None`` for a pick); ``release_height_m`` (place: mean, min and max;
+        ``None`` for a pick); and per slot (``o1`` ...) ``fraction_present``,
+        ``mean_abs_effect`` and ``fraction_moved_gt_1cm`` (the centre moved more than 1 cm).
+    """
+    n = len(ds)
+    eff = ds["state_after"] - ds["state_before"]
+    present = ds.present
+    moved = np.hypot(eff[..., 0], eff[..., 1]) > MOVED_THRESHOLD
+    rows = np.arange(n)
+    target = ds["target"].astype(int)
+    ids = ds["object_ids"]
+    names = Counter(name for i in range(n) for name in ds.objects_of(i))
+    targets = Counter(ds.object_names[int(ids[i, target[i]])] for i in range(n))
+    slots = {}
+    for k in range(ds.n_objects):
+        on = present[:, k]
+        slots[f"o{k + 1}"] = {
+            "fraction_present": _mean(on),
+            "mean_abs_effect": _effect(np.abs(eff[on, k])),
+            "fraction_moved_gt_1cm": _mean(moved[on, k]),
+        }
+    skill = ds.skill
+    flags = SKILL_OUTCOMES.get(skill, ("grasped", "lifted", "slipped", "placed"))
+    target_eff = eff[rows, target].reshape(n, 3)
+    release = ds["release_height"]
+    return {
+        "scene": ds.meta.get("scene"),
+        "skill": skill or None,
+        "seed": ds.meta.get("seed"),
+        "n_samples": n,
+        "n_object_slots": ds.n_objects,
+        "object_counts": dict(sorted(names.items())),
+        "target_counts": dict(sorted(targets.items())),
+        "has_trajectories": ds.has_trajectories,
+        "record_rate_hz": ds.meta.get("record_rate"),
+        "n_trajectory_samples": ds.n_samples,
+        "outcomes": {f"fraction_{flag}": _mean(ds[flag]) for flag in flags},
+        "target": {
+            "mean_effect": _effect(target_eff),
+            "mean_abs_effect": _effect(np.abs(target_eff)),
+        },
+        "fraction_on_table_support": _mean(ds["support"] < 0) if skill == "place" else None,
+        "release_height_m": {
+            "mean": _mean(release),
+            "min": float(release.min()) if n else 0.0,
+            "max": float(release.max()) if n else 0.0,
+        }
+        if skill == "place"
+        else None,
         "objects": slots,
     }

@@ -15,9 +15,10 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from probaff._dask import check_workers, run_batch
+from probaff._checks import check_output_file
+from probaff._dask import check_scheduler, check_workers, run_batch
 from probaff._io import atomic_write_text
-from probaff.errors import InputError
+from probaff.errors import DatasetError, InputError
 
 __all__ = ["ResultStore", "run_tasks"]
 
@@ -45,12 +46,40 @@ class ResultStore:
         return self.path(key).is_file()
 
     def save(self, key: str, result: dict[str, Any]) -> None:
-        """Save one task's (JSON-serialisable) result atomically."""
-        atomic_write_text(self.path(key), json.dumps(result, sort_keys=True, indent=1))
+        """Save one task's (JSON-serialisable) result atomically.
+
+        Raises:
+            InputError: If the result file's path is a folder, lies under a regular file or
+                in a folder that cannot be written.
+        """
+        path = check_output_file("result file", self.path(key))
+        atomic_write_text(path, json.dumps(result, sort_keys=True, indent=1))
 
     def load(self, key: str) -> dict[str, Any]:
-        """The saved result of task `key`."""
-        return json.loads(self.path(key).read_text())
+        """The saved result of task `key`.
+
+        Raises:
+            DatasetError: If the result file is missing, unreadable, truncated or not a JSON
+                object.
+        """
+        path = self.path(key)
+        try:
+            result = json.loads(path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise DatasetError(
+                f"task {key!r} has no saved result ({path} does not exist); run the task first."
+            ) from None
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise DatasetError(
+                f"cannot read the saved result {path} ({exc}); delete it and rerun to compute "
+                "the task again."
+            ) from exc
+        if not isinstance(result, dict):
+            raise DatasetError(
+                f"the saved result {path} is not a JSON object; delete it and rerun to compute "
+                "the task again."
+            )
+        return result
 
     def results(self, keys: Sequence[str]) -> list[dict[str, Any]]:
         """Saved results of `keys`, in order."""
@@ -86,6 +115,7 @@ def run_tasks(
         The results of all tasks, in the order of `tasks`.
     """
     workers = check_workers(workers)
+    check_scheduler(scheduler)
     keys = [k for k, _ in tasks]
     if len(set(keys)) != len(keys):
         raise InputError("task keys must be unique.")

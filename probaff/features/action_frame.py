@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from probaff._checks import check_finite, check_positive, check_shape
+from probaff._checks import as_float_array, check_finite, check_positive, check_shape
 from probaff.errors import InputError
 
 __all__ = [
@@ -58,14 +58,6 @@ _PLANAR_TOL = 1e-6  # tolerance of the "rotation about one axis" checks
 _MAX_BOX_POINTS = 50_000_000  # points box_surface may return in all
 
 
-def _as_float64(name: str, x: Any) -> np.ndarray:
-    """`x` as a float64 array, or `InputError` naming `name` when it is not numeric."""
-    try:
-        return np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a numeric array, got {type(x).__name__}.") from None
-
-
 def _check_transforms(name: str, T: Any, n: int | None = None) -> np.ndarray:
     """Validate (N, 4, 4) rigid transforms and return them as float64.
 
@@ -81,7 +73,7 @@ def _check_transforms(name: str, T: Any, n: int | None = None) -> np.ndarray:
         InputError: For a wrong shape, no samples, NaN/inf, a bottom row other than
             ``(0, 0, 0, 1)`` or a rotation block that is not a proper rotation.
     """
-    arr = _as_float64(name, T)
+    arr = as_float_array(name, T)
     check_shape(name, arr, (n, 4, 4))
     if arr.shape[0] == 0:
         raise InputError(f"{name} holds no transforms; pass at least one (1, 4, 4) transform.")
@@ -191,7 +183,7 @@ def apply_effect(T_world_action: Any, T_world_obj_before: Any, effect: Any) -> n
     T_a = _check_transforms("T_world_action", T_world_action)
     n = T_a.shape[0]
     T_b = _check_transforms("T_world_obj_before", T_world_obj_before, n)
-    e = _as_float64("effect", effect)
+    e = as_float_array("effect", effect)
     check_shape("effect", e, (n, 6))
     check_finite("effect", e)
     R_a = T_a[:, :3, :3]
@@ -239,7 +231,7 @@ def box_surface(
         InputError: For malformed sizes or transforms, a spacing that is not positive, or a
             spacing so fine that the points would exceed 50 million in all.
     """
-    s = _as_float64("size", size)
+    s = as_float_array("size", size)
     check_shape("size", s, (None, 3))
     if s.shape[0] == 0:
         raise InputError("size holds no boxes; pass at least one (1, 3) size.")
@@ -281,7 +273,7 @@ def box_surface(
 
 
 def _planar(name: str, pose: Any) -> np.ndarray:
-    arr = _as_float64(name, pose)
+    arr = as_float_array(name, pose)
     check_shape(name, arr, (None, 3))
     if arr.shape[0] == 0:
         raise InputError(f"{name} holds no poses; pass at least one (1, 3) pose.")
@@ -304,7 +296,7 @@ def tabletop_transform(pose: Any, height: Any) -> np.ndarray:
         InputError: For malformed poses or heights.
     """
     p = _planar("pose", pose)
-    h = _as_float64("height", height)
+    h = as_float_array("height", height)
     check_shape("height", h, (p.shape[0],))
     check_finite("height", h)
     if np.any(h <= 0):

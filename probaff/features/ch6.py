@@ -64,9 +64,9 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from probaff._checks import check_count, check_finite, check_positive, check_shape
+from probaff._checks import as_float_array, check_count, check_finite, check_positive, check_shape
 from probaff.errors import InputError
-from probaff.features.action_frame import _as_float64, _check_transforms, action_frame
+from probaff.features.action_frame import _check_transforms, action_frame
 from probaff.features.featureset import FeatureSet
 
 __all__ = [
@@ -184,7 +184,7 @@ def _names() -> tuple[str, ...]:
 
 def _cloud(name: str, x: Any, n: int | None = None) -> np.ndarray:
     """Validate an (N, P, 3) point or normal set with N, P >= 1; return it as float64."""
-    arr = _as_float64(name, x)
+    arr = as_float_array(name, x)
     check_shape(name, arr, (n, None, 3))
     if arr.shape[0] == 0:
         raise InputError(f"{name} holds no samples; pass at least one (1, P, 3) set.")

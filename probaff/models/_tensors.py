@@ -4,11 +4,10 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
 import torch
 from torch import Tensor
 
-from probaff._checks import check_finite, check_shape
+from probaff._checks import as_float_array, check_finite, check_shape
 from probaff.errors import InputError
 
 __all__ = ["as_matrix", "as_vector"]
@@ -17,10 +16,7 @@ __all__ = ["as_matrix", "as_vector"]
 def _as_float64(name: str, x: Any) -> Tensor:
     if isinstance(x, Tensor):
         return x.detach().to(dtype=torch.float64, device="cpu")
-    try:
-        return torch.as_tensor(np.asarray(x, dtype=np.float64))
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a numeric array, got {type(x).__name__}.") from None
+    return torch.as_tensor(as_float_array(name, x))
 
 
 def as_matrix(name: str, x: Any, *, n_rows: int | None = None, n_cols: int | None = None) -> Tensor:

@@ -45,7 +45,7 @@ from torch.distributions import (
     Normal,
 )
 
-from probaff._checks import check_count, check_finite, check_shape
+from probaff._checks import as_float_array, check_count, check_finite, check_shape
 from probaff.errors import InputError
 from probaff.models.transition import SKILLS, SkillTransitionModel
 
@@ -131,19 +131,9 @@ class InteractionGeometry(Protocol):
 
 
 # ------------------------------------------------------------------ checks
-def _as_float64(name: str, x: Any) -> np.ndarray:
-    """`x` as a float64 array, or `InputError` naming `name` when it is not numeric."""
-    if isinstance(x, torch.Tensor):
-        x = x.detach().cpu().numpy()
-    try:
-        return np.array(x, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a numeric array, got {type(x).__name__}.") from None
-
-
 def _rigid(name: str, T: Any, shape: tuple[int | None, ...]) -> np.ndarray:
     """Validate rigid transforms of `shape` (ending in ``(4, 4)``); return them as float64."""
-    arr = _as_float64(name, T)
+    arr = as_float_array(name, T, copy=True)
     check_shape(name, arr, shape)
     check_finite(name, arr)
     flat = arr.reshape(-1, 4, 4)
@@ -161,7 +151,7 @@ def _rigid(name: str, T: Any, shape: tuple[int | None, ...]) -> np.ndarray:
 
 def _points(name: str, x: Any) -> np.ndarray:
     """Validate a non-empty, finite (Q, 3) point set; return it as float64."""
-    arr = _as_float64(name, x)
+    arr = as_float_array(name, x, copy=True)
     check_shape(name, arr, (None, 3))
     if arr.shape[0] == 0:
         raise InputError(f"{name} holds no points; give at least one (1, 3) point.")
@@ -267,7 +257,7 @@ class ChainScene:
     order: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
-        sizes = _as_float64("sizes", self.sizes)
+        sizes = as_float_array("sizes", self.sizes, copy=True)
         check_shape("sizes", sizes, (None, 3))
         if sizes.shape[0] == 0:
             raise InputError("sizes holds no objects; give at least one (1, 3) box size.")

@@ -42,6 +42,7 @@ from sklearn.preprocessing import StandardScaler
 from threadpoolctl import threadpool_limits
 
 from probaff._checks import (
+    as_float_array,
     check_count,
     check_finite,
     check_positive,
@@ -78,11 +79,8 @@ THESIS_PR = MappingProxyType(
 
 
 def _check_features(name: str, x: Any, width: int | None = None) -> np.ndarray:
-    check_shape(name, x, (None, width))
-    try:
-        arr = np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must hold numbers, one row of features per segment.") from None
+    arr = as_float_array(name, x)
+    check_shape(name, arr, (None, width))
     if arr.shape[0] == 0 or arr.shape[1] == 0:
         raise InputError(f"{name} is empty (shape {arr.shape}); give at least one segment.")
     check_finite(name, arr)
@@ -213,8 +211,8 @@ def reliability(p: np.ndarray, y: np.ndarray, n_bins: int = 10) -> Reliability:
             are not 0/1, or a bad `n_bins`.
     """
     bins = check_count("n_bins", n_bins)
-    check_shape("p", p, (None,))
-    probs = np.asarray(p, dtype=np.float64)
+    probs = as_float_array("p", p)
+    check_shape("p", probs, (None,))
     if probs.size == 0:
         raise InputError("p is empty; give at least one predicted probability.")
     check_probability("p", probs)

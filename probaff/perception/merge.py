@@ -64,7 +64,13 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from probaff._checks import check_finite, check_positive, check_probability, check_shape
+from probaff._checks import (
+    as_float_array,
+    check_finite,
+    check_positive,
+    check_probability,
+    check_shape,
+)
 from probaff.errors import InputError
 from probaff.perception.labels import LABELS
 
@@ -135,11 +141,8 @@ def _check_points(
     name: str, points: object, point_segments: object, n: int
 ) -> tuple[np.ndarray, ...]:
     """The (P_s, 3) points of each of the `n` segments, checked."""
-    try:
-        pts = np.asarray(points, dtype=np.float64)
-        rows = np.asarray(point_segments)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} points and point_segments must be numeric arrays.") from None
+    pts = as_float_array(f"{name} points", points)
+    rows = as_float_array(f"{name} point_segments", point_segments)
     check_shape(f"{name} points", pts, (None, 3))
     check_shape(f"{name} point_segments", rows, (len(pts),))
     check_finite(f"{name} points", pts)
@@ -181,10 +184,10 @@ def _check_view(v: int, view: object) -> _View:
             f"{name} must be a MergeView or a (centroids, label_vectors, point_counts) triple "
             "of arrays."
         )
-    try:
-        centroids, labels, counts = (np.asarray(a, dtype=np.float64) for a in arrays)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must hold numeric arrays.") from None
+    centroids, labels, counts = (
+        as_float_array(f"{name} {part}", a)
+        for part, a in zip(("centroids", "label_vectors", "point_counts"), arrays, strict=True)
+    )
     check_shape(f"{name} centroids", centroids, (None, 3))
     n = centroids.shape[0]
     check_shape(f"{name} label_vectors", labels, (n, len(LABELS)))

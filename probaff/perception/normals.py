@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
-from probaff._checks import check_count, check_finite, check_shape
+from probaff._checks import as_float_array, check_count, check_finite, check_shape
 from probaff.errors import InputError
 
 __all__ = ["Normals", "estimate_normals"]
@@ -90,7 +90,7 @@ class Normals:
 
 def _as_cloud(points: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Return the cloud as float64 (N, 3) and its (N,) mask of rows without NaN."""
-    pts = np.asarray(points, dtype=np.float64)
+    pts = as_float_array("points", points)
     check_shape("points", pts, (None, 3))
     if len(pts) == 0:
         raise InputError("points is an empty cloud; give at least k points of shape (N, 3).")
@@ -216,7 +216,7 @@ def estimate_normals(
     """
     k = check_count("k", k, minimum=3)
     pts, valid = _as_cloud(points)
-    view = np.zeros(3) if viewpoint is None else np.asarray(viewpoint, dtype=np.float64)
+    view = np.zeros(3) if viewpoint is None else as_float_array("viewpoint", viewpoint)
     check_shape("viewpoint", view, (3,))
     check_finite("viewpoint", view)
     good = pts[valid]

@@ -50,6 +50,7 @@ from sklearn.cluster import KMeans
 from threadpoolctl import threadpool_limits
 
 from probaff._checks import (
+    as_float_array,
     check_count,
     check_finite,
     check_positive,
@@ -69,8 +70,8 @@ __all__ = [
 
 
 def _check_label_vectors(name: str, P: object) -> np.ndarray:
-    check_shape(name, P, (None, len(LABELS)))
-    arr = np.asarray(P, dtype=np.float64)
+    arr = as_float_array(name, P)
+    check_shape(name, arr, (None, len(LABELS)))
     if arr.shape[0] == 0:
         raise InputError(f"{name} is empty; give at least one segment's label vector.")
     check_probability(name, arr)
@@ -89,7 +90,7 @@ def label_entropy(P: np.ndarray) -> np.ndarray:
     Raises:
         InputError: For a last axis other than 6, or values outside [0, 1] or non-finite.
     """
-    arr = np.asarray(P, dtype=np.float64)
+    arr = as_float_array("P", P)
     if arr.ndim == 0 or arr.shape[-1] != len(LABELS):
         raise InputError(
             f"P has shape {arr.shape}; its last axis must hold the {len(LABELS)} label "
@@ -316,8 +317,8 @@ def purity_completeness(
     if weights is None:
         w = np.ones(pred.shape[0])
     else:
-        check_shape("weights", weights, (pred.shape[0],))
-        w = np.asarray(weights, dtype=np.float64)
+        w = as_float_array("weights", weights)
+        check_shape("weights", w, (pred.shape[0],))
         check_finite("weights", w)
         if np.any(w <= 0):
             raise InputError("weights must be > 0 (e.g. each segment's point count).")

@@ -44,7 +44,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
-from probaff._checks import check_count, check_positive, check_shape
+from probaff._checks import as_float_array, check_count, check_positive, check_shape
 from probaff.errors import InputError
 
 __all__ = ["Segmentation", "region_growing"]
@@ -74,9 +74,9 @@ def _validate(
     points: ArrayLike, normals: ArrayLike, curvature: ArrayLike
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Check the inputs and return them as float arrays with the (N,) mask of usable rows."""
-    pts = np.asarray(points, dtype=np.float64)
-    nrm = np.asarray(normals, dtype=np.float64)
-    cur = np.asarray(curvature, dtype=np.float64)
+    pts = as_float_array("points", points)
+    nrm = as_float_array("normals", normals)
+    cur = as_float_array("curvature", curvature)
     check_shape("points", pts, (None, 3))
     n = len(pts)
     if n == 0:

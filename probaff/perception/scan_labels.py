@@ -52,6 +52,20 @@ Defaults of `PerceptionConfig` and their sources (numbers measured on noisy 320 
 - ``head_height = 1.2`` m: about a PR2's head with its torso down.
 - ``noise = True``, ``registration = True``: the camera's sensor model and the registration
   error between views (``worlds/camera.yaml``).
+
+Every view must image some of the floor (z = 0, on which every object stands) within the
+camera's depth range: a view whose rays miss the floor, or meet it only nearer than the
+camera's ``min_range`` or farther than its ``max_range``, returns no usable points. A pixel ray
+of unit depth whose downward component is ``s`` meets the floor at depth ``h / s`` from a
+camera ``h`` above it; over the image ``s`` spans ``[s_min, s_max]`` (`CameraSpec.floor_band`),
+so a view sees floor in range exactly when ``s_max > 0`` and
+``min_range s_min <= h <= max_range s_max`` (`CameraSpec.floor_heights`). With the Kinect's
+43-degree vertical field of view and 0.5-4.5 m range, a 30-degree tilt allows head heights of
+0.08-3.78 m, and a view tilted up by more than about 21 degrees never sees the floor.
+`PerceptionConfig` checks its ``head_height`` and ``tilts_deg`` this way against the default
+camera (`CameraSpec()`, the one of ``worlds/camera.yaml``) when it is built; `scan_segments`,
+`scenes_dataset` and `label_dataset` check again against the camera they are given, and its
+resolution against ``k``, before any scan.
 """
 
 from __future__ import annotations
@@ -68,7 +82,14 @@ from probaff.perception.labels import LABELS, label_index
 from probaff.perception.normals import estimate_normals
 from probaff.perception.region_growing import region_growing
 from probaff.perception.segment_features import FEATURE_NAMES, segment_features
-from probaff.sim.camera import DepthCamera, DepthImage, head_views, load_camera, scan_views
+from probaff.sim.camera import (
+    CameraSpec,
+    DepthCamera,
+    DepthImage,
+    head_views,
+    load_camera,
+    scan_views,
+)
 from probaff.sim.office import OfficeScene, OfficeSpec, sample_office_scenes
 
 __all__ = [
@@ -86,10 +107,79 @@ _STRUCTURE = ("floor", "wall")  # object kinds that carry no label
 
 
 def _angles(name: str, value: Sequence[float]) -> tuple[float, ...]:
-    arr = np.atleast_1d(np.asarray(value, dtype=np.float64))
+    bad = InputError(f"{name} must be a non-empty list of finite angles (degrees), got {value!r}.")
+    if isinstance(value, (str, bytes)):
+        raise bad
+    try:
+        arr = np.atleast_1d(np.asarray(value, dtype=np.float64))
+    except (TypeError, ValueError):
+        raise bad from None
     if arr.ndim != 1 or arr.size == 0 or not np.all(np.isfinite(arr)):
-        raise InputError(f"{name} must be a non-empty list of finite angles (degrees).")
+        raise bad
     return tuple(float(a) for a in arr)
+
+
+def _number(name: str, value: object) -> float:
+    """`value` as a finite float > 0, or an `InputError` naming `name`."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise InputError(f"{name} must be a finite number > 0, got {value!r}.")
+    check_positive(name, float(value))
+    return float(value)
+
+
+def _check_views(
+    tilts_deg: tuple[float, ...], head_height: float, spec: CameraSpec, camera: str
+) -> None:
+    """Raise `InputError` unless every tilt images floor within range from `head_height`.
+
+    Args:
+        tilts_deg: The views' tilts (degrees, down positive).
+        head_height: The camera centre's height above the floor (m).
+        spec: The camera.
+        camera: How the camera is named in messages.
+    """
+    band = f"range {spec.min_range:g}-{spec.max_range:g} m"
+    lo, hi = (0.0, tilts_deg[0]), (math.inf, tilts_deg[0])  # (height, the tilt that sets it)
+    for tilt in tilts_deg:
+        heights = spec.floor_heights(tilt)
+        if heights is None:
+            raise InputError(
+                f"tilts_deg holds {tilt:g}: a view tilted so sees no floor with {camera} (its "
+                f"whole field of view is above the horizon); use tilts above "
+                f"{spec.floor_tilt_deg:.1f} degrees (positive tilts look down)."
+            )
+        lo = max(lo, (heights[0], tilt))
+        hi = min(hi, (heights[1], tilt))
+    if lo[0] > hi[0]:
+        raise InputError(
+            f"tilts_deg {list(tilts_deg)} cannot all image the floor from one head height with "
+            f"{camera} ({band}): the view tilted {lo[1]:g} degrees needs head_height >= "
+            f"{lo[0]:.3f} m, the one tilted {hi[1]:g} degrees head_height <= {hi[0]:.3f} m; "
+            "use closer tilts."
+        )
+    if not lo[0] <= head_height <= hi[0]:
+        raise InputError(
+            f"head_height {head_height:g} m leaves {camera} ({band}) unable to image the floor "
+            f"at tilts_deg {list(tilts_deg)}; head_height must lie in [{lo[0]:.3f}, "
+            f"{hi[0]:.3f}] m."
+        )
+
+
+def _check_camera(camera: object, config: PerceptionConfig) -> DepthCamera:
+    """`camera` after checking it against `config`, before any scan."""
+    if not isinstance(camera, DepthCamera):
+        raise InputError(
+            f"camera must be a DepthCamera (DepthCamera(load_camera())), got "
+            f"{type(camera).__name__}."
+        )
+    spec = camera.spec
+    if spec.width * spec.height < config.k:
+        raise InputError(
+            f"k={config.k} exceeds the camera's {spec.width} x {spec.height} = "
+            f"{spec.width * spec.height} pixels: no view can return k points; lower k or "
+            "raise the camera's resolution."
+        )
+    return camera
 
 
 @dataclass(frozen=True)
@@ -105,13 +195,17 @@ class PerceptionConfig:
             features (m, > 0).
         pans_deg: (P,) pan angles of the head's views (degrees, left positive).
         tilts_deg: (Q,) tilt angles of the head's views (degrees, down positive).
-        head_height: Height of the head above the floor (m, > 0).
+        head_height: Height of the head above the floor (m); every view must image the
+            floor within the camera's range from it (see the module docstring: 0.08-3.79 m
+            for a 30-degree tilt with the default camera).
         noise: Apply the camera's sensor model (noise, quantisation, dropouts).
         registration: Perturb each view's pose by the camera's registration error.
         keep_structure: Keep floor and wall segments (all-false labels); False drops them.
 
     Raises:
-        InputError: Naming the first field out of range.
+        InputError: Naming the first field out of range or of the wrong type, or a
+            ``head_height`` or ``tilts_deg`` from which a view of the default camera images no
+            floor within its range, with the valid range of ``head_height``.
     """
 
     k: int = 30
@@ -129,14 +223,17 @@ class PerceptionConfig:
     def __post_init__(self) -> None:
         object.__setattr__(self, "k", check_count("k", self.k, minimum=3))
         object.__setattr__(self, "min_size", check_count("min_size", self.min_size))
-        check_positive("smoothness_deg", self.smoothness_deg)
-        if not float(self.smoothness_deg) < 180.0:
+        for name in ("smoothness_deg", "curvature_threshold", "neighbour_distance", "head_height"):
+            object.__setattr__(self, name, _number(name, getattr(self, name)))
+        if not self.smoothness_deg < 180.0:
             raise InputError(f"smoothness_deg must be < 180 degrees, got {self.smoothness_deg}.")
-        check_positive("curvature_threshold", self.curvature_threshold)
-        check_positive("neighbour_distance", self.neighbour_distance)
-        check_positive("head_height", self.head_height)
         object.__setattr__(self, "pans_deg", _angles("pans_deg", self.pans_deg))
         object.__setattr__(self, "tilts_deg", _angles("tilts_deg", self.tilts_deg))
+        for name in ("noise", "registration", "keep_structure"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise InputError(f"{name} must be True or False, got {getattr(self, name)!r}.")
+            object.__setattr__(self, name, bool(getattr(self, name)))
+        _check_views(self.tilts_deg, self.head_height, CameraSpec(), "the default camera")
 
 
 @dataclass(frozen=True, eq=False)
@@ -299,6 +396,30 @@ def _check_config(config: object) -> PerceptionConfig:
     return config
 
 
+def _check_head(poses: np.ndarray, spec: CameraSpec) -> None:
+    """Raise `InputError` unless every view pose (V, 4, 4) images floor within range."""
+    for pose in poses:
+        s_min, s_max = spec.floor_band(pose[:3, :3])
+        h = float(pose[2, 3])
+        near = h / s_max if h > 0 and s_max > 0 else math.inf
+        far = h / s_min if s_min > 0 else math.inf
+        if near > spec.max_range or far < spec.min_range:
+            raise InputError(
+                f"T_world_head puts the camera {h:.3f} m above the floor, where a view of it "
+                f"images no floor within the camera's range {spec.min_range:g}-"
+                f"{spec.max_range:g} m; place the head above the floor at a height the "
+                "views can see it from (see PerceptionConfig.head_height)."
+            )
+
+
+def _check_setup(config: PerceptionConfig, camera: object) -> DepthCamera:
+    """The camera (``DepthCamera(load_camera())`` when None), checked against `config`."""
+    cam = DepthCamera(load_camera()) if camera is None else camera
+    cam = _check_camera(cam, config)
+    _check_views(config.tilts_deg, config.head_height, cam.spec, "the camera")
+    return cam
+
+
 def head_pose(scene: OfficeScene, height: float = 1.2) -> np.ndarray:
     """The head's pose above the scene's robot: the robot frame raised by `height`.
 
@@ -424,14 +545,18 @@ def scan_segments(
         ``config.tilts_deg``.
 
     Raises:
-        InputError: For a bad scene, camera, head pose, config or rng; a camera centre inside
-            an object; or a view with fewer returned points than ``config.k``.
+        InputError: For a bad scene, camera, head pose, config or rng; a view that images no
+            floor within the camera's range, or a camera with fewer pixels than ``config.k``
+            (both before any scan); a camera centre inside an object; or a view with fewer
+            returned points than ``config.k``.
     """
     sc = _check_scene(scene)
     cfg = _check_config(config)
+    cam = _check_camera(camera, cfg)
     poses = head_views(T_world_head, cfg.pans_deg, cfg.tilts_deg)
+    _check_head(poses, cam.spec)
     images = scan_views(
-        camera,
+        cam,
         sc.primitives,
         poses,
         rng=rng,
@@ -471,7 +596,7 @@ def scenes_dataset(
         raise InputError("scenes is empty; give a list of at least one OfficeScene.")
     seed = check_count("seed", seed, minimum=0)
     cfg = _check_config(config)
-    cam = DepthCamera(load_camera()) if camera is None else camera
+    cam = _check_setup(cfg, camera)
     parts: list[ScanSegments] = []
     for i, scene in enumerate(scenes):
         head = head_pose(_check_scene(scene), cfg.head_height)
@@ -521,5 +646,7 @@ def label_dataset(
     """
     n = check_count("n_scenes", n_scenes)
     seed = check_count("seed", seed, minimum=0)
+    cfg = _check_config(config)
+    cam = _check_setup(cfg, camera)
     scenes = sample_office_scenes(spec, n, seed)
-    return scenes_dataset(scenes, seed, config, camera)
+    return scenes_dataset(scenes, seed, cfg, cam)

@@ -51,7 +51,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
-from probaff._checks import check_finite, check_positive, check_shape
+from probaff._checks import as_float_array, check_finite, check_positive, check_shape
 from probaff.errors import InputError
 
 __all__ = ["FEATURE_NAMES", "SegmentFeatures", "segment_features"]
@@ -101,7 +101,7 @@ class SegmentFeatures:
 
 def _validate(points: ArrayLike, labels: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Return the labelled points and their labels, checked."""
-    pts = np.asarray(points, dtype=np.float64)
+    pts = as_float_array("points", points)
     check_shape("points", pts, (None, 3))
     if len(pts) == 0:
         raise InputError("points is an empty cloud; give the segmented (N, 3) points.")
@@ -260,7 +260,7 @@ def segment_features(
         raise InputError(f"elevation_deg must lie in (0, 90) degrees, got {elevation_deg!r}.")
     view = None
     if viewpoint is not None:
-        view = np.asarray(viewpoint, dtype=np.float64)
+        view = as_float_array("viewpoint", viewpoint)
         check_shape("viewpoint", view, (3,))
         check_finite("viewpoint", view)
     pts, lab = _validate(points, labels)

@@ -24,7 +24,7 @@ from sklearn.model_selection import GroupKFold, StratifiedKFold
 from sklearn.pipeline import Pipeline, make_pipeline
 from sklearn.preprocessing import StandardScaler
 
-from probaff._checks import check_count, check_finite, check_shape
+from probaff._checks import check_count, check_finite, check_positive, check_shape
 from probaff.errors import InputError
 from probaff.features.cells import cell_features
 from probaff.grid import DIRECTION_NAMES
@@ -50,10 +50,12 @@ class AffordanceClassifier:
         max_iter: Iteration limit of the solver (a positive integer).
 
     Raises:
-        InputError: If `max_iter` is not a positive integer.
+        InputError: If `C` is not a finite number > 0 or `max_iter` is not a positive
+            integer.
     """
 
     def __init__(self, C: float = 1.0, max_iter: int = 2000) -> None:
+        check_positive("C (inverse regularisation strength)", C)
         self.C = float(C)
         self.max_iter = check_count("max_iter", max_iter)
         self._models: list[Pipeline | float] | None = None
@@ -142,7 +144,12 @@ class AffordanceClassifier:
         """
         p = self.predict_proba(features)
         check_shape("cells", cells, (len(p), 2))
-        rows, cols = (int(v) for v in map_shape)
+        if not isinstance(map_shape, (tuple, list)) or len(map_shape) != 2:
+            raise InputError(f"map_shape must be (rows, cols), got {map_shape!r}.")
+        rows, cols = (
+            check_count(f"map_shape {k}", v)
+            for k, v in zip(("rows", "cols"), map_shape, strict=True)
+        )
         c = np.asarray(cells)
         if len(c) and (c.min() < 0 or c[:, 0].max() >= rows or c[:, 1].max() >= cols):
             raise InputError(f"cells must lie inside the {rows} x {cols} map.")
@@ -199,9 +206,20 @@ def collect_voxels(spec: WarehouseSpec, n_maps: int, rng: np.random.Generator) -
         The labelled voxels of all maps.
 
     Raises:
-        InputError: If `n_maps` is not a positive integer.
+        InputError: If `spec` is not a `WarehouseSpec`, `n_maps` is not a positive integer or
+            `rng` is not a ``numpy.random.Generator``.
     """
+    if not isinstance(spec, WarehouseSpec):
+        raise InputError(
+            f"spec must be the warehouse world, a WarehouseSpec (load_warehouse()), got "
+            f"{type(spec).__name__}."
+        )
     n_maps = check_count("n_maps", n_maps)
+    if not isinstance(rng, np.random.Generator):
+        raise InputError(
+            f"rng must be a numpy.random.Generator (np.random.default_rng(seed)), got "
+            f"{type(rng).__name__}."
+        )
     n_cells = spec.rows * spec.cols
     feats, labels, cell_ids, map_ids, coverage = [], [], [], [], []
     unseen = boxes = scans = 0
@@ -363,13 +381,14 @@ def evaluate(
         Precision and recall per direction, with dataset statistics.
 
     Raises:
-        InputError: For a non-integer or negative count or seed, fewer than 2 folds, or too
-            few described cells for them.
+        InputError: For a non-integer or negative count or seed, fewer than 2 folds, a `C`
+            that is not > 0, or too few described cells for them.
     """
     t0 = time.perf_counter()
     n_maps = check_count("n_maps", n_maps)
     folds = check_count("folds", folds, minimum=2)
     seed = check_count("seed", seed, minimum=0)
+    check_positive("C (inverse regularisation strength)", C)
     spec = spec or load_warehouse()
     data = collect_voxels(spec, n_maps, np.random.default_rng(seed))
     cells, cell_index = np.unique(data.cell_ids, return_inverse=True)

@@ -21,7 +21,11 @@ from probaff._checks import check_count
 from probaff.errors import InputError, UnreachablePoseError
 from probaff.planning.edge_planner import EdgePlan, plan_astar, plan_greedy
 from probaff.planning.edge_task import EdgeTask, sample_episode
-from probaff.planning.edge_transitions import EdgeTransition, PushReachability
+from probaff.planning.edge_transitions import (
+    EdgeTransition,
+    PushReachability,
+    check_edge_transition,
+)
 from probaff.sim.runner import PushSimulator
 
 __all__ = ["EDGE_SEARCHES", "EdgeEpisode", "EdgeStep", "run_edge_episode"]
@@ -133,15 +137,28 @@ def run_edge_episode(
         The episode's record.
 
     Raises:
-        InputError: For an unknown search, a negative seed or a bad task.
+        InputError: For an unknown search, a negative seed, a bad task, a `transition`,
+            `simulator` or `reach` of the wrong kind, a start off the table or overlapping
+            the battery, or a transition whose predictions are not finite.
     """
-    if search not in EDGE_SEARCHES:
+    if not isinstance(search, str) or search not in EDGE_SEARCHES:
         raise InputError(f"unknown search {search!r}; choose one of {sorted(EDGE_SEARCHES)}.")
     seed = check_count("seed", seed, minimum=0)
     if not isinstance(task, EdgeTask):
         raise InputError(f"task must be an EdgeTask (load_edge_task()), got {type(task).__name__}.")
+    check_edge_transition(transition)
+    if simulator is not None and not isinstance(simulator, PushSimulator):
+        raise InputError(
+            "simulator must be a PushSimulator(task.scene, task.world) or None, got "
+            f"{type(simulator).__name__}."
+        )
+    if reach is not None and not isinstance(reach, PushReachability):
+        raise InputError(
+            f"reach must be the arm's PushReachability(task) or None, got {type(reach).__name__}."
+        )
     planner = EDGE_SEARCHES[search]
     scene = sample_episode(task, np.random.default_rng(seed))
+    task.check_start(scene.poses[0], scene.poses[1])
     sim = simulator or PushSimulator(task.scene, task.world)
     reach = reach or PushReachability(task)
     poses = scene.poses.copy()

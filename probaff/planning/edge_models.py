@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from probaff._checks import check_count
 from probaff._threads import torch_threads
 from probaff.data.schema import PushDataset
 from probaff.errors import InputError
@@ -82,10 +83,18 @@ def fit_edge_model(
         The fitted model with its features.
 
     Raises:
-        InputError: For an unknown name or a dataset with fewer than 10 pushes.
+        InputError: For an unknown name, a `ds` that is not a `PushDataset` or holds fewer
+            than 10 pushes, or a bad seed or iteration count.
     """
-    if name not in EDGE_MODELS:
+    if not isinstance(name, str) or name not in EDGE_MODELS:
         raise InputError(f"unknown planner model {name!r}; choose one of {sorted(EDGE_MODELS)}.")
+    if not isinstance(ds, PushDataset):
+        raise InputError(
+            "ds must be a PushDataset of the task's scene (probaff generate --scene "
+            f"push_to_edge), got {type(ds).__name__}."
+        )
+    seed = check_count("seed", seed, minimum=0)
+    em_iterations = check_count("em_iterations", em_iterations)
     if len(ds) < 10:
         raise InputError(
             f"the training dataset has {len(ds)} pushes; fit planner models on at least 10 "

@@ -34,8 +34,13 @@ import numpy as np
 
 from probaff._checks import check_count
 from probaff.errors import InputError
-from probaff.planning.edge_task import EdgeTask, check_book_pose
-from probaff.planning.edge_transitions import EdgeTransition, PushReachability
+from probaff.planning.edge_task import EdgeTask
+from probaff.planning.edge_transitions import (
+    EdgeTransition,
+    PushReachability,
+    check_edge_transition,
+    checked_prediction,
+)
 
 __all__ = ["EdgePlan", "plan_astar", "plan_greedy"]
 
@@ -117,8 +122,13 @@ def _expand(
     if len(parent) == 0:
         return parent, np.zeros(0), np.zeros((0, 3))
     n_samples = task.risk.samples if risk else 0
-    pred = transition.predict(
-        poses[parent], origins[parent, col], yaws[col], battery, n_samples=n_samples
+    pred = checked_prediction(
+        transition,
+        transition.predict(
+            poses[parent], origins[parent, col], yaws[col], battery, n_samples=n_samples
+        ),
+        len(parent),
+        n_samples,
     )
     child = pred.mean
     margin = task.search.safety_margin
@@ -168,13 +178,12 @@ def plan_astar(
         (the plan then leads to the pose closest to a goal, possibly empty).
 
     Raises:
-        InputError: For a malformed pose, a book overlapping the battery, or a budget that
-            is not a positive integer.
+        InputError: For a `task`, `transition` or `reach` of the wrong kind, a malformed
+            pose, a book or battery off the table, a book overlapping the battery, a budget
+            that is not a positive integer, or a transition whose predictions are not finite.
     """
     start_time = time.perf_counter()
-    book = check_book_pose("book", book)
-    battery = check_book_pose("battery", battery)
-    _check_planner_args(task, book, battery)
+    book, battery = _check_planner_args(task, transition, book, battery, reach)
     budget = check_count("budget (pushes left)", task.budget if budget is None else budget)
     calls0 = getattr(transition, "calls", 0)
     tie = itertools.count()
@@ -252,11 +261,12 @@ def plan_greedy(
 
     Returns:
         A plan of at most one push.
+
+    Raises:
+        InputError: As `plan_astar`.
     """
     start_time = time.perf_counter()
-    book = check_book_pose("book", book)
-    battery = check_book_pose("battery", battery)
-    _check_planner_args(task, book, battery)
+    book, battery = _check_planner_args(task, transition, book, battery, reach)
     check_count("budget (pushes left)", task.budget if budget is None else budget)
     if bool(task.graspable(book)):
         return EdgePlan((), np.zeros((0, 3)), True, 0, time.perf_counter() - start_time)
@@ -278,12 +288,18 @@ def plan_greedy(
     )
 
 
-def _check_planner_args(task: EdgeTask, book: np.ndarray, battery: np.ndarray) -> None:
+def _check_planner_args(
+    task: EdgeTask,
+    transition: EdgeTransition,
+    book: np.ndarray,
+    battery: np.ndarray,
+    reach: PushReachability,
+) -> tuple[np.ndarray, np.ndarray]:
     if not isinstance(task, EdgeTask):
         raise InputError(f"task must be an EdgeTask (load_edge_task()), got {type(task).__name__}.")
-    if bool(task.collides(book, battery)):
+    check_edge_transition(transition)
+    if not isinstance(reach, PushReachability):
         raise InputError(
-            f"the book at {np.round(book, 3).tolist()} overlaps the battery at "
-            f"{np.round(battery, 3).tolist()}; give poses whose footprints are apart "
-            "(sample_episode draws such starts)."
+            f"reach must be the arm's PushReachability(task), got {type(reach).__name__}."
         )
+    return task.check_start(book, battery)

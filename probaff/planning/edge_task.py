@@ -35,6 +35,7 @@ from probaff.sim.config import (
     ObjectSpec,
     SceneSpec,
     TabletopSpec,
+    _read_yaml,
     load_catalogue,
     load_scene,
     load_tabletop,
@@ -237,6 +238,15 @@ class EdgeTask:
     _objects: tuple[ObjectSpec, ObjectSpec] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.scene, SceneSpec):
+            raise ConfigError(
+                f"scene must be a SceneSpec (load_scene('push_to_edge')), got "
+                f"{type(self.scene).__name__}."
+            )
+        if not isinstance(self.world, TabletopSpec):
+            raise ConfigError(
+                f"world must be a TabletopSpec (load_tabletop()), got {type(self.world).__name__}."
+            )
         if len(self.scene.objects) != 2:
             raise ConfigError(
                 f"scene {self.scene.name!r} has {len(self.scene.objects)} objects; the "
@@ -257,10 +267,22 @@ class EdgeTask:
                 f"edge_x = {self.edge_x} is not the table's +x edge (the table spans x in "
                 f"[-{hx}, {hx}]); set edge_x to {hx}."
             )
-        for name in ("start_x", "start_y"):
+        if self.start_gap >= self.push_distance:
+            raise ConfigError(
+                f"candidates.start_gap = {self.start_gap} m is not shorter than the push "
+                f"distance {self.push_distance} m, so the hand never reaches the book; lower "
+                "candidates.start_gap."
+            )
+        for name, half in (("start_x", hx), ("start_y", 0.5 * self.world.table_size[1])):
             lo, hi = getattr(self, name)
             if not lo <= hi:
                 raise ConfigError(f"start.{name[-1]} must be [low, high], got {[lo, hi]}.")
+            if not -half <= lo <= hi <= half:
+                raise ConfigError(
+                    f"start.{name[-1]} = {[lo, hi]} leaves the table (its {name[-1]} spans "
+                    f"[-{half}, {half}]), so episodes would start with the book fallen off; "
+                    "choose a start region on the table."
+                )
         catalogue = load_catalogue()
         object.__setattr__(
             self,
@@ -310,6 +332,8 @@ class EdgeTask:
     def graspable(self, poses: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """Whether book poses (..., 3) are goals (see the module docstring); (...,) bool.
 
+        A book that has fallen off the table (`fallen`) is never a goal.
+
         Args:
             poses: (..., 3) world book poses.
             margin: Keep the centre this much farther inside the edge (m) than
@@ -318,7 +342,7 @@ class EdgeTask:
         poses = np.asarray(poses, dtype=float)
         chord = chord_at(poses, self.book.size, self.edge_x + self.grasp_depth)
         inside = poses[..., 0] <= self.edge_x - self.com_margin - margin
-        return (chord >= self.finger_width) & inside
+        return (chord >= self.finger_width) & inside & ~self.fallen(poses)
 
     def fallen(self, poses: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """Whether the book's centre is off the table, for poses (..., 3); (...,) bool.
@@ -330,6 +354,39 @@ class EdgeTask:
         poses = np.asarray(poses, dtype=float)
         hx, hy = 0.5 * self.world.table_size[0] - margin, 0.5 * self.world.table_size[1] - margin
         return (np.abs(poses[..., 0]) > hx) | (np.abs(poses[..., 1]) > hy)
+
+    def check_start(self, book: Any, battery: Any) -> tuple[np.ndarray, np.ndarray]:
+        """Validate a planning start: the book and the battery on the table, apart.
+
+        Args:
+            book: (3,) world start pose of the book.
+            battery: (3,) world pose of the battery.
+
+        Returns:
+            ``(book, battery)`` as float arrays.
+
+        Raises:
+            InputError: For a pose that is not a finite (3,), a centre off the table, or a
+                book that overlaps the battery.
+        """
+        book = check_book_pose("book", book)
+        battery = check_book_pose("battery", battery)
+        w, d = self.world.table_size
+        for name, pose in (("book", book), ("battery", battery)):
+            if bool(self.fallen(pose)):
+                raise InputError(
+                    f"the start pose of the {name}, {np.round(pose, 3).tolist()}, is off the "
+                    f"{w} x {d} m table (its centre must lie within x in [{-w / 2}, {w / 2}] "
+                    f"and y in [{-d / 2}, {d / 2}]); give a start pose on the table "
+                    "(sample_episode draws valid starts)."
+                )
+        if bool(self.collides(book, battery)):
+            raise InputError(
+                f"the start pose of the book, {np.round(book, 3).tolist()}, overlaps the "
+                f"battery at {np.round(battery, 3).tolist()}; give poses whose footprints are "
+                "apart (sample_episode draws valid starts)."
+            )
+        return book, battery
 
     def collides(self, poses: np.ndarray, battery: np.ndarray) -> np.ndarray:
         """Whether book poses (..., 3) overlap the battery at world pose (3,); (...,) bool.
@@ -443,12 +500,10 @@ def load_edge_task(path: Path | str | None = None, world: TabletopSpec | None = 
     Raises:
         ConfigError: For a missing file, an unknown key or a malformed value, naming it.
     """
-    import yaml
-
     p = Path(path) if path is not None else worlds_dir() / "tasks" / "push_to_edge.yaml"
     if not p.is_file():
         raise ConfigError(f"no task file at {p}; give the path of a push-to-edge task YAML.")
-    raw = yaml.safe_load(p.read_text())
+    raw = _read_yaml(p)
     w = p.name
     top = _section(
         w,
@@ -509,8 +564,17 @@ def sample_episode(task: EdgeTask, rng: np.random.Generator) -> SceneInstance:
         The episode's scene, object 0 the book and object 1 the battery.
 
     Raises:
+        InputError: For a `task` that is not an `EdgeTask` or an `rng` that is not a
+            ``numpy.random.Generator``.
         ConfigError: If valid starts are too rare to draw.
     """
+    if not isinstance(task, EdgeTask):
+        raise InputError(f"task must be an EdgeTask (load_edge_task()), got {type(task).__name__}.")
+    if not isinstance(rng, np.random.Generator):
+        raise InputError(
+            f"rng must be a numpy.random.Generator (np.random.default_rng(seed)), got "
+            f"{type(rng).__name__}."
+        )
     first = replace(task.scene.objects[0], x=task.start_x, y=task.start_y)
     scene = replace(task.scene, objects=(first, *task.scene.objects[1:]))
     catalogue = load_catalogue()
@@ -518,7 +582,11 @@ def sample_episode(task: EdgeTask, rng: np.random.Generator) -> SceneInstance:
         s = sample_scene(scene, catalogue, task.world, rng)
         if s is None:
             continue
-        if task.collides(s.poses[0], s.poses[1]) or bool(task.graspable(s.poses[0])):
+        if (
+            bool(task.fallen(s.poses[0]))
+            or bool(task.collides(s.poses[0], s.poses[1]))
+            or bool(task.graspable(s.poses[0]))
+        ):
             continue
         return s
     raise ConfigError(

@@ -25,12 +25,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 import torch
 
+from probaff._checks import check_count, check_positive
 from probaff.data.queries import PushQueries
+from probaff.errors import InputError
 from probaff.planning.edge_task import EdgeTask
 from probaff.planning.learned import FeaturePushModel, apply_effects
 from probaff.sim.arm import Arm, load_arm
@@ -44,6 +46,8 @@ __all__ = [
     "QuasiStaticTransition",
     "SimulatorTransition",
     "TransitionPrediction",
+    "check_edge_transition",
+    "checked_prediction",
 ]
 
 
@@ -88,6 +92,74 @@ class EdgeTransition(Protocol):
         ...
 
 
+def check_edge_transition(transition: Any) -> EdgeTransition:
+    """`transition`, or `InputError` unless it is a push transition model.
+
+    Args:
+        transition: What a planner was given as its model of the pushes.
+
+    Returns:
+        `transition`, unchanged.
+    """
+    if not isinstance(transition, EdgeTransition):
+        raise InputError(
+            "transition must be a push transition model with a name and "
+            "predict(book, origins, yaws, battery, n_samples) (QuasiStaticTransition, "
+            f"SimulatorTransition or LearnedTransition), got {type(transition).__name__}."
+        )
+    return transition
+
+
+def _model_name(model: Any) -> str:
+    label = getattr(model, "name", None)
+    kind = type(model).__name__
+    return f"{kind} {label!r}" if isinstance(label, str) and label else kind
+
+
+def checked_prediction(
+    transition: EdgeTransition, pred: Any, n: int, n_samples: int = 0
+) -> TransitionPrediction:
+    """`pred`, or `InputError` unless it holds finite poses of the asked shapes.
+
+    A model whose predictions are NaN or infinite is broken (a bad fit, or inputs unlike
+    its training data); the planners refuse its predictions instead of pruning them.
+
+    Args:
+        transition: The model that made the prediction (named in the error).
+        pred: What its ``predict`` returned for `n` pushes.
+        n: Pushes asked for.
+        n_samples: Predictive draws asked for (0: none are read).
+
+    Returns:
+        `pred`, its arrays as float arrays.
+    """
+    who = _model_name(transition)
+    if not isinstance(pred, TransitionPrediction):
+        raise InputError(
+            f"the transition model {who} returned {type(pred).__name__}, not a "
+            "TransitionPrediction; make its predict return TransitionPrediction(mean, samples)."
+        )
+    mean = np.asarray(pred.mean, dtype=float)
+    samples = None if pred.samples is None else np.asarray(pred.samples, dtype=float)
+    arrays: list[tuple[str, np.ndarray, tuple[int, ...]]] = [("predicted poses", mean, (n, 3))]
+    if n_samples > 0 and samples is not None:
+        arrays.append(("predictive draws", samples, (n_samples, n, 3)))
+    for what, arr, shape in arrays:
+        if arr.shape != shape:
+            raise InputError(
+                f"the transition model {who} returned {what} of shape {arr.shape}, expected "
+                f"{shape}; make its predict return one (x, y, theta) per push."
+            )
+        bad = int(arr.size - np.count_nonzero(np.isfinite(arr)))
+        if bad:
+            raise InputError(
+                f"the transition model {who} predicted {bad} NaN or infinite value(s) in its "
+                f"{what} of {n} push(es): its predictions are not finite; refit the model or "
+                "check its inputs (features, training data)."
+            )
+    return TransitionPrediction(mean, samples)
+
+
 class LearnedTransition:
     """A learned push model of the book's effect, on chapter 4 features.
 
@@ -102,9 +174,15 @@ class LearnedTransition:
     def __init__(
         self, model: FeaturePushModel, task: EdgeTask, seed: int = 0, name: str = "learned"
     ) -> None:
+        if not isinstance(model, FeaturePushModel):
+            raise InputError(
+                "model must be a fitted push model with its features, a FeaturePushModel "
+                f"(fit_edge_model), got {type(model).__name__}."
+            )
         self.model = model
-        self.task = task
-        self.name = name
+        self.task = _check_task(task)
+        self.name = _check_name(name)
+        seed = check_count("seed", seed, minimum=0)
         self._rng = np.random.default_rng(seed)
         self._seed = seed
         self.calls = 0
@@ -139,6 +217,12 @@ class LearnedTransition:
             with torch.random.fork_rng():
                 torch.manual_seed(self._seed * 1_000_003 + self.calls)
                 draws = dist.sample(torch.Size([n_samples])).detach().numpy()[..., :3]
+            if not np.isfinite(draws).all():
+                raise InputError(
+                    f"the push model {type(self.model.model).__name__} of transition "
+                    f"{self.name!r} drew NaN or infinite effects: its predictions are not "
+                    "finite; refit the model or check its inputs (features, training data)."
+                )
             samples = apply_effects(book[None, :, None], draws[:, :, None], yaws[None])[:, :, 0]
         return TransitionPrediction(mean, samples)
 
@@ -152,8 +236,8 @@ class SimulatorTransition:
     """
 
     def __init__(self, task: EdgeTask, name: str = "simulator") -> None:
-        self.task = task
-        self.name = name
+        self.task = _check_task(task)
+        self.name = _check_name(name)
         self.calls = 0
 
     def predict(
@@ -187,14 +271,19 @@ class QuasiStaticTransition:
 
     Args:
         task: The task.
-        step: Resolution (m) of the search for where the battery stops the book.
+        step: Resolution (m) of the search for where the battery stops the book (a finite
+            number > 0); the book's path is checked at most this far apart.
         name: A label for tables.
+
+    Raises:
+        InputError: For a `task` that is not an `EdgeTask` or a `step` that is not > 0.
     """
 
     def __init__(self, task: EdgeTask, step: float = 0.005, name: str = "quasi-static") -> None:
-        self.task = task
-        self.step = step
-        self.name = name
+        self.task = _check_task(task)
+        check_positive("QuasiStaticTransition step (m)", step)
+        self.step = float(step)
+        self.name = _check_name(name)
         self.calls = 0
 
     def predict(
@@ -209,7 +298,7 @@ class QuasiStaticTransition:
         t = self.task
         self.calls += 1
         travel = max(t.push_distance - t.start_gap, 0.0)
-        s = np.arange(0.0, travel + 1e-9, self.step)  # (T,)
+        s = np.linspace(0.0, travel, max(1, math.ceil(travel / self.step - 1e-9)) + 1)  # (T,)
         d = np.stack([np.cos(yaws), np.sin(yaws)], -1)  # (N, 2)
         path = np.repeat(book[:, None, :], len(s), axis=1)  # (N, T, 3)
         path[..., :2] += s[None, :, None] * d[:, None, :]
@@ -231,15 +320,21 @@ class PushReachability:
 
     Args:
         task: The task (the world's arm, the push length).
-        xy_resolution: Cell size (m).
-        yaw_bins: Yaw bins per turn.
+        xy_resolution: Cell size (m), a finite number > 0.
+        yaw_bins: Yaw bins per turn, a positive integer.
+
+    Raises:
+        InputError: For a `task` that is not an `EdgeTask`, an `xy_resolution` that is not
+            > 0 or a `yaw_bins` that is not a positive integer.
     """
 
     def __init__(self, task: EdgeTask, xy_resolution: float = 0.01, yaw_bins: int = 64) -> None:
+        task = _check_task(task)
+        check_positive("PushReachability xy_resolution (m)", xy_resolution)
+        self.bins = check_count("PushReachability yaw_bins", yaw_bins)
+        self.res = float(xy_resolution)
         self.arm: Arm = load_arm(task.world.arm)
         self.distance = task.push_distance
-        self.res = xy_resolution
-        self.bins = yaw_bins
         self._cache: dict[tuple[int, int, int], bool] = {}
 
     def _keys(self, origins: np.ndarray, yaws: np.ndarray) -> np.ndarray:
@@ -282,3 +377,15 @@ class PushReachability:
             self._cache.update(zip(missing, map(bool, ok), strict=True))
         ok = np.fromiter((self._cache[k] for k in flat), dtype=np.bool_, count=len(flat))
         return ok.reshape(keys.shape[:-1])
+
+
+def _check_task(task: Any) -> EdgeTask:
+    if not isinstance(task, EdgeTask):
+        raise InputError(f"task must be an EdgeTask (load_edge_task()), got {type(task).__name__}.")
+    return task
+
+
+def _check_name(name: Any) -> str:
+    if not isinstance(name, str) or not name:
+        raise InputError(f"name must be a non-empty label, got {name!r}.")
+    return name

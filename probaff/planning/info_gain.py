@@ -40,6 +40,7 @@ __all__ = [
     "PushPlan",
     "candidate_pushes",
     "check_alpha",
+    "check_graph",
     "expected_entropies",
     "plan_pushes",
 ]
@@ -80,6 +81,16 @@ def _check_distances(distances: Any, shape: tuple[int, int]) -> np.ndarray:
     return dist.astype(np.int64, copy=False)
 
 
+def check_graph(graph: Any) -> AffordanceGraph:
+    """`graph`, or `InputError` unless it is an `AffordanceGraph`."""
+    if not isinstance(graph, AffordanceGraph):
+        raise InputError(
+            "graph must be an AffordanceGraph (AffordanceGraph(occupancy, unary, ...)), got "
+            f"{type(graph).__name__}."
+        )
+    return graph
+
+
 def candidate_pushes(
     graph: AffordanceGraph, distances: Any, evidence: Any = None
 ) -> PushCandidates:
@@ -95,9 +106,10 @@ def candidate_pushes(
         The candidates, ordered by variable index (row-major cells, direction fastest).
 
     Raises:
-        InputError: For mismatched or non-integer `distances`, or bad evidence.
+        InputError: For a `graph` that is not an `AffordanceGraph`, mismatched or non-integer
+            `distances`, or bad evidence.
     """
-    dist = _check_distances(distances, graph.shape)
+    dist = _check_distances(distances, check_graph(graph).shape)
     ev, _ = as_evidence(evidence, (graph.num_variables,))
     if ev.shape[0] != 1:
         raise InputError("candidate_pushes takes one evidence row (V,), not a batch.")
@@ -193,6 +205,7 @@ def expected_entropies(
         ``(marginals (V, 2), H (), H1 (n,), H0 (n,))``: the current marginals and map entropy,
         and the map entropy with each candidate clamped to 1 and to 0 (float64, nats).
     """
+    check_graph(graph)
     n = int(variables.size)
     rows = evidence.reshape(1, -1).repeat(1 + 2 * n, 1)
     idx = torch.as_tensor(variables, dtype=torch.int64)
@@ -229,7 +242,8 @@ def plan_pushes(
         The candidates sorted by ``G`` (largest first), with the current entropy and marginals.
 
     Raises:
-        InputError: For ``alpha`` outside [0, 1] or malformed inputs.
+        InputError: For ``alpha`` outside [0, 1], a `graph` that is not an `AffordanceGraph`
+            or malformed inputs.
     """
     a = check_alpha(alpha)
     cand = candidate_pushes(graph, distances, evidence)

@@ -2,15 +2,17 @@
 
 A planner knows world states and candidate pushes; a push model knows feature matrices. A
 `FeaturePushModel` joins them: it computes the named feature set of `PushQueries`, selects the
-column groups the model was fitted on, checks that their width is the model's, and returns the
-model's predictive distribution of every candidate in one batched call. `apply_effects` turns
-predicted pushing-frame effects back into world poses.
+column groups the model was fitted on, checks them against the model (the groups' names,
+order and widths where the model records its feature groups, the number of columns
+otherwise), and returns the model's predictive distribution of every candidate in one batched
+call. `apply_effects` turns predicted pushing-frame effects back into world poses.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import torch
@@ -23,6 +25,7 @@ from probaff.errors import InputError
 from probaff.features.ch4 import chapter4_features
 from probaff.features.ch5 import chapter5_features
 from probaff.features.featureset import FeatureSet
+from probaff.models.columns import resolve_groups
 from probaff.models.interface import PushModel
 
 __all__ = ["FEATURE_FUNCTIONS", "FeaturePushModel", "apply_effects"]
@@ -32,6 +35,39 @@ FEATURE_FUNCTIONS: dict[str, Callable[[PushInputs], FeatureSet]] = {
     "ch5": chapter5_features,
 }
 """Feature sets a planner can compute, by name."""
+
+_FEATURE_GROUPS: dict[str, tuple[str, ...]] = {
+    "ch4": ("f_o", "f_c", "f_x"),
+    "ch5": ("f_o", "f_c", "f_x"),
+}
+"""The column groups of each feature set of `FEATURE_FUNCTIONS`, in column order."""
+
+
+def _fitted_groups(model: Any, known: tuple[str, ...]) -> list[str]:
+    """The feature groups `model` was fitted on, in column order; empty when unrecorded.
+
+    A model records them as ``groups`` (name -> its columns); groups of other names than
+    the feature set's `known` ones are the model's own and say nothing of the features.
+    """
+    groups = getattr(model, "groups", None)
+    if not isinstance(groups, dict) or not groups or not set(groups) <= set(known):
+        return []
+
+    def first(cols: Any) -> int:
+        if isinstance(cols, slice):
+            return int(cols.start or 0)
+        cols = list(cols)
+        return int(min(cols)) if cols else 0
+
+    return sorted(groups, key=lambda g: first(groups[g]))
+
+
+def _fitted_widths(model: Any, known: tuple[str, ...]) -> dict[str, int]:
+    """Columns per recorded feature group of a fitted `model`; empty when it does not say."""
+    n = getattr(model, "n_features", None)
+    if not _fitted_groups(model, known) or n is None:
+        return {}
+    return {name: len(cols) for name, cols in resolve_groups(model.groups, int(n)).items()}
 
 
 @dataclass(frozen=True)
@@ -67,6 +103,21 @@ class FeaturePushModel:
         groups = (self.groups,) if isinstance(self.groups, str) else tuple(self.groups)
         if not groups:
             raise InputError("groups must name at least one feature group, e.g. ('f_o', 'f_c').")
+        known = _FEATURE_GROUPS[self.features]
+        unknown = [g for g in groups if g not in known]
+        if unknown or len(set(groups)) != len(groups):
+            raise InputError(
+                f"groups {list(groups)} must name distinct feature groups of {self.features}; "
+                f"choose from {list(known)}."
+            )
+        fitted = _fitted_groups(self.model, known)
+        if fitted and fitted != list(groups):
+            raise InputError(
+                f"the push model was fitted on feature groups {fitted}, but the planner would "
+                f"give it {list(groups)} ({self.features}); give the groups the model was fitted "
+                f"on, in that order (FeaturePushModel(groups={tuple(fitted)})), or refit it on "
+                "FEATURE_FUNCTIONS[features](ds).select(*groups)."
+            )
         object.__setattr__(self, "groups", groups)
         object.__setattr__(self, "cloud_points", check_count("cloud_points", self.cloud_points))
         check_positive("cloud_noise", self.cloud_noise, allow_zero=True)
@@ -102,11 +153,20 @@ class FeaturePushModel:
             (C, D) the selected feature columns.
 
         Raises:
-            InputError: If the model was fitted on a different number of columns than the
-                planner computes (another feature set or other groups), or a group is unknown.
+            InputError: If the model was fitted on other columns than the planner computes
+                (another feature set, other groups or their widths), or a group is unknown.
         """
         fs = FEATURE_FUNCTIONS[self.features](queries)
         X = fs.select(*self.groups)
+        want = _fitted_widths(self.model, _FEATURE_GROUPS[self.features])
+        have = {g: fs.groups[g].stop - fs.groups[g].start for g in self.groups}
+        if want and want != have:
+            raise InputError(
+                f"the push model was fitted on feature groups of widths {want}, but the planner "
+                f"computes {have} ({self.features}); give the feature set the model was fitted "
+                "on (FeaturePushModel(features=...)), or refit it on "
+                "FEATURE_FUNCTIONS[features](ds).select(*groups)."
+            )
         fitted = getattr(self.model, "n_features", None)
         if fitted is not None and int(fitted) != X.shape[1]:
             raise InputError(
@@ -126,8 +186,21 @@ class FeaturePushModel:
         Returns:
             Batch shape (C,), event shape (E,): the model's prediction of the pushing-frame
             effects ``(dy_p, dz_p, dtheta_p)`` per object.
+
+        Raises:
+            InputError: If the model was fitted on other features, or its predictive mean
+                is NaN or infinite.
         """
-        return self.model.predict(torch.as_tensor(self.feature_matrix(queries)))
+        dist = self.model.predict(torch.as_tensor(self.feature_matrix(queries)))
+        mean = dist.mean.detach()
+        if not bool(torch.isfinite(mean).all()):
+            bad = int((~torch.isfinite(mean)).sum())
+            raise InputError(
+                f"the push model {type(self.model).__name__} predicted {bad} NaN or infinite "
+                f"effect(s) for {mean.shape[0]} push(es): its predictions are not finite; refit "
+                "the model or check its inputs (features, training data)."
+            )
+        return dist
 
 
 def apply_effects(poses: np.ndarray, effects: np.ndarray, push_yaw: np.ndarray) -> np.ndarray:

@@ -55,20 +55,26 @@ import numpy as np
 import torch
 from scipy.spatial import cKDTree
 
-from probaff._checks import check_count, check_shape
+from probaff._checks import check_count, check_finite, check_positive, check_shape
 from probaff.errors import InputError
 from probaff.features.cells import cell_features
 from probaff.grid import DIRECTION_OFFSETS
 from probaff.maps.entropy import map_entropy
 from probaff.maps.evidence import FREE
 from probaff.maps.graph import AffordanceGraph
-from probaff.maps.inference import affordance_marginals
+from probaff.maps.inference import METHODS, affordance_marginals
 from probaff.maps.options import DEFAULT_ALPHA, BPOptions, MRFParams
 from probaff.perception.exploration import Exploration, grid_distances
 from probaff.perception.occupancy import FREE_SPACE as FREE_CELL
 from probaff.perception.occupancy import OCCUPIED, OccupancyGrid
 from probaff.planning.classifier import AffordanceClassifier
-from probaff.planning.info_gain import PushCandidate, PushPlan, candidate_pushes, plan_pushes
+from probaff.planning.info_gain import (
+    PushCandidate,
+    PushPlan,
+    candidate_pushes,
+    check_graph,
+    plan_pushes,
+)
 from probaff.sim.config import WarehouseSpec
 from probaff.sim.depth import DepthScan, DepthSensor
 from probaff.sim.warehouse import WarehouseMap, push_box, rule_affordances
@@ -151,7 +157,7 @@ def plan_pushes_on_grid(
         InputError: For a mismatched `passable`, a robot outside the map, or bad inputs.
     """
     free = np.asarray(passable, dtype=bool)
-    if free.shape != graph.shape:
+    if free.shape != check_graph(graph).shape:
         raise InputError(f"passable has shape {free.shape}, expected the map's {graph.shape}.")
     return plan_pushes(graph, travel_distances(free, robot), evidence, alpha, method, options)
 
@@ -168,11 +174,28 @@ def predict_unary(
 
     Returns:
         (rows, cols, 4) probabilities (up, down, left, right); NaN in cells without voxels.
+
+    Raises:
+        InputError: For a classifier that is not a trained `AffordanceClassifier`, or
+            points that are not a finite (M, 3) array.
     """
+    _check_classifier(classifier)
+    check_shape("points", points, (None, 3))
+    check_finite("points", points)
     vox = cell_features(points, grid)
     if not len(vox.cells):
         return np.full((*grid.shape, 4), np.nan)
     return classifier.predict_cells(vox.features.values, vox.cells, grid.shape)
+
+
+def _check_classifier(classifier: Any) -> None:
+    if not isinstance(classifier, AffordanceClassifier):
+        raise InputError(
+            "classifier must be an AffordanceClassifier (AffordanceClassifier().fit(features, "
+            f"labels)), got {type(classifier).__name__}."
+        )
+    if not classifier.is_fitted:
+        raise InputError("the classifier is not trained; fit it before running the loop.")
 
 
 def cloud_distance(a: np.ndarray, b: np.ndarray) -> float:
@@ -220,9 +243,36 @@ def detect_push(
     Returns:
         ``(moved, d_moved, d_still)``: whether the "moved" prediction is nearer, and the two
         `cloud_distance` values (m).
+
+    Raises:
+        InputError: For a `cell` outside the map, an unknown `direction`, or a malformed
+            cloud or position.
     """
     still = np.asarray(believed, dtype=bool).copy()
     check_shape("believed", still, (None, None))
+    rc = np.asarray(cell)
+    if rc.shape != (2,) or not np.issubdtype(rc.dtype, np.integer):
+        raise InputError(f"cell must be an integer (row, col) cell, got {cell!r}.")
+    if not (0 <= rc[0] < still.shape[0] and 0 <= rc[1] < still.shape[1]):
+        raise InputError(
+            f"cell ({int(rc[0])}, {int(rc[1])}) lies outside the {still.shape[0]} x "
+            f"{still.shape[1]} map."
+        )
+    cell = (int(rc[0]), int(rc[1]))
+    if (
+        isinstance(direction, bool)
+        or not isinstance(direction, (int, np.integer))
+        or not 0 <= direction < len(DIRECTION_OFFSETS)
+    ):
+        raise InputError(
+            f"direction must be an index into DIRECTION_NAMES (0 to "
+            f"{len(DIRECTION_OFFSETS) - 1}), got {direction!r}."
+        )
+    direction = int(direction)
+    check_shape("observed", observed, (None, 3))
+    check_finite("observed", observed)
+    check_shape("position", position, (2,))
+    check_finite("position", position)
     still[cell] = True
     moved = still.copy()
     moved[cell] = False
@@ -382,8 +432,9 @@ class ManipulationLoop:
             cell), besides what the new scan saw of the two cells; False keeps only the scan's.
 
     Raises:
-        InputError: For an unknown policy, ``alpha`` outside [0, 1], a bad coupling, or a
-            classifier that is not trained.
+        InputError: For an unknown policy or inference method, ``alpha`` outside [0, 1], a bad
+            coupling, a `free_fraction` outside (0, 1], an argument of the wrong kind, an
+            exploration without scans, or a classifier that is not trained.
     """
 
     def __init__(
@@ -405,10 +456,37 @@ class ManipulationLoop:
         stop_at_no_gain: bool = True,
         carry_points: bool = True,
     ) -> None:
-        if policy not in POLICIES:
+        if not isinstance(policy, str) or policy not in POLICIES:
             raise InputError(f"policy must be one of {POLICIES}, got {policy!r}.")
-        if not classifier.is_fitted:
-            raise InputError("the classifier is not trained; fit it before running the loop.")
+        if not isinstance(method, str) or method not in METHODS:
+            raise InputError(f"method must be one of {METHODS}, got {method!r}.")
+        for name, value, kind, how in (
+            ("spec", spec, WarehouseSpec, "a WarehouseSpec (load_warehouse())"),
+            ("true_map", true_map, WarehouseMap, "a WarehouseMap (generate_map(spec, rng))"),
+            (
+                "exploration",
+                exploration,
+                Exploration,
+                "an Exploration (explore(spec, true_map, start, rng))",
+            ),
+        ):
+            if not isinstance(value, kind):
+                raise InputError(f"{name} must be {how}, got {type(value).__name__}.")
+        _check_classifier(classifier)
+        if rng is not None and not isinstance(rng, np.random.Generator):
+            raise InputError(
+                f"rng must be a numpy.random.Generator or None, got {type(rng).__name__}."
+            )
+        check_positive("free_fraction", free_fraction)
+        if float(free_fraction) > 1:
+            raise InputError(
+                f"free_fraction is a share of sub-cells in (0, 1], got {free_fraction!r}."
+            )
+        if not len(exploration.cells):
+            raise InputError(
+                "the exploration holds no scan cell; explore the map (explore(...)) before "
+                "running the loop."
+            )
         if exploration.grid.shape != true_map.shape:
             raise InputError(
                 f"the exploration's grid {exploration.grid.shape} does not match "

@@ -201,6 +201,27 @@ class ToolPushConfig:
             )
 
 
+def _config(config: Any) -> ToolPushConfig:
+    """`config`, the defaults for ``None``, or `InputError` for anything else."""
+    if config is None:
+        return ToolPushConfig()
+    if not isinstance(config, ToolPushConfig):
+        raise InputError(
+            f"config must be a ToolPushConfig (or None for the defaults), got "
+            f"{type(config).__name__}."
+        )
+    return config
+
+
+def _check_rng(rng: Any) -> np.random.Generator:
+    if not isinstance(rng, np.random.Generator):
+        raise InputError(
+            f"rng must be a numpy.random.Generator (np.random.default_rng(seed)), got "
+            f"{type(rng).__name__}."
+        )
+    return rng
+
+
 # ----------------------------------------------------------------------------- the region
 
 
@@ -294,7 +315,7 @@ def reachable_region(config: ToolPushConfig | None = None) -> ReachableRegion:
     Returns:
         The region and its signed distance field.
     """
-    config = config or ToolPushConfig()
+    config = _config(config)
     return _region(
         load_tabletop(), config.goal_base_xy, float(config.region_resolution), config.region_yaws
     )
@@ -464,8 +485,15 @@ def sample_tool_pushes(
         UnreachablePoseError: If a state has no reachable push and not `allow_empty`.
     """
     n = check_count("n", n)
-    ctx = _context(config or ToolPushConfig())
-    objects = tuple(objects)
+    ctx = _context(_config(config))
+    _check_rng(rng)
+    given = objects
+    objects = tuple(objects) if isinstance(objects, (tuple, list)) else ()
+    if not objects or not all(isinstance(o, ObjectSpec) for o in objects):
+        raise InputError(
+            "objects must be the (tool, target) ObjectSpec of load_catalogue(), the tool "
+            f"first, got {given!r}."
+        )
     P = np.asarray(poses, dtype=float)
     P = P[None] if P.ndim == 2 else P
     check_shape("poses", P, (None, len(objects), 3))
@@ -576,6 +604,16 @@ class ModelTransition:
     model: _QueryModel
     world: TabletopSpec
 
+    def __post_init__(self) -> None:
+        m = self.model
+        needs = ("cloud_points", "cloud_noise")
+        if not callable(getattr(m, "predict", None)) or not all(hasattr(m, a) for a in needs):
+            raise InputError(
+                "ModelTransition.model must be a fitted chapter-5 model with its features, a "
+                f"FeaturePushModel (fit_tool_push_model), got {type(m).__name__}."
+            )
+        _check_world("ModelTransition", self.world)
+
     def predict_poses(
         self,
         objects: tuple[ObjectSpec, ...],
@@ -606,6 +644,13 @@ class ModelTransition:
         )
         pred = self.model.predict(queries)
         mean = pred.mean.detach().cpu().numpy()
+        if not np.isfinite(mean).all():
+            inner = getattr(self.model, "model", self.model)
+            raise InputError(
+                f"the push model {type(inner).__name__} predicted NaN or infinite effects for "
+                f"{C} candidate push(es): its predictions are not finite; refit the model or "
+                "check its inputs (features, training data)."
+            )
         if mean.shape != (C, 3 * K):
             raise InputError(
                 f"the push model predicts effects of shape {mean.shape[1:]}, but the tool push "
@@ -628,6 +673,9 @@ class SimTransition:
     """
 
     world: TabletopSpec
+
+    def __post_init__(self) -> None:
+        _check_world("SimTransition", self.world)
 
     def predict_poses(
         self,
@@ -652,6 +700,14 @@ class SimTransition:
             path = straight_path(self.world, push_origin[c], float(push_yaw[c]), push_distance)
             out[c] = simulate_push(self.world, scene, path).state_after
         return out
+
+
+def _check_world(owner: str, world: Any) -> None:
+    if not isinstance(world, TabletopSpec):
+        raise InputError(
+            f"{owner}.world must be the tabletop world, a TabletopSpec (load_tabletop()), got "
+            f"{type(world).__name__}."
+        )
 
 
 # ---------------------------------------------------------------------------- planning
@@ -719,8 +775,19 @@ def _predict(
         ),
         dtype=float,
     )
-    check_shape("predicted poses", out, poses.shape)
-    check_finite("predicted poses", out)
+    who = type(transition).__name__
+    if out.shape != poses.shape:
+        raise InputError(
+            f"the transition model {who} predicted poses of shape {out.shape}, expected "
+            f"{poses.shape}; make predict_poses return (C, K, 3) world poses."
+        )
+    bad = int(out.size - np.count_nonzero(np.isfinite(out)))
+    if bad:
+        raise InputError(
+            f"the transition model {who} predicted {bad} NaN or infinite value(s) for "
+            f"{len(cand)} candidate push(es): its predictions are not finite; refit the model "
+            "or check its inputs (features, training data)."
+        )
     return out
 
 
@@ -749,15 +816,24 @@ def plan_tool_push(
             cannot bring within reach.
         UnreachablePoseError: If the arm can push the tool in no sampled direction.
     """
-    config = config or ToolPushConfig()
+    config = _config(config)
     ctx = _context(config)
     _check_transition(transition)
     _check_state(state, ctx)
-    n_first, n_keep, n_second = sizes or (config.n_first, config.n_keep, config.n_second)
+    _check_rng(rng)
+    if sizes is None:
+        sizes = (config.n_first, config.n_keep, config.n_second)
+    if not isinstance(sizes, (tuple, list)) or len(sizes) != 3:
+        raise InputError(f"sizes must be (n_first, n_keep, n_second), got {sizes!r}.")
     n_first, n_keep, n_second = (
         check_count(name, v)
-        for name, v in (("n_first", n_first), ("n_keep", n_keep), ("n_second", n_second))
+        for name, v in zip(("n_first", "n_keep", "n_second"), sizes, strict=True)
     )
+    if n_keep > n_first:
+        raise InputError(
+            f"sizes: n_keep={n_keep} exceeds n_first={n_first}; keep at most as many first "
+            "pushes as are sampled."
+        )
     start = time.perf_counter()
     first = sample_tool_pushes(state.objects, state.poses, n_first, rng, config)
     before = np.broadcast_to(state.poses, (len(first), *state.poses.shape))
@@ -818,10 +894,11 @@ def plan_single_push(
         InputError: As `plan_tool_push`.
         UnreachablePoseError: As `plan_tool_push`.
     """
-    config = config or ToolPushConfig()
+    config = _config(config)
     ctx = _context(config)
     _check_transition(transition)
     _check_state(state, ctx)
+    _check_rng(rng)
     n = check_count("n", config.n_first if n is None else n)
     start = time.perf_counter()
     cand = sample_tool_pushes(state.objects, state.poses, n, rng, config)
@@ -854,9 +931,15 @@ def plan_random_push(
         One push.
 
     Raises:
+        InputError: For a `state`, `rng` or `config` of the wrong kind.
         UnreachablePoseError: If the arm can push the tool in no sampled direction.
     """
-    config = config or ToolPushConfig()
+    config = _config(config)
+    if not isinstance(state, ToolPushState):
+        raise InputError(
+            f"state must be a ToolPushState (objects and poses), got {type(state).__name__}."
+        )
+    _check_rng(rng)
     start = time.perf_counter()
     cand = sample_tool_pushes(state.objects, state.poses, 1, rng, config)
     return ToolPushPlan(
@@ -891,7 +974,7 @@ def draw_tool_push_episode(seed: int, config: ToolPushConfig | None = None) -> S
         InputError: For a bad seed.
         ConfigError: If no draw in `max_draws` qualifies.
     """
-    config = config or ToolPushConfig()
+    config = _config(config)
     seed = check_count("seed", seed, minimum=0)
     ctx = _context(config)
     rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(2)[0])
@@ -1012,9 +1095,9 @@ def run_tool_push_trial(
     Raises:
         InputError: For an unknown planner, a missing or mismatched model, or a bad seed.
     """
-    if planner not in TOOL_PUSH_PLANNERS:
+    if not isinstance(planner, str) or planner not in TOOL_PUSH_PLANNERS:
         raise InputError(f"unknown planner {planner!r}; choose one of {TOOL_PUSH_PLANNERS}.")
-    config = config or ToolPushConfig()
+    config = _config(config)
     if planner in ("two_step", "single_step") and not isinstance(model, FeaturePushModel):
         raise InputError(
             f"planner {planner!r} needs a fitted chapter-5 model as a FeaturePushModel "
@@ -1157,11 +1240,27 @@ def fit_tool_push_model(
         raise InputError(
             "ds must be a PushDataset of a two-object scene (probaff generate --scene tool_push)."
         )
+    n_experts = check_count("n_experts", n_experts)
+    for name, value in (("max_iter", max_iter), ("n_restarts", n_restarts)):
+        check_count(name, value)
+    gp_max_iter = check_count("gp_max_iter", gp_max_iter)
+    check_count("seed", seed, minimum=0)
+    groups = (groups,) if isinstance(groups, str) else tuple(groups)
     fs = chapter5_features(ds)
+    if not groups or len(set(groups)) != len(groups) or not set(groups) <= set(fs.groups):
+        raise InputError(
+            f"groups {list(groups)} must name distinct chapter-5 feature groups; choose from "
+            f"{list(fs.groups)}."
+        )
     X = fs.select(*groups)
     Y = ds["effect"][:, :_N_OBJECTS].reshape(len(ds), 3 * _N_OBJECTS)
+    offsets, start = {}, 0
+    for g in groups:
+        width = fs.groups[g].stop - fs.groups[g].start
+        offsets[g] = slice(start, start + width)
+        start += width
     model = MixtureOfGPExperts(
-        check_count("n_experts", n_experts), gp_max_iter=gp_max_iter, lengthscale_prior=True
+        n_experts, groups=offsets, gp_max_iter=gp_max_iter, lengthscale_prior=True
     )
     with torch_threads(1):
         fit_em(model, X, Y, max_iter=max_iter, n_restarts=n_restarts, seed=seed)

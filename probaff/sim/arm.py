@@ -143,7 +143,10 @@ class Arm:
         try:
             data = spec.urdf.read_bytes()
         except OSError as exc:
-            raise ConfigError(f"cannot read the arm URDF {spec.urdf}: {exc}.") from exc
+            raise ConfigError(
+                f"cannot read the arm URDF {spec.urdf} ({exc.strerror or exc}); make arm.urdf in "
+                "the world file name an existing URDF file."
+            ) from exc
         try:
             chain = pk.build_serial_chain_from_urdf(data, spec.tcp_link)
         except Exception as exc:  # the URDF parser raises many unrelated types

@@ -235,6 +235,54 @@ class CameraSpec:
             disparity_step=self.disparity_step / factor,
         )
 
+    def floor_band(self, R_world_camera: np.ndarray) -> tuple[float, float]:
+        """Least and greatest downward component of the pixel rays of unit depth.
+
+        A camera ``h`` above a horizontal floor meets it along a pixel's ray at depth ``h / s``
+        (along the optical axis), ``s`` the downward (world -z) component of the ray scaled to
+        unit depth; ``s <= 0`` never meets it. ``s`` is linear in the pixel coordinates, so
+        its extremes over the image lie at the corner pixels.
+
+        Args:
+            R_world_camera: (3, 3) the camera's orientation (optical frame to world).
+
+        Returns:
+            ``(s_min, s_max)`` over the image's pixel centres.
+        """
+        u, v = self.cx / self.fx, self.cy / self.fy
+        corners = np.array([[a * u, b * v, 1.0] for a in (-1.0, 1.0) for b in (-1.0, 1.0)])
+        down = -(corners @ np.asarray(R_world_camera, dtype=np.float64).T)[:, 2]
+        return float(down.min()), float(down.max())
+
+    def floor_heights(self, tilt_deg: float) -> tuple[float, float] | None:
+        """Heights (m) from which a view tilted down by `tilt_deg` images floor within range.
+
+        With ``(s_min, s_max)`` the view's `floor_band`, floor in the camera's depth range
+        ``[min_range, max_range]`` shows exactly from heights ``h`` with
+        ``min_range max(s_min, 0) <= h <= max_range s_max``: higher, even the nearest floor
+        is beyond the range; lower, even the farthest is too near. (The camera's pan does not
+        change the band.) With the Kinect's 43-degree vertical field of view and 0.5-4.5 m
+        range, a 30-degree tilt gives 0.08-3.78 m.
+
+        Args:
+            tilt_deg: The tilt below the horizon (degrees; negative looks up).
+
+        Returns:
+            ``(low, high)`` (m), or ``None`` if the view looks wholly above the horizon and
+            never images the floor (a tilt up by more than half the vertical field of view).
+        """
+        t = math.radians(float(tilt_deg))
+        R = _rot_y(t) @ _R_HEAD_OPTICAL
+        s_min, s_max = self.floor_band(R)
+        if s_max <= 0.0:
+            return None
+        return self.min_range * max(s_min, 0.0), self.max_range * s_max
+
+    @property
+    def floor_tilt_deg(self) -> float:
+        """The tilt (degrees) above which a view's bottom row still meets the floor."""
+        return -math.degrees(math.atan(self.cy / self.fy))
+
     def sigma(self, depth: np.ndarray | float) -> np.ndarray:
         """Depth noise std ``a + b z^2`` (m) at depths `depth` (m), any shape."""
         z = np.asarray(depth, dtype=np.float64)
@@ -337,9 +385,17 @@ class DepthImage:
         return self.object_id[self.valid]
 
 
+def _floats(name: str, value: object) -> np.ndarray:
+    """`value` as a float64 array, or an `InputError` naming `name` if it holds no numbers."""
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must hold numbers, got {value!r}.") from None
+
+
 def _check_pose(name: str, T: object) -> np.ndarray:
     """`T` as a (4, 4) float64 rigid transform, or an `InputError` naming `name`."""
-    arr = np.asarray(T, dtype=np.float64)
+    arr = _floats(name, T)
     check_shape(name, arr, (4, 4))
     check_finite(name, arr)
     R = arr[:3, :3]
@@ -669,7 +725,7 @@ def head_views(
     T = _check_pose("T_world_head", T_world_head)
     angles = []
     for name, value in (("pans_deg", pans_deg), ("tilts_deg", tilts_deg)):
-        arr = np.atleast_1d(np.asarray(value, dtype=np.float64))
+        arr = np.atleast_1d(_floats(name, value))
         check_shape(name, arr, (None,))
         check_finite(name, arr)
         if arr.size == 0:
@@ -714,7 +770,7 @@ def scan_views(
     if not isinstance(camera, DepthCamera):
         raise InputError(f"camera must be a DepthCamera, got {type(camera).__name__}.")
     gen = _check_rng(rng)
-    arr = np.asarray(poses, dtype=np.float64)
+    arr = _floats("poses", poses)
     check_shape("poses", arr, (None, 4, 4))
     if len(arr) == 0:
         raise InputError("poses is empty; give at least one (4, 4) camera pose.")

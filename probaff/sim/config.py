@@ -65,10 +65,30 @@ def worlds_dir() -> Path:
 
 
 def _read_yaml(path: Path) -> Any:
+    """The parsed content of a world file.
+
+    Raises:
+        ConfigError: If `path` is missing, a folder, unreadable, not UTF-8 text or not YAML.
+    """
+    if path.is_dir():
+        raise ConfigError(
+            f"world file {path} is a folder, not a YAML file; give the path of a world file."
+        )
     if not path.is_file():
-        raise ConfigError(f"world file {path} does not exist.")
+        raise ConfigError(
+            f"world file {path} does not exist; give the path of an existing world file."
+        )
     try:
-        return yaml.safe_load(path.read_text())
+        return yaml.safe_load(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ConfigError(
+            f"cannot read world file {path} ({exc.strerror or exc}); check that you may read it."
+        ) from exc
+    except UnicodeDecodeError as exc:
+        raise ConfigError(
+            f"world file {path} is not UTF-8 text ({exc.reason} at byte {exc.start}); give the "
+            "path of a YAML world file."
+        ) from exc
     except yaml.YAMLError as exc:
         raise ConfigError(f"{path} is not valid YAML: {exc}; fix the file's syntax.") from exc
 
@@ -127,11 +147,12 @@ def _check_spec(
         for names, allow_zero in ((positive, False), (nonneg, True)):
             for name in names:
                 value = getattr(spec, name)
-                if isinstance(value, (tuple, list)):
-                    for i, v in enumerate(value):
-                        check_positive(f"{kind}.{name}[{i}]", v, allow_zero=allow_zero)
-                else:
-                    check_positive(f"{kind}.{name}", value, allow_zero=allow_zero)
+                items = enumerate(value) if isinstance(value, (tuple, list)) else [(None, value)]
+                for i, v in items:
+                    where = f"{kind}.{name}" if i is None else f"{kind}.{name}[{i}]"
+                    if isinstance(v, (bool, str, bytes)):
+                        raise ConfigError(f"{where} must be a number, got {v!r}.")
+                    check_positive(where, v, allow_zero=allow_zero)
         for name in counts:
             check_count(f"{kind}.{name}", getattr(spec, name))
     except InputError as exc:
@@ -437,6 +458,26 @@ class WarehouseSpec:
                     "WarehouseSpec.camera must be a CameraSpec (see load_camera) when "
                     f"sensor_kind is 'camera', got {type(self.camera).__name__}."
                 )
+        tilt = self.camera_tilt_deg
+        if isinstance(tilt, (bool, str, bytes)) or not isinstance(tilt, (int, float)):
+            raise ConfigError(
+                f"WarehouseSpec.camera_tilt_deg must be a number of degrees, got {tilt!r}."
+            )
+        elevations = self.sensor_elevations
+        if (
+            not isinstance(elevations, (tuple, list))
+            or not elevations
+            or any(
+                isinstance(e, (bool, str, bytes))
+                or not isinstance(e, (int, float))
+                or not -90.0 <= e <= 90.0
+                for e in elevations
+            )
+        ):
+            raise ConfigError(
+                "WarehouseSpec.sensor_elevations must be a non-empty tuple of angles in "
+                f"[-90, 90] degrees, got {elevations!r}."
+            )
         if not (math.isfinite(self.camera_tilt_deg) and abs(self.camera_tilt_deg) < 90.0):
             raise ConfigError(
                 f"WarehouseSpec.camera_tilt_deg must lie in (-90, 90) degrees, got "
@@ -464,6 +505,28 @@ class WarehouseSpec:
             nonneg=("box_contact_friction", "sensor_noise", "collision_slop"),
             counts=("sensor_azimuths", "substeps", "iterations", "friction_grid", "camera_pans"),
         )
+        if self.sensor_kind == "camera":
+            self._check_camera_view()
+
+    def _check_camera_view(self) -> None:
+        """Raise `ConfigError` unless the head camera images floor within its depth range."""
+        cam = self.camera
+        assert cam is not None  # checked with sensor_kind
+        heights = cam.floor_heights(self.camera_tilt_deg)
+        if heights is None:
+            raise ConfigError(
+                f"WarehouseSpec.camera_tilt_deg {self.camera_tilt_deg:g} points the camera "
+                f"wholly above the floor; use a tilt above {cam.floor_tilt_deg:.1f} degrees "
+                "(positive tilts look down)."
+            )
+        lo, hi = heights
+        if not lo <= self.sensor_height <= hi:
+            raise ConfigError(
+                f"WarehouseSpec.sensor_height {self.sensor_height:g} m leaves the camera (range "
+                f"{cam.min_range:g}-{cam.max_range:g} m) unable to image the floor at "
+                f"camera_tilt_deg {self.camera_tilt_deg:g}; sensor_height must lie in "
+                f"[{lo:.3f}, {hi:.3f}] m."
+            )
 
 
 def _load_root(path: Path | None, default: str) -> tuple[dict[str, Any], str, Path]:

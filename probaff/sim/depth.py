@@ -45,7 +45,7 @@ from probaff.errors import InputError
 from probaff.sim.camera import DepthCamera, DepthImage, head_views, scan_views
 from probaff.sim.config import WarehouseSpec
 from probaff.sim.primitives import PrimitiveScene
-from probaff.sim.warehouse import WarehouseMap
+from probaff.sim.warehouse import WarehouseMap, _check_world
 
 _SURFACE_DEPTH = 0.15  # m: a column's returns this close behind its nearest are one surface
 
@@ -82,7 +82,11 @@ def obstacle_bounds(spec: WarehouseSpec, m: WarehouseMap) -> tuple[np.ndarray, n
 
     Returns:
         ``(lo, hi)``, each (K, 3) world frame: the lower and upper corners of the K obstacles.
+
+    Raises:
+        InputError: For a `spec` or `m` of the wrong type.
     """
+    _check_world(spec, m)
     rows, cols = m.shape
     s = m.cell_size
     centres = m.cell_centre(m.boxes)
@@ -107,6 +111,7 @@ def warehouse_scene(spec: WarehouseSpec, m: WarehouseMap) -> PrimitiveScene:
         then the four walls) and a 0.1 m floor slab under ``z = 0`` spanning the walls
         (object id K).
     """
+    _check_world(spec, m)
     lo, hi = obstacle_bounds(spec, m)
     rows, cols = m.shape
     s, t = m.cell_size, spec.wall_thickness
@@ -160,6 +165,7 @@ class DepthSensor:
     """
 
     def __init__(self, spec: WarehouseSpec, m: WarehouseMap) -> None:
+        _check_world(spec, m)
         self.spec = spec
         self.map = m
         self.lo, self.hi = obstacle_bounds(spec, m)
@@ -196,6 +202,10 @@ class DepthSensor:
             InputError: If it is not a finite (2,) point strictly inside the walls and outside
                 every box.
         """
+        try:
+            position = np.asarray(position, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(f"robot position must be a (2,) point, got {position!r}.") from None
         check_shape("robot position", position, (2,))
         check_finite("robot position", position)
         p = np.asarray(position, dtype=float).copy()
@@ -231,9 +241,15 @@ class DepthSensor:
             The scan.
 
         Raises:
-            InputError: For a position that is not finite, outside the walls or inside a box.
+            InputError: For a position that is not finite, outside the walls or inside a box,
+                or an `rng` that is not a `numpy.random.Generator`.
         """
         xy = self.check_position(position)
+        if not isinstance(rng, np.random.Generator):
+            raise InputError(
+                f"rng must be a numpy.random.Generator (np.random.default_rng(seed)), got "
+                f"{type(rng).__name__}."
+            )
         spec = self.spec
         origin = np.array([xy[0], xy[1], spec.sensor_height])
         if spec.sensor_kind == "camera":

@@ -16,12 +16,91 @@ from probaff._checks import check_count, check_finite, check_shape
 from probaff.sim.config import ObjectSpec
 
 __all__ = [
+    "convex_penetration",
+    "footprint_penetration",
     "footprint_polygon",
     "footprint_support",
     "friction_points",
     "push_frame_effect",
+    "rect_disc_penetration",
     "to_push_frame",
 ]
+
+
+def convex_penetration(a: np.ndarray, b: np.ndarray) -> float:
+    """Depth (m) by which two convex polygons overlap (<= 0: apart), by separating axes.
+
+    The depth is the least overlap of the two polygons' projections on the normals of their
+    edges: the distance one must move to separate them; a negative value is the gap along the
+    best separating normal.
+
+    Args:
+        a: (N, 2) vertices of the first polygon, in order round it.
+        b: (M, 2) vertices of the second.
+
+    Returns:
+        The penetration depth (m).
+    """
+    depth = math.inf
+    for poly in (a, b):
+        edges = np.roll(poly, -1, axis=0) - poly
+        for ex, ey in edges:
+            n = np.array([-ey, ex]) / math.hypot(ex, ey)
+            pa, pb = a @ n, b @ n
+            depth = min(depth, min(pa.max() - pb.min(), pb.max() - pa.min()))
+    return float(depth)
+
+
+def rect_disc_penetration(
+    centre: np.ndarray, size: tuple[float, float], yaw: float, disc: np.ndarray, radius: float
+) -> float:
+    """Depth (m) by which a rectangle and a disc overlap (<= 0: apart, minus the gap).
+
+    Args:
+        centre: (2,) the rectangle's centre.
+        size: Its extents along its own x and y (m).
+        yaw: Its rotation (rad, counter-clockwise).
+        disc: (2,) the disc's centre.
+        radius: The disc's radius (m).
+    """
+    c, s = math.cos(yaw), math.sin(yaw)
+    dx, dy = float(disc[0] - centre[0]), float(disc[1] - centre[1])
+    u, v = abs(c * dx + s * dy), abs(-s * dx + c * dy)
+    hx, hy = 0.5 * size[0], 0.5 * size[1]
+    if u <= hx and v <= hy:  # the disc's centre lies inside the rectangle
+        return float(radius + min(hx - u, hy - v))
+    return float(radius - math.hypot(max(u - hx, 0.0), max(v - hy, 0.0)))
+
+
+def _rect_corners(centre: np.ndarray, size: tuple[float, float], yaw: float) -> np.ndarray:
+    """(4, 2) corners of a rectangle, counter-clockwise."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    hx, hy = 0.5 * size[0], 0.5 * size[1]
+    local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+    return local @ np.array([[c, s], [-s, c]]) + np.asarray(centre, dtype=float)[:2]
+
+
+def footprint_penetration(
+    a: ObjectSpec, pose_a: np.ndarray, b: ObjectSpec, pose_b: np.ndarray
+) -> float:
+    """Depth (m) by which two catalogue objects' footprints overlap (<= 0: apart).
+
+    Args:
+        a: The first object.
+        pose_a: (3,) its world ``(x, y, theta)``.
+        b: The second object.
+        pose_b: (3,) its world ``(x, y, theta)``.
+    """
+    pa, pb = np.asarray(pose_a, dtype=float), np.asarray(pose_b, dtype=float)
+    if a.shape == "circle" and b.shape == "circle":
+        return float(a.radius + b.radius - math.hypot(*(pa[:2] - pb[:2])))
+    if a.shape == "circle":
+        return rect_disc_penetration(pb[:2], b.size, float(pb[2]), pa[:2], a.radius)
+    if b.shape == "circle":
+        return rect_disc_penetration(pa[:2], a.size, float(pa[2]), pb[:2], b.radius)
+    return convex_penetration(
+        _rect_corners(pa[:2], a.size, float(pa[2])), _rect_corners(pb[:2], b.size, float(pb[2]))
+    )
 
 
 def footprint_polygon(obj: ObjectSpec) -> np.ndarray | None:

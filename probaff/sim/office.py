@@ -47,8 +47,8 @@ earlier floor object with probability ``placement.next_to_probability``, at a ga
 ``placement.near_gap`` (0.02-0.10 m, below the push clearance, so that such neighbours block);
 otherwise anywhere on the floor. A chair next to a table faces it; a chair against a wall turns
 its back to it. Boxes on a table or a box lie wholly on its top, ``min_clearance`` apart from
-each other and from its edges; a box meant for a stack that fits on no free floor box within
-the tries goes to the floor instead.
+each other and from its edges; a box meant for a table or a stack that fits on no table or
+free floor box within the tries (the tops are full) goes to the floor instead.
 """
 
 from __future__ import annotations
@@ -75,6 +75,7 @@ from probaff.sim.config import (
     _range,
     _take,
 )
+from probaff.sim.geometry import convex_penetration, rect_disc_penetration
 from probaff.sim.primitives import PrimitiveScene
 
 __all__ = [
@@ -699,6 +700,10 @@ def office_labels(
 
     Returns:
         (K, 6) bool, row k for ``objects[k]``, columns in the order of `LABELS`.
+
+    Raises:
+        InputError: For objects that do not form a consistent scene (see
+            `assemble_office_scene`) or a non-finite yaw.
     """
     _check_objects(objects)
     yaw = _floats("robot_yaw", robot_yaw)
@@ -751,16 +756,190 @@ def _descendants(root: int, children: dict[int, list[int]]) -> set[int]:
 
 
 def _check_objects(objects: Sequence[OfficeObject]) -> None:
+    """Raise `InputError` unless `objects` form a physically consistent scene.
+
+    Ids are unique; every support is in the scene, is neither the floor nor a wall (objects on
+    the floor take -1) and the supports form no cycle; the floor and walls stand on nothing;
+    no two objects' solids interpenetrate; an object on the floor has its lowest point on the
+    floor's top (z = 0) and its footprint on a floor object of the scene, if there is one;
+    an object on another rests on one of that object's top faces.
+    """
+    if isinstance(objects, (str, bytes)) or not isinstance(objects, Sequence):
+        raise InputError(f"objects must be a list of OfficeObject, got {type(objects).__name__}.")
     if len(objects) == 0:
         raise InputError("objects is empty; give at least one OfficeObject.")
+    for i, o in enumerate(objects):
+        if not isinstance(o, OfficeObject):
+            raise InputError(f"objects[{i}] must be an OfficeObject, got {type(o).__name__}.")
     ids = [o.id for o in objects]
     if len(set(ids)) != len(ids):
         raise InputError("objects: object ids must be unique.")
-    known = set(ids)
+    by_id = {o.id: o for o in objects}
     for o in objects:
-        if o.support >= 0 and o.support not in known:
+        if o.support < 0:
+            continue
+        if o.support not in by_id:
             raise InputError(
                 f"objects: {o.name} stands on object {o.support}, which is not in the scene."
+            )
+        base = by_id[o.support]
+        if o.kind in _STRUCTURE:
+            raise InputError(
+                f"objects: {o.name} (id {o.id}) is a {o.kind} and stands on nothing; give it "
+                "support -1."
+            )
+        if base.kind in _STRUCTURE:
+            raise InputError(
+                f"objects: {o.name} (id {o.id}) has support {base.id}, the {base.kind} "
+                f"{base.name}; an object standing on the floor takes support -1, and nothing "
+                "stands on a wall."
+            )
+    _check_support_cycles(objects, by_id)
+    _check_overlaps(objects)
+    _check_resting(objects, by_id)
+
+
+_STRUCTURE = ("floor", "wall")
+_OVERLAP_TOL = 1e-6  # m; solids may interpenetrate this much (faces in contact)
+_REST_TOL = 1e-3  # m; an object rests on a surface whose height is this close to its bottom
+
+
+def _check_support_cycles(objects: Sequence[OfficeObject], by_id: dict[int, OfficeObject]) -> None:
+    """Raise `InputError` if following supports from some object comes back to it."""
+    done: set[int] = set()
+    for o in objects:
+        chain: list[int] = []
+        oid = o.id
+        while oid >= 0 and oid not in done:
+            if oid in chain:
+                loop = [*chain[chain.index(oid) :], oid]
+                names = " on ".join(f"{by_id[i].name} (id {i})" for i in loop)
+                raise InputError(
+                    f"objects: the supports form a cycle, {names}; every chain of supports "
+                    "must end on the floor (support -1)."
+                )
+            chain.append(oid)
+            oid = by_id[oid].support
+        done.update(chain)
+
+
+def _solids(objects: Sequence[OfficeObject]) -> tuple[np.ndarray, ...]:
+    """Every part of every object: owner row, kind (0 box, 1 cylinder), row, bounds (P, 6)."""
+    owner, kind, row, lo, hi = [], [], [], [], []
+    for k, o in enumerate(objects):
+        for r, b in enumerate(o.boxes):
+            xy = _box_corners(b[None])
+            owner.append(k)
+            kind.append(0)
+            row.append(r)
+            lo.append([*xy.min(axis=0), b[2] - b[5] / 2])
+            hi.append([*xy.max(axis=0), b[2] + b[5] / 2])
+        for r, c in enumerate(o.cylinders):
+            owner.append(k)
+            kind.append(1)
+            row.append(r)
+            lo.append([c[0] - c[3], c[1] - c[3], c[2] - c[4] / 2])
+            hi.append([c[0] + c[3], c[1] + c[3], c[2] + c[4] / 2])
+    return (
+        np.array(owner, dtype=np.int64),
+        np.array(kind, dtype=np.int64),
+        np.array(row, dtype=np.int64),
+        np.array(lo, dtype=np.float64).reshape(-1, 3),
+        np.array(hi, dtype=np.float64).reshape(-1, 3),
+    )
+
+
+def _footprint_depth(a: OfficeObject, ka: int, ra: int, b: OfficeObject, kb: int, rb: int) -> float:
+    """Depth (m) by which the footprints of part `ra` of `a` and part `rb` of `b` overlap."""
+    if ka == 0 and kb == 0:
+        return convex_penetration(
+            _box_corners(a.boxes[ra : ra + 1])[[0, 1, 3, 2]],
+            _box_corners(b.boxes[rb : rb + 1])[[0, 1, 3, 2]],
+        )
+    if ka == 1 and kb == 1:
+        p, q = a.cylinders[ra], b.cylinders[rb]
+        return float(p[3] + q[3] - math.hypot(p[0] - q[0], p[1] - q[1]))
+    box, cyl = (a.boxes[ra], b.cylinders[rb]) if ka == 0 else (b.boxes[rb], a.cylinders[ra])
+    return rect_disc_penetration(box[:2], (box[3], box[4]), box[6], cyl[:2], cyl[3])
+
+
+def _check_overlaps(objects: Sequence[OfficeObject]) -> None:
+    """Raise `InputError` naming the first two objects whose solids interpenetrate.
+
+    Parts are upright prisms (boxes with a yaw, vertical cylinders), so two parts
+    interpenetrate exactly when their height ranges and their footprints both overlap; the
+    depth is the smaller of the two overlaps. Bounding boxes pick the candidate pairs first.
+    """
+    owner, kind, row, lo, hi = _solids(objects)
+    i, j = np.triu_indices(len(owner), k=1)
+    cand = owner[i] != owner[j]
+    i, j = i[cand], j[cand]
+    reach = np.minimum(hi[i], hi[j]) - np.maximum(lo[i], lo[j])  # (M, 3) overlap per axis
+    cand = np.all(reach > _OVERLAP_TOL, axis=1)
+    for a, b, dz in zip(i[cand], j[cand], reach[cand, 2], strict=True):
+        oa, ob = objects[owner[a]], objects[owner[b]]
+        depth = min(float(dz), _footprint_depth(oa, kind[a], row[a], ob, kind[b], row[b]))
+        if depth > _OVERLAP_TOL:
+            raise InputError(
+                f"objects: {oa.name} (id {oa.id}) and {ob.name} (id {ob.id}) overlap by "
+                f"{1000 * depth:.1f} mm; move them apart, or stand one on the other (its "
+                "bottom on the other's top, its support set to the other's id)."
+            )
+
+
+def _on_part(x: float, y: float, z: float, obj: OfficeObject) -> bool:
+    """Whether the point (x, y, z) lies on a top face of a part of `obj` (within tolerances)."""
+    for b in obj.boxes:
+        c, s = math.cos(b[6]), math.sin(b[6])
+        u, v = c * (x - b[0]) + s * (y - b[1]), -s * (x - b[0]) + c * (y - b[1])
+        top = b[2] + b[5] / 2
+        if abs(z - top) <= _REST_TOL and abs(u) <= b[3] / 2 and abs(v) <= b[4] / 2:
+            return True
+    for cy in obj.cylinders:
+        top = cy[2] + cy[4] / 2
+        if abs(z - top) <= _REST_TOL and math.hypot(x - cy[0], y - cy[1]) <= cy[3]:
+            return True
+    return False
+
+
+def _check_resting(objects: Sequence[OfficeObject], by_id: dict[int, OfficeObject]) -> None:
+    """Raise `InputError` for an object that floats, sinks, or stands off its support."""
+    floors = [o.bounds for o in objects if o.kind == "floor"]
+    for o in objects:
+        if o.kind in _STRUCTURE:
+            continue
+        (x0, y0, z0), (x1, y1, _) = o.bounds
+        if o.support < 0:
+            if abs(z0) > _REST_TOL:
+                raise InputError(
+                    f"objects: {o.name} (id {o.id}) has support -1 (the floor) but its lowest "
+                    f"point is at z={z0:.3f} m; stand it on the floor (z = 0), or give the id "
+                    "of the object it stands on as its support."
+                )
+            inside = [
+                f
+                for f in floors
+                if x0 >= f[0, 0] - _OVERLAP_TOL
+                and x1 <= f[1, 0] + _OVERLAP_TOL
+                and y0 >= f[0, 1] - _OVERLAP_TOL
+                and y1 <= f[1, 1] + _OVERLAP_TOL
+            ]
+            if floors and not inside:
+                f = floors[0]
+                raise InputError(
+                    f"objects: {o.name} (id {o.id}) reaches off the floor: its footprint spans "
+                    f"x [{x0:.3f}, {x1:.3f}], y [{y0:.3f}, {y1:.3f}] m, the floor x "
+                    f"[{f[0, 0]:.3f}, {f[1, 0]:.3f}], y [{f[0, 1]:.3f}, {f[1, 1]:.3f}] m; move "
+                    "it onto the floor."
+                )
+            continue
+        base = by_id[o.support]
+        cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+        if not _on_part(cx, cy, z0, base):
+            raise InputError(
+                f"objects: {o.name} (id {o.id}) stands on {base.name} (id {base.id}), but its "
+                f"bottom (centre ({cx:.3f}, {cy:.3f}), z={z0:.3f} m) is not on a top face of "
+                f"{base.name}; place it on that object's top, or correct its support."
             )
 
 
@@ -816,7 +995,11 @@ def assemble_office_scene(
         robot_pose: ``(x, y, yaw)`` of the robot (m, m, rad, world frame).
 
     Raises:
-        InputError: For duplicate ids, an unknown support or a non-finite pose.
+        InputError: For objects that are not `OfficeObject`, duplicate ids, an unknown
+            support, a support on the floor or a wall, supports that form a cycle, two objects
+            whose solids interpenetrate (more than 1 um), an object on the floor that does not
+            stand at z = 0 or reaches off the floor object, an object that does not rest on a
+            top face of its support, or a non-finite pose; each message names the objects.
     """
     pose_arr = _floats("robot_pose", robot_pose)
     check_shape("robot_pose", pose_arr, (3,))
@@ -1046,8 +1229,8 @@ class _Sampler:
             f"upper end of {widen}.count."
         )
 
-    def stacked_box(self, index: int, supports: list[int], widen: str) -> bool:
-        """Place a box on one of `supports` (object ids); False if there is none."""
+    def stacked_box(self, index: int, supports: list[int]) -> bool:
+        """Place a box on one of `supports` (object ids); False if it fits on none of them."""
         if not supports:
             return False
         pl, rng = self.spec.placement, self.rng
@@ -1078,12 +1261,7 @@ class _Sampler:
             self.on_top[sid].append(fp)
             self.on_top[oid] = []
             return True
-        if widen == "box":  # no free floor box is wide enough: the box goes to the floor
-            return False
-        raise ConfigError(
-            f"could not place box_{index} on a {widen} in {pl.max_tries} tries; widen the "
-            f"{widen}'s size ranges or lower boxes.on_{widen}_probability."
-        )
+        return False  # no top has room left: the box goes to the floor
 
 
 def sample_office_scene(spec: OfficeSpec, rng: np.random.Generator) -> OfficeScene:
@@ -1141,11 +1319,11 @@ def sample_office_scene(spec: OfficeSpec, rng: np.random.Generator) -> OfficeSce
         mode = int(modes[i])
         if mode == 1:
             tables = [o.id for o in s.objects if o.kind == "table"]
-            if s.stacked_box(int(i), tables, "table"):
+            if s.stacked_box(int(i), tables):
                 continue
         elif mode == 2:
             free = [j for j in floor_boxes if not s.on_top[j]]
-            if s.stacked_box(int(i), free, "box"):
+            if s.stacked_box(int(i), free):
                 continue
         cls = _box_class(b, rng)
         s.floor_object("box", int(i), lambda c=cls: _box_parts(c, rng), cls.mass, "boxes")

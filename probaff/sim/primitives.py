@@ -22,7 +22,12 @@ __all__ = ["PrimitiveScene"]
 
 
 def _array(name: str, value: object, columns: int) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64)
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(
+            f"{name} must be an (N, {columns}) array of numbers, got {value!r}."
+        ) from None
     if arr.size == 0:
         arr = arr.reshape(0, columns)
     check_shape(name, arr, (None, columns))
@@ -90,7 +95,12 @@ class PrimitiveScene:
         Returns:
             (N,) bool.
         """
-        p = np.asarray(points, dtype=np.float64)
+        try:
+            p = np.asarray(points, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InputError(
+                f"points must be an (N, 3) array of numbers, got {points!r}."
+            ) from None
         check_shape("points", p, (None, 3))
         inside = np.zeros(len(p), dtype=bool)
         for cx, cy, cz, sx, sy, sz, yaw in self.boxes:

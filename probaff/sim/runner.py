@@ -9,16 +9,37 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from probaff._checks import check_count, check_finite, check_shape
+from probaff._checks import check_count, check_finite, check_positive, check_shape
 from probaff.errors import ConfigError, InputError, UnreachablePoseError
 from probaff.sim.arm import Arm, load_arm
-from probaff.sim.config import SceneSpec, TabletopSpec, load_catalogue, load_scene, load_tabletop
+from probaff.sim.config import (
+    SceneSpec,
+    TabletopSpec,
+    list_scenes,
+    load_catalogue,
+    load_scene,
+    load_tabletop,
+)
 from probaff.sim.sampling import sample_scene
 from probaff.sim.tabletop import PushOutcome, SceneInstance, simulate_push
 
 __all__ = ["PushSample", "PushSimulator", "straight_path", "trapezoid_progress"]
 
 _MAX_DRAWS_PER_SAMPLE = 200
+
+
+def _check_number(name: str, value: object) -> None:
+    """Raise `InputError` unless `value` is a finite number > 0 (not a string or a bool)."""
+    if isinstance(value, (bool, str, bytes)):
+        raise InputError(f"{name} must be a finite number > 0, got {value!r}.")
+    check_positive(name, value)  # type: ignore[arg-type]
+
+
+def _floats(name: str, value: object) -> np.ndarray:
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must hold numbers, got {value!r}.") from None
 
 
 def trapezoid_progress(
@@ -37,7 +58,23 @@ def trapezoid_progress(
 
     Returns:
         (T,) progress in [0, 1], 0 at the first tick and 1 at the last.
+
+    Raises:
+        InputError: If any argument is not a finite number > 0.
     """
+    for name, value in (
+        ("distance", distance),
+        ("speed", speed),
+        ("acceleration", acceleration),
+        ("rate", rate),
+    ):
+        _check_number(name, value)
+    distance, speed, acceleration, rate = (
+        float(distance),
+        float(speed),
+        float(acceleration),
+        float(rate),
+    )
     t_ramp = speed / acceleration
     if acceleration * t_ramp**2 > distance:  # too short to reach cruising speed
         t_ramp = math.sqrt(distance / acceleration)
@@ -73,7 +110,24 @@ def straight_path(
 
     Returns:
         (T_c, 3) world ``(x, y, yaw)`` of the hand per control tick.
+
+    Raises:
+        InputError: For a world that is not a `TabletopSpec`, a start that is not a finite
+            (2,) point, a yaw that is not finite or a distance that is not > 0.
     """
+    if not isinstance(world, TabletopSpec):
+        raise InputError(
+            f"world must be a TabletopSpec (load_tabletop()), got {type(world).__name__}."
+        )
+    start_xy = _floats("start_xy", start_xy)
+    check_shape("start_xy", start_xy, (2,))
+    check_finite("start_xy", start_xy)
+    yaw_arr = _floats("yaw", yaw)
+    check_shape("yaw", yaw_arr, ())
+    check_finite("yaw", yaw_arr)
+    yaw = float(yaw_arr)
+    _check_number("distance", distance)
+    distance = float(distance)
     s = distance * trapezoid_progress(
         distance, world.push_speed, world.push_acceleration, world.physics.control_rate
     )
@@ -107,6 +161,16 @@ class PushSimulator:
     """
 
     def __init__(self, scene: str | SceneSpec, world: TabletopSpec | None = None) -> None:
+        if not isinstance(scene, (str, SceneSpec)):
+            raise InputError(
+                f"scene must be a scene name (one of {list_scenes()}) or a SceneSpec, got "
+                f"{type(scene).__name__}."
+            )
+        if world is not None and not isinstance(world, TabletopSpec):
+            raise InputError(
+                f"world must be a TabletopSpec (load_tabletop()) or None, got "
+                f"{type(world).__name__}."
+            )
         self.scene = load_scene(scene) if isinstance(scene, str) else scene
         self.world = world or load_tabletop()
         self.catalogue = load_catalogue()
@@ -165,6 +229,10 @@ class PushSimulator:
             check_finite(f"scenes[{i}].push_origin (the push start)", s.push_origin)
             check_finite(f"scenes[{i}].push_yaw", s.push_yaw)
             s.validate()
+            try:
+                s.check_on_table(self.world)
+            except InputError as exc:
+                raise InputError(f"scenes[{i}]: {exc}") from None
         ok, q, path = self.hand_paths(list(scenes))
         if not ok.all():
             i = int(np.flatnonzero(~ok)[0])

@@ -12,10 +12,51 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from probaff._checks import check_count, check_positive
+from probaff._checks import check_count, check_finite, check_positive, check_shape
+from probaff.errors import InputError
 from probaff.sim.config import ObjectSpec
 
 __all__ = ["Scan", "object_cloud", "scan_scene", "table_cloud"]
+
+
+def _floats(name: str, value: object) -> np.ndarray:
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must hold numbers, got {value!r}.") from None
+
+
+def _check_object(name: str, obj: object) -> ObjectSpec:
+    if not isinstance(obj, ObjectSpec):
+        raise InputError(
+            f"{name} must be a catalogue ObjectSpec (load_catalogue()[name]), got "
+            f"{type(obj).__name__}."
+        )
+    return obj
+
+
+def _check_rng(rng: object) -> np.random.Generator:
+    if not isinstance(rng, np.random.Generator):
+        raise InputError(
+            f"rng must be a numpy.random.Generator (np.random.default_rng(seed)), got "
+            f"{type(rng).__name__}."
+        )
+    return rng
+
+
+def _check_table(table_size: object) -> tuple[float, float]:
+    size = _floats("table_size", table_size)
+    check_shape("table_size", size, (2,))
+    for i in range(2):
+        check_positive(f"table_size[{i}]", float(size[i]))
+    return float(size[0]), float(size[1])
+
+
+def _check_noise(noise: object) -> float:
+    if isinstance(noise, (bool, str, bytes)):
+        raise InputError(f"noise must be a finite number >= 0, got {noise!r}.")
+    check_positive("noise", noise, allow_zero=True)  # type: ignore[arg-type]
+    return float(noise)  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -90,10 +131,16 @@ def object_cloud(
         ``(points, normals)``, each (P, 3) in the world frame.
 
     Raises:
-        InputError: If `n_points` is not a positive integer or `noise` is negative.
+        InputError: If `obj` is not an `ObjectSpec`, `pose` not a finite (3,), `n_points` not
+            a positive integer, `noise` negative or `rng` not a `numpy.random.Generator`.
     """
+    obj = _check_object("obj", obj)
+    pose = _floats("pose", pose)
+    check_shape("pose", pose, (3,))
+    check_finite("pose", pose)
     n_points = check_count("n_points", n_points)
-    check_positive("noise", noise, allow_zero=True)
+    noise = _check_noise(noise)
+    rng = _check_rng(rng)
     sampler = _circle_surface if obj.shape == "circle" else _box_surface
     pts, nrm = sampler(obj, n_points, rng)
     c, s = math.cos(pose[2]), math.sin(pose[2])
@@ -130,16 +177,33 @@ def table_cloud(
 
     Returns:
         (Q, 3) world points.
+
+    Raises:
+        InputError: For a table size that is not two numbers > 0, a spacing that is not > 0,
+            a negative noise, an `rng` that is not a `numpy.random.Generator`, or an occluder
+            that is not an ``(ObjectSpec, finite (3,) pose)`` pair.
     """
+    table_size = _check_table(table_size)
+    if isinstance(spacing, (bool, str, bytes)):
+        raise InputError(f"spacing must be a finite number > 0, got {spacing!r}.")
     check_positive("spacing", spacing)
-    check_positive("noise", noise, allow_zero=True)
+    noise = _check_noise(noise)
+    rng = _check_rng(rng)
+    checked = []
+    for i, item in enumerate(occluders):
+        if not isinstance(item, (tuple, list)) or len(item) != 2:
+            raise InputError(f"occluders[{i}] must be an (ObjectSpec, pose) pair, got {item!r}.")
+        pose = _floats(f"occluders[{i}] pose", item[1])
+        check_shape(f"occluders[{i}] pose", pose, (3,))
+        check_finite(f"occluders[{i}] pose", pose)
+        checked.append((_check_object(f"occluders[{i}] object", item[0]), pose))
     xs = np.arange(-0.5 * table_size[0] + 0.5 * spacing, 0.5 * table_size[0], spacing)
     ys = np.arange(-0.5 * table_size[1] + 0.5 * spacing, 0.5 * table_size[1], spacing)
     gx, gy = np.meshgrid(xs, ys)
     xy = np.stack([gx.ravel(), gy.ravel()], -1)
     keep = np.ones(len(xy), dtype=bool)
-    for obj, pose in occluders:
-        keep &= ~_inside(obj, np.asarray(pose, dtype=float), xy)
+    for obj, pose in checked:
+        keep &= ~_inside(obj, pose, xy)
     pts = np.concatenate([xy[keep], np.zeros((keep.sum(), 1))], -1)
     return pts + rng.normal(0.0, noise, pts.shape) if noise > 0 else pts
 
@@ -168,9 +232,19 @@ def scan_scene(
         The scan.
 
     Raises:
-        InputError: If `n_points` is not a positive integer, or `noise` or `table_spacing` is
-            out of range.
+        InputError: If `objects` is not a non-empty list of `ObjectSpec`, `poses` not a finite
+            (K, 3) array, `n_points` not a positive integer, or `noise`, `table_size`,
+            `table_spacing` or `rng` is out of range or of the wrong type.
     """
+    if isinstance(objects, ObjectSpec) or not isinstance(objects, (tuple, list)) or not objects:
+        raise InputError(
+            f"objects must be a non-empty list of catalogue ObjectSpec, got {objects!r}."
+        )
+    objects = tuple(_check_object(f"objects[{k}]", o) for k, o in enumerate(objects))
+    poses = _floats("poses", poses)
+    check_shape("poses", poses, (len(objects), 3))
+    check_finite("poses", poses)
+    table_size = _check_table(table_size)
     n_points = check_count("n_points", n_points)
     clouds = [object_cloud(o, p, n_points, noise, rng) for o, p in zip(objects, poses, strict=True)]
     return Scan(

@@ -29,6 +29,7 @@ import pymunk
 from probaff._checks import check_count, check_finite, check_positive, check_shape
 from probaff.errors import ConfigError, InputError
 from probaff.sim.config import ObjectSpec, load_catalogue
+from probaff.sim.geometry import convex_penetration
 from probaff.sim.pusher import TrackedPusher
 from probaff.sim.sideview_config import SKILLS, SideViewSpec, load_sideview
 
@@ -45,24 +46,19 @@ _CENTRING_STIFFNESS = 400.0  # N/m
 _CENTRING_DAMPING = 10.0  # N s/m
 
 
+def _floats(name: str, value: object) -> np.ndarray:
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must hold numbers, got {value!r}.") from None
+
+
 def _corners(obj: ObjectSpec, pose: np.ndarray) -> np.ndarray:
     """(4, 2) world (x, z) corners of a box at pose (x, z, phi)."""
     w, h = 0.5 * obj.size[0], 0.5 * obj.height
     c, s = math.cos(pose[2]), math.sin(pose[2])
     local = np.array([[-w, -h], [w, -h], [w, h], [-w, h]])
     return local @ np.array([[c, s], [-s, c]]) + pose[:2]
-
-
-def _penetration(a: np.ndarray, b: np.ndarray) -> float:
-    """Depth (m) by which two convex quads (4, 2) overlap (<= 0: apart), by separating axes."""
-    depth = math.inf
-    for poly in (a, b):
-        edges = np.roll(poly, -1, axis=0) - poly
-        for ex, ez in edges:
-            n = np.array([-ez, ex]) / math.hypot(ex, ez)
-            pa, pb = a @ n, b @ n
-            depth = min(depth, min(pa.max() - pb.min(), pb.max() - pa.min()))
-    return depth
 
 
 @dataclass(frozen=True)
@@ -177,7 +173,7 @@ class SideViewScene:
                 )
         for i in range(K):
             for j in range(i + 1, K):
-                if _penetration(corners[i], corners[j]) > _OVERLAP_TOL:
+                if convex_penetration(corners[i], corners[j]) > _OVERLAP_TOL:
                     raise InputError(
                         f"SideViewScene.poses: objects {i} ({self.objects[i].name}) and {j} "
                         f"({self.objects[j].name}) overlap at the start; move them apart or "
@@ -425,6 +421,16 @@ def _build(world: SideViewSpec, scene: SideViewScene) -> tuple[pymunk.Space, lis
 
 
 def _check_on_table(world: SideViewSpec, scene: SideViewScene) -> None:
+    if not isinstance(world, SideViewSpec):
+        raise InputError(
+            f"world must be a SideViewSpec (load_sideview()), got {type(world).__name__}."
+        )
+    if not isinstance(scene, SideViewScene):
+        raise InputError(
+            f"scene must be a SideViewScene (SideViewScene.nominal or sample_sideview_scenes), "
+            f"got {type(scene).__name__}."
+        )
+    scene.validate()
     half = 0.5 * world.table_length
     for k, p in enumerate(scene.poses):
         if abs(p[0]) > half:
@@ -449,11 +455,14 @@ def simulate_rest(
         sampled at the world's record rate.
 
     Raises:
-        InputError: For an invalid scene or duration.
+        InputError: For a world or scene of the wrong type, an invalid scene, an object off
+            the table, or a duration that is not a finite number > 0.
     """
-    scene.validate()
     _check_on_table(world, scene)
+    if isinstance(duration, (bool, str, bytes)):
+        raise InputError(f"duration must be a finite number > 0 (s), got {duration!r}.")
     check_positive("duration", duration)
+    duration = float(duration)
     space, bodies = _build(world, scene)
     phys = world.physics
     dt = 1.0 / phys.control_rate / phys.substeps
@@ -494,13 +503,13 @@ def simulate_sideview(
         The recorded trajectories.
 
     Raises:
-        InputError: For an invalid scene, an object off the table, a path that is not finite
-            or of the wrong shape, an opening outside [0, span], or a snapshot out of range.
+        InputError: For a world or scene of the wrong type, an invalid scene, an object off
+            the table, a path that is not finite or of the wrong shape, an opening outside
+            [0, span], or a snapshot out of range.
     """
-    scene.validate()
     _check_on_table(world, scene)
-    hand_path = np.asarray(hand_path, dtype=float)
-    opening_path = np.asarray(opening_path, dtype=float)
+    hand_path = _floats("hand_path", hand_path)
+    opening_path = _floats("opening_path", opening_path)
     check_shape("hand_path", hand_path, (None, 3))
     T = len(hand_path)
     if T == 0:
@@ -509,8 +518,13 @@ def simulate_sideview(
     check_shape("opening_path", opening_path, (T,))
     check_finite("opening_path", opening_path)
     span = world.gripper.span
-    start = float(opening_path[0]) if initial_opening is None else initial_opening
-    check_finite("initial_opening", start)
+    if initial_opening is None:
+        start = float(opening_path[0])
+    else:
+        start_arr = _floats("initial_opening", initial_opening)
+        check_shape("initial_opening", start_arr, ())
+        check_finite("initial_opening", start_arr)
+        start = float(start_arr)
     if opening_path.min() < 0 or opening_path.max() > span + 1e-9 or not 0 <= start <= span + 1e-9:
         raise InputError(
             f"opening_path and initial_opening must lie in [0, {span}] m (the gripper's span)."

@@ -86,7 +86,9 @@ class SkillOutcome:
             other objects; place: it was held between the pads until the release.
         lifted: Pick: grasped and raised by at least half the lift.
         slipped: The held object moved relative to the hand by more than the world's slip
-            tolerance while it should have been held (or fell out).
+            tolerance while it should have been held (or fell out). Pick: from the end of
+            closing to the last tick, once the fingers closed on it (whether they touched it
+            when closing ended or only during the lift).
         placed: Place: the object rests, released and flat, on its target top.
         q_waypoints: (K_w, dof) the arm's joint waypoints (rad).
         object_specs: The K objects' catalogue specs.
@@ -109,6 +111,17 @@ class SkillOutcome:
     q_waypoints: np.ndarray
     object_specs: tuple[ObjectSpec, ...]
     target: int
+
+
+def _world(world: object) -> SideViewSpec:
+    """`world`, or ``worlds/sideview.yaml`` when None; an `InputError` for another type."""
+    if world is None:
+        return load_sideview()
+    if not isinstance(world, SideViewSpec):
+        raise InputError(
+            f"world must be a SideViewSpec (load_sideview()) or None, got {type(world).__name__}."
+        )
+    return world
 
 
 def _progress(distance: float, world: SideViewSpec) -> np.ndarray:
@@ -297,7 +310,7 @@ def plan_skills(
         UnreachablePoseError: Naming the first scene, and the tcp position, the arm cannot
             reach, with the reachable x range at that height.
     """
-    world = world or load_sideview()
+    world = _world(world)
     scenes = _check_scenes(scenes)
     plans, failures = _plan(world, scenes)
     if failures:
@@ -324,16 +337,28 @@ def _between(scene: SideViewScene, run: SideViewRun, row: int) -> bool:
 def _pick_flags(
     world: SideViewSpec, scene: SideViewScene, run: SideViewRun
 ) -> tuple[bool, bool, bool, bool]:
+    """Pick flags from a run with a snapshot at every tick from the end of closing on.
+
+    The fingers may still be closing when the lift starts (a narrow object is reached a few
+    ticks late, later still with a weak squeeze), so slip is not judged from the contacts at
+    the end of closing alone: the object slipped when the fingers closed on it at some tick
+    (it was squeezed between both pads) and, from the end of closing to the last tick, it
+    moved relative to the hand by more than the slip tolerance, or it ended not held.
+
+    Args:
+        world: The side-view world.
+        scene: The pick scene.
+        run: Its run; snapshot row 0 is the end of closing, the last row the last tick.
+    """
     k = scene.target
-    closed, end = 0, 2  # snapshot rows: end of closing, end of lifting, last tick
-    held_at_close = _between(scene, run, closed)
+    end = len(run.snap_hand) - 1
     grasped = _between(scene, run, end) and not bool(run.snap_supported[end, k])
     rise = run.state_after[k, 1] - run.state_before[k, 1]
     lifted = grasped and rise >= 0.5 * world.pick.lift
-    rel_close = run.snap_objects[closed, k, :2] - run.snap_hand[closed, :2]
-    rel_end = run.snap_objects[end, k, :2] - run.snap_hand[end, :2]
-    moved = float(np.linalg.norm(rel_end - rel_close)) > world.slip_tolerance
-    slipped = bool(held_at_close and (moved or not grasped))
+    rel = run.snap_objects[:, k, :2] - run.snap_hand[:, :2]
+    drift = float(np.linalg.norm(rel - rel[0], axis=1).max())
+    closed_on = any(_between(scene, run, row) for row in range(end + 1))
+    slipped = bool(closed_on and (drift > world.slip_tolerance or not grasped))
     return grasped, bool(lifted), slipped, False
 
 
@@ -380,15 +405,27 @@ def simulate_skill(
     Raises:
         InputError: If `scene` is invalid or `plan` belongs to another skill.
     """
-    world = world or load_sideview()
+    world = _world(world)
     if not isinstance(scene, SideViewScene) or not isinstance(plan, SkillPlan):
         raise InputError("simulate_skill needs a SideViewScene and its SkillPlan (plan_skills).")
     if plan.skill != scene.skill:
         raise InputError(f"plan is for a {plan.skill}, but scene is a {scene.skill}.")
-    run = simulate_sideview(
-        world, scene, plan.hand_path, plan.opening, plan.initial_opening, plan.marks
-    )
-    flags = (_pick_flags if scene.skill == "pick" else _place_flags)(world, scene, run)
+    if scene.skill == "pick":
+        close, _, last = plan.marks
+        run = simulate_sideview(
+            world,
+            scene,
+            plan.hand_path,
+            plan.opening,
+            plan.initial_opening,
+            range(close, last + 1),
+        )
+        flags = _pick_flags(world, scene, run)
+    else:
+        run = simulate_sideview(
+            world, scene, plan.hand_path, plan.opening, plan.initial_opening, plan.marks
+        )
+        flags = _place_flags(world, scene, run)
     return SkillOutcome(
         skill=scene.skill,
         times=run.times,
@@ -425,7 +462,7 @@ def run_skills(
         InputError: For an invalid scene.
         UnreachablePoseError: Naming the first scene the arm cannot execute.
     """
-    world = world or load_sideview()
+    world = _world(world)
     plans = plan_skills(scenes, world)
     return [simulate_skill(s, p, world) for s, p in zip(scenes, plans, strict=True)]
 
@@ -554,7 +591,7 @@ def sample_sideview_scenes(
             "rng must be a numpy.random.Generator (np.random.default_rng(seed)), got "
             f"{type(rng).__name__}."
         )
-    world = world or load_sideview()
+    world = _world(world)
     out: list[SideViewScene] = []
     draws = 0
     while len(out) < n:
@@ -594,7 +631,7 @@ def run_sampled(
         InputError: For a bad template, `n` or `rng`.
         ConfigError: If reachable scenes are too rare.
     """
-    world = world or load_sideview()
+    world = _world(world)
     n = check_count("n", n, minimum=0)
     out: list[tuple[SideViewScene, SkillOutcome]] = []
     batches = 0

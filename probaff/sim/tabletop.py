@@ -20,7 +20,7 @@ from probaff._checks import check_count, check_finite, check_positive, check_sha
 from probaff.errors import InputError
 from probaff.sim.config import ObjectSpec, TabletopSpec
 from probaff.sim.friction import Part, add_sliding_body
-from probaff.sim.geometry import friction_points, push_frame_effect
+from probaff.sim.geometry import footprint_penetration, friction_points, push_frame_effect
 from probaff.sim.pusher import TrackedPusher
 
 __all__ = ["PushOutcome", "SceneInstance", "simulate_push"]
@@ -28,6 +28,7 @@ __all__ = ["PushOutcome", "SceneInstance", "simulate_push"]
 _HAND, _WALL, _OBJECT0 = 1, 2, 10
 _WALL_RADIUS = 0.01
 _WALL_FRICTION = 0.5
+_OVERLAP = 0.002  # deeper interpenetration (m) of two footprints at the start is an overlap
 
 
 @dataclass(frozen=True)
@@ -100,7 +101,9 @@ class SceneInstance:
 
         Raises:
             InputError: Naming the field, for a wrong shape, a NaN or infinite value, a mass
-                or push distance <= 0, a negative friction or support load.
+                or push distance <= 0, a negative friction or support load, or two objects
+                whose footprints overlap by more than 2 mm (objects at rest against each
+                other interpenetrate slightly in the physics).
         """
         K = len(self.objects)
         for name, shape in (
@@ -140,6 +143,32 @@ class SceneInstance:
                 )
         check_finite("SceneInstance.push_yaw", self.push_yaw)
         check_positive("SceneInstance.push_distance", self.push_distance)
+        for i in range(K):
+            for j in range(i + 1, K):
+                depth = footprint_penetration(
+                    self.objects[i], self.poses[i], self.objects[j], self.poses[j]
+                )
+                if depth > _OVERLAP:
+                    raise InputError(
+                        f"SceneInstance.poses: objects {i} ({self.objects[i].name}) and {j} "
+                        f"({self.objects[j].name}) overlap by {1000 * depth:.1f} mm at the "
+                        "start; move them apart."
+                    )
+
+    def check_on_table(self, world: TabletopSpec) -> None:
+        """Raise `InputError` unless every object's centre lies on the world's table.
+
+        Args:
+            world: The tabletop world (its table size).
+        """
+        hx, hy = 0.5 * world.table_size[0], 0.5 * world.table_size[1]
+        for k, (x, y, _) in enumerate(self.poses):
+            if abs(x) > hx or abs(y) > hy:
+                raise InputError(
+                    f"SceneInstance.poses[{k}] puts {self.objects[k].name!r}'s centre at "
+                    f"({x:.3f}, {y:.3f}) m, off the {2 * hx:g} x {2 * hy:g} m table centred at "
+                    "the origin; place it on the table."
+                )
 
     @classmethod
     def nominal(
@@ -293,12 +322,28 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
         The push's outcome.
 
     Raises:
-        InputError: If `scene` holds an invalid physical parameter (see
-            `SceneInstance.validate`), or `hand_path` is not a finite (T_c, 3) array with
-            T_c >= 1.
+        InputError: If `world` or `scene` is of the wrong type, `scene` holds an invalid
+            physical parameter or overlapping objects (see `SceneInstance.validate`) or an
+            object whose centre is off the table, or `hand_path` is not a finite (T_c, 3)
+            array with T_c >= 1.
     """
+    if not isinstance(world, TabletopSpec):
+        raise InputError(
+            f"world must be a TabletopSpec (load_tabletop()), got {type(world).__name__}."
+        )
+    if not isinstance(scene, SceneInstance):
+        raise InputError(
+            f"scene must be a SceneInstance (see sample_scene or SceneInstance.nominal), got "
+            f"{type(scene).__name__}."
+        )
     scene.validate()
-    hand_path = np.asarray(hand_path, dtype=float)
+    scene.check_on_table(world)
+    try:
+        hand_path = np.asarray(hand_path, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(
+            f"hand_path must be a (T_c, 3) numeric array, got {hand_path!r}."
+        ) from None
     check_shape("hand_path", hand_path, (None, 3))
     if len(hand_path) == 0:
         raise InputError("hand_path is empty; give at least one (x, y, yaw) control tick.")

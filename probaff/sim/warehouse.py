@@ -59,6 +59,52 @@ __all__ = [
 _PUSHED_FRACTION = 0.8  # a push succeeds when the box travels this fraction of a cell
 
 
+def _index(name: str, value: object) -> int:
+    """`value` as an int, or an `InputError` unless it is an integer (not a bool or string)."""
+    if isinstance(value, (bool, str, bytes)):
+        raise InputError(f"{name} must be an integer, got {value!r}.")
+    try:
+        as_float = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be an integer, got {value!r}.") from None
+    if not math.isfinite(as_float) or as_float != int(as_float):
+        raise InputError(f"{name} must be an integer, got {value!r}.")
+    return int(as_float)
+
+
+def _pair(name: str, value: object, minimum: int | None = None) -> tuple[int, int]:
+    """A ``(row, col)`` pair of integers (each >= `minimum` if given), or an `InputError`."""
+    items = list(value) if isinstance(value, (tuple, list, np.ndarray)) else []
+    if len(items) != 2:
+        raise InputError(f"{name} must be a (row, col) pair of integers, got {value!r}.")
+    if minimum is not None:
+        return (
+            check_count(f"{name}[0]", items[0], minimum=minimum),
+            check_count(f"{name}[1]", items[1], minimum=minimum),
+        )
+    return _index(f"{name}[0]", items[0]), _index(f"{name}[1]", items[1])
+
+
+def _direction(direction: object) -> int:
+    """`direction` as an index 0..3 into `DIRECTION_NAMES`, or an `InputError`."""
+    if isinstance(direction, (bool, str, bytes)) or direction not in range(4):
+        raise InputError(f"direction must be 0..3 ({DIRECTION_NAMES}), got {direction!r}.")
+    return int(direction)  # type: ignore[call-overload]
+
+
+def _check_world(spec: object, m: object) -> None:
+    """Raise `InputError` unless `spec` is a `WarehouseSpec` and `m` a `WarehouseMap`."""
+    if not isinstance(spec, WarehouseSpec):
+        raise InputError(
+            f"spec must be a WarehouseSpec (load_warehouse()), got {type(spec).__name__}."
+        )
+    if not isinstance(m, WarehouseMap):
+        raise InputError(
+            f"m must be a WarehouseMap (generate_map or WarehouseMap.from_boxes), got "
+            f"{type(m).__name__}."
+        )
+
+
 @dataclass(frozen=True)
 class WarehouseMap:
     """Which cells hold a box.
@@ -77,7 +123,11 @@ class WarehouseMap:
             raise InputError(f"occupancy must be a 2-D bool array, got {occ.dtype} {occ.shape}.")
         if min(occ.shape) < 2:
             raise InputError(f"a warehouse needs at least 2 x 2 cells, got {occ.shape}.")
+        if isinstance(self.cell_size, (bool, str, bytes)):
+            raise InputError(f"cell_size must be a finite number > 0, got {self.cell_size!r}.")
         check_positive("cell_size", self.cell_size)
+        object.__setattr__(self, "occupancy", occ)
+        object.__setattr__(self, "cell_size", float(self.cell_size))
 
     @classmethod
     def from_boxes(
@@ -91,10 +141,16 @@ class WarehouseMap:
             cell_size: Side of a cell (m).
 
         Raises:
-            InputError: For a box outside the walls or two boxes in one cell.
+            InputError: For a shape that is not two integers >= 2, a box cell that is not two
+                integers, a box outside the walls or two boxes in one cell.
         """
+        rows, cols = _pair("shape", shape, minimum=2)
+        shape = (rows, cols)
+        if isinstance(boxes, (str, bytes)) or not hasattr(boxes, "__iter__"):
+            raise InputError(f"boxes must be a list of (row, col) cells, got {boxes!r}.")
         occ = np.zeros(shape, dtype=bool)
-        for r, c in boxes:
+        for i, cell in enumerate(boxes):
+            r, c = _pair(f"boxes[{i}]", cell)
             if not (0 <= r < shape[0] and 0 <= c < shape[1]):
                 raise InputError(
                     f"box at cell ({r}, {c}) lies outside the walls of a {shape[0]} x "
@@ -140,9 +196,16 @@ class WarehouseMap:
         )
 
     def moved(self, cell: tuple[int, int], direction: int) -> WarehouseMap:
-        """The map after the box at `cell` moved one cell in `direction`."""
-        r, c = cell
-        dr, dc = DIRECTION_OFFSETS[direction]
+        """The map after the box at `cell` moved one cell in `direction`.
+
+        Raises:
+            InputError: For a cell that is not two integers or holds no box, a direction that
+                is not 0..3, or a target cell that is outside the walls or taken.
+        """
+        r, c = _pair("cell", cell)
+        if not self.inside(np.array([r, c])):
+            raise InputError(f"cell ({r}, {c}) lies outside the {self.shape} warehouse.")
+        dr, dc = DIRECTION_OFFSETS[_direction(direction)]
         occ = self.occupancy.copy()
         if not occ[r, c]:
             raise InputError(f"no box at cell ({r}, {c}) to move.")
@@ -172,17 +235,25 @@ def generate_map(
         A map with boxes on distinct cells chosen uniformly.
 
     Raises:
-        InputError: If a size or box count is not such an integer.
+        InputError: If `spec` is not a `WarehouseSpec`, `rng` not a `numpy.random.Generator`,
+            or a size or box count is not such an integer.
         ConfigError: If the boxes cannot fit with one cell left free.
     """
-    rows, cols = shape or (spec.rows, spec.cols)
-    rows, cols = (
-        check_count("shape[0]", rows, minimum=2),
-        check_count("shape[1]", cols, minimum=2),
-    )
+    if not isinstance(spec, WarehouseSpec):
+        raise InputError(
+            f"spec must be a WarehouseSpec (load_warehouse()), got {type(spec).__name__}."
+        )
+    if not isinstance(rng, np.random.Generator):
+        raise InputError(
+            f"rng must be a numpy.random.Generator (np.random.default_rng(seed)), got "
+            f"{type(rng).__name__}."
+        )
+    rows, cols = _pair("shape", shape, minimum=2) if shape is not None else (spec.rows, spec.cols)
     if n_boxes is None:
         scale = rows * cols / (spec.rows * spec.cols)
         n_boxes = (round(spec.boxes[0] * scale), round(spec.boxes[1] * scale))
+    if isinstance(n_boxes, (str, bytes)) or not hasattr(n_boxes, "__len__") or len(n_boxes) != 2:
+        raise InputError(f"n_boxes must be a (low, high) pair of counts, got {n_boxes!r}.")
     lo, hi = (check_count(f"n_boxes[{i}]", v, minimum=0) for i, v in enumerate(n_boxes))
     if lo < 0 or hi < lo or hi > rows * cols - 1:
         raise ConfigError(
@@ -268,16 +339,16 @@ def push_box(
         What the push did.
 
     Raises:
-        InputError: If there is no box at `cell`, `direction` is not 0..3 or `neighbourhood`
-            is not an integer >= 0.
+        InputError: For a `spec` or `m` of the wrong type, a `cell` that is not two integers
+            or holds no box, a `direction` that is not 0..3 or a `neighbourhood` that is not
+            an integer >= 0.
     """
+    _check_world(spec, m)
     neighbourhood = check_count("neighbourhood", neighbourhood, minimum=0)
-    r, c = cell
-    if not m.inside(np.array(cell)) or not m.occupancy[r, c]:
-        raise InputError(f"there is no box at cell {cell} to push.")
-    if isinstance(direction, (bool, str)) or direction not in range(4):
-        raise InputError(f"direction must be 0..3 ({DIRECTION_NAMES}), got {direction!r}.")
-    direction = int(direction)
+    r, c = _pair("cell", cell)
+    if not m.inside(np.array([r, c])) or not m.occupancy[r, c]:
+        raise InputError(f"there is no box at cell {(r, c)} to push.")
+    direction = _direction(direction)
     dr, dc = DIRECTION_OFFSETS[direction]
     d = np.array([dc, -dr], dtype=float)  # world unit vector of the push
     s = spec.cell_size
@@ -368,7 +439,11 @@ def physics_affordances(spec: WarehouseSpec, m: WarehouseMap) -> np.ndarray:
 
     Returns:
         (rows, cols, 4) bool, ``True`` where a box stands and moved a cell when pushed.
+
+    Raises:
+        InputError: For a `spec` or `m` of the wrong type.
     """
+    _check_world(spec, m)
     out = np.zeros((*m.shape, 4), dtype=bool)
     for r, c in m.boxes:
         for k in range(4):

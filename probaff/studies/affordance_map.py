@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from probaff._checks import check_count
-from probaff._dask import check_workers
+from probaff._dask import check_scheduler, check_workers
 from probaff._io import atomic_write_text
 from probaff._threads import torch_threads
 from probaff.errors import InputError
@@ -171,6 +171,7 @@ class AffordanceMapConfig:
                 f"{self.entropy_target!r}."
             )
         workers = check_workers(self.workers)
+        check_scheduler(self.scheduler)
         return dataclasses.replace(
             self,
             n_maps=n_maps,

@@ -15,6 +15,7 @@ import dataclasses
 import re
 import types
 import typing
+from collections.abc import Sequence
 from typing import Any
 
 __all__ = ["add_config_arguments", "config_from_args", "study_config", "study_parser"]
@@ -163,6 +164,34 @@ def config_from_args(config_cls: type, args: argparse.Namespace, **overrides: An
     return config_cls(**{**values, **overrides})
 
 
+class _StudyParser(argparse.ArgumentParser):
+    """A parser that also records which options the command line gave.
+
+    `study_config` needs to know them: ``--smoke`` sizes apply only to the fields the user
+    left at their defaults, so a value typed on the command line is never replaced (and is
+    validated) even in a smoke run.
+    """
+
+    def parse_known_args(  # type: ignore[override]
+        self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
+    ) -> tuple[argparse.Namespace, list[str]]:
+        parsed, extra = super().parse_known_args(args, namespace)
+        saved = [(a, a.default) for a in self._actions]
+        try:
+            for action, _ in saved:
+                action.default = argparse.SUPPRESS
+            given, _ = super().parse_known_args(args, None)
+        finally:
+            for action, default in saved:
+                action.default = default
+        setattr(parsed, GIVEN, frozenset(vars(given)))
+        return parsed, extra
+
+
+GIVEN = "_given_on_command_line"
+"""Name of the parsed namespace's attribute holding the destinations the command line set."""
+
+
 def study_parser(config_cls: type, doc: str) -> argparse.ArgumentParser:
     """A study script's parser: one flag per config field, and ``--smoke``.
 
@@ -173,15 +202,32 @@ def study_parser(config_cls: type, doc: str) -> argparse.ArgumentParser:
     Returns:
         The parser; add the script's own flags to it before parsing.
     """
-    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
+    parser = _StudyParser(description=doc.splitlines()[0])
     add_config_arguments(parser, config_cls)
     parser.add_argument(
         "--smoke",
         action="store_true",
-        help="a tiny run that checks the pipeline (the study's smoke sizes; the other flags "
-        "still apply)",
+        help="a tiny run that checks the pipeline (the study's smoke sizes for every field "
+        "not given on the command line)",
     )
     return parser
+
+
+def _smoke_values(
+    config_cls: type, cfg: Any, smoke: dict[str, Any], given: frozenset[str]
+) -> dict[str, Any]:
+    """The `smoke` field values, less every (outer or nested) field the user gave."""
+    hints = typing.get_type_hints(config_cls)
+    out: dict[str, Any] = {}
+    for name, value in smoke.items():
+        inner = hints.get(name)
+        if dataclasses.is_dataclass(inner) and isinstance(inner, type):
+            mine = getattr(cfg, name)
+            keep = {g.name: getattr(mine, g.name) for g in dataclasses.fields(inner)}
+            out[name] = dataclasses.replace(value, **{k: v for k, v in keep.items() if k in given})
+        elif name not in given:
+            out[name] = value
+    return out
 
 
 def study_config(
@@ -189,16 +235,23 @@ def study_config(
 ) -> Any:
     """The config from parsed flags, with the `smoke` sizes on top when ``--smoke`` was given.
 
+    The flags the user gave are validated first (the config is built from them before any
+    smoke size is applied), and a smoke size never replaces a value given on the command
+    line: ``--smoke --trials 0`` is refused, ``--smoke --trials 5`` runs 5 trials.
+
     Args:
         config_cls: The study's config dataclass.
-        args: What a `study_parser` returned from ``parse_args()``.
-        smoke: The study's smoke-sized field values.
+        args: What a `study_parser` returned from ``parse_args()``; a namespace from another
+            parser counts every field as not given.
+        smoke: The study's smoke-sized field values (a nested options dataclass counts field
+            by field).
         **overrides: Field values from the script's own flags (applied last).
 
     Returns:
         A `config_cls` instance.
     """
     cfg = config_from_args(config_cls, args)
-    if args.smoke:
-        cfg = dataclasses.replace(cfg, **smoke)
+    if getattr(args, "smoke", False):
+        given: frozenset[str] = getattr(args, GIVEN, frozenset())
+        cfg = dataclasses.replace(cfg, **_smoke_values(config_cls, cfg, smoke, given))
     return dataclasses.replace(cfg, **overrides) if overrides else cfg

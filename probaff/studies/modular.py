@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from probaff._checks import check_count, check_output_dir
-from probaff._dask import check_workers
+from probaff._dask import check_scheduler, check_workers
 from probaff._io import atomic_write_text
 from probaff.data.generation import GenerateConfig, generate, generate_skills
 from probaff.errors import InputError
@@ -161,15 +161,8 @@ class ModularStudyConfig:
         s = self.settings
         if not isinstance(s, TrialSettings):
             raise InputError(f"settings must be a TrialSettings, got {type(s).__name__}.")
-        check_count("settings.chain_samples", s.chain_samples, minimum=2)
-        check_count("settings.n_experts", s.n_experts)
-        check_count("settings.em_iterations", s.em_iterations)
-        check_count("settings.gp_max_iter", s.gp_max_iter)
-        from probaff.studies.modular_trials import geometry_for
-
-        geometry_for(s.push_groups)
-        geometry_for(s.skill_groups)
         check_workers(self.workers)
+        check_scheduler(self.scheduler)
         check_output_dir("out", self.out)
 
     def train_size(self, part: str, scale: float) -> int:

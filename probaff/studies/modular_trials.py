@@ -29,6 +29,7 @@ import numpy as np
 import torch
 from torch.distributions import Distribution
 
+from probaff._checks import check_count
 from probaff._threads import torch_threads
 from probaff.data.schema import PushDataset
 from probaff.data.skill_schema import SkillDataset
@@ -97,18 +98,39 @@ class TrialSettings:
     gp_max_iter: int = 50
     chain_backward: bool = True
 
+    def __post_init__(self) -> None:
+        """Raise `InputError` for a count that is not a positive integer or a bad group list."""
+        check_count("chain_samples", self.chain_samples, minimum=2)
+        check_count("n_experts", self.n_experts)
+        check_count("em_iterations", self.em_iterations)
+        check_count("gp_max_iter", self.gp_max_iter)
+        geometry_for(self.push_groups, "push_groups")
+        geometry_for(self.skill_groups, "skill_groups")
 
-def geometry_for(groups: tuple[str, ...]) -> Ch6Geometry:
+
+def geometry_for(groups: tuple[str, ...], name: str = "groups") -> Ch6Geometry:
     """The chapter 6 geometry keeping the feature columns of `groups`, plus the motion columns.
 
+    Args:
+        groups: `INTERACTION_GROUPS` names, each at most once.
+        name: The argument's name for error messages (``"push_groups"``).
+
     Raises:
-        InputError: For an unknown group name.
+        InputError: For no group, an unknown group name or a group named twice.
     """
+    if isinstance(groups, str) or not groups:
+        raise InputError(
+            f"{name} must be a non-empty list of feature groups from "
+            f"{list(INTERACTION_GROUPS)}, got {groups!r}."
+        )
     unknown = [g for g in groups if g not in INTERACTION_GROUPS]
     if unknown:
         raise InputError(
-            f"unknown feature groups {unknown}; choose from {list(INTERACTION_GROUPS)}."
+            f"{name}: unknown feature groups {unknown}; choose from {list(INTERACTION_GROUPS)}."
         )
+    twice = sorted({g for g in groups if groups.count(g) > 1})
+    if twice:
+        raise InputError(f"{name} names {twice} more than once; give each feature group once.")
     columns = [c for g in groups for c in range(*INTERACTION_GROUPS[g].indices(10**6))]
     return Ch6Geometry(columns=columns)
 

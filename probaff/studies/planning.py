@@ -40,7 +40,7 @@ from typing import Any, cast
 import numpy as np
 
 from probaff._checks import check_count, check_output_dir
-from probaff._dask import check_workers
+from probaff._dask import check_scheduler, check_workers
 from probaff._io import atomic_write_text
 from probaff._threads import torch_threads
 from probaff.data.generation import GenerateConfig, generate
@@ -163,7 +163,7 @@ class PlanningStudyConfig:
         unknown = [p for p in self.planners if p not in EDGE_PLANNERS]
         if unknown or not self.planners:
             raise InputError(
-                f"unknown or no planners {unknown or list(self.planners)}; choose from "
+                f"planners: unknown or no planners {unknown or list(self.planners)}; choose from "
                 f"{list(EDGE_PLANNERS)}."
             )
         check_count("train_pushes", self.train_pushes)
@@ -175,11 +175,13 @@ class PlanningStudyConfig:
         unknown = [p for p in self.tool_planners if p not in TOOL_PUSH_PLANNERS]
         if unknown:
             raise InputError(
-                f"unknown tool planners {unknown}; choose from {list(TOOL_PUSH_PLANNERS)}."
+                f"tool_planners: unknown tool planners {unknown}; choose from "
+                f"{list(TOOL_PUSH_PLANNERS)}."
             )
         check_count("em_iterations", self.em_iterations)
         check_count("seed", self.seed, minimum=0)
         check_workers(self.workers)
+        check_scheduler(self.scheduler)
         check_output_dir("out", self.out)
 
 

@@ -55,9 +55,9 @@ from typing import Any
 import numpy as np
 
 from probaff._checks import check_count, check_output_dir
-from probaff._dask import check_workers
+from probaff._dask import check_scheduler, check_workers
 from probaff._io import atomic_write_bytes, atomic_write_text
-from probaff.errors import InputError
+from probaff.errors import DatasetError, InputError
 from probaff.eval.fingerprint import config_fingerprint
 from probaff.eval.metrics import mean_halfwidth
 from probaff.eval.tables import markdown_table, write_csv
@@ -207,6 +207,7 @@ class PointCloudStudyConfig:
                 f"got {proximities!r}."
             )
         check_workers(self.workers)
+        check_scheduler(self.scheduler)
         check_output_dir("out", self.out)
 
     @property
@@ -593,6 +594,22 @@ def summarise_merge(
     return rows
 
 
+def _read_arrays(npz: Path, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """The arrays `names` of a scan's ``.npz`` file (written by `scan_task` or `merge_task`).
+
+    Raises:
+        DatasetError: If the file cannot be read, is truncated or corrupt, or lacks an array.
+    """
+    try:
+        with np.load(npz, allow_pickle=False) as arrays:
+            return {name: arrays[name] for name in names}
+    except Exception as exc:  # damaged archives fail in many ways (BadZipFile, zlib.error, ...)
+        raise DatasetError(
+            f"cannot read the scan arrays {npz} ({exc or type(exc).__name__}); delete it and "
+            "rerun the study to scan the scene again."
+        ) from exc
+
+
 def _merge_points(
     config: PointCloudStudyConfig, index: int, npz: Path
 ) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -603,10 +620,10 @@ def _merge_points(
     """
     if not npz.is_file():
         merge_task(config.seed, index, config.perception, config.merge_pans_deg, str(npz))
-    with np.load(npz) as arrays:
-        points = arrays["points"].astype(np.float64)
-        rows = arrays["point_segments"].astype(np.int64)
-        views = arrays["point_views"].astype(np.int64)
+    arrays = _read_arrays(npz, ("points", "point_segments", "point_views"))
+    points = arrays["points"].astype(np.float64)
+    rows = arrays["point_segments"].astype(np.int64)
+    views = arrays["point_views"].astype(np.int64)
     return [(points[views == v], rows[views == v]) for v in range(len(config.merge_pans_deg))]
 
 
@@ -724,8 +741,8 @@ def _figures(
 
     if not npz.is_file():  # the record survived but its arrays did not: rescan them
         scan_task(config.seed, 0, config.perception, str(npz))
-    with np.load(npz) as arrays:
-        points, rows = arrays["points"], arrays["point_segments"]
+    arrays = _read_arrays(npz, ("points", "point_segments"))
+    points, rows = arrays["points"], arrays["point_segments"]
     files = [
         lf.plot_segment_cloud(points, rows, out / "segments.png"),
         lf.plot_label_probabilities(points, rows, first, out / "label_probabilities.png"),

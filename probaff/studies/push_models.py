@@ -25,7 +25,7 @@ import torch
 from sklearn.model_selection import KFold
 
 from probaff._checks import check_count
-from probaff._dask import check_workers
+from probaff._dask import check_scheduler, check_workers
 from probaff._io import atomic_write_text
 from probaff._threads import torch_threads
 from probaff.data.generation import GenerateConfig, generate
@@ -48,6 +48,7 @@ from probaff.models import (
     fit_em_path,
     get_fitter,
 )
+from probaff.models.initialization import check_initialization
 
 __all__ = [
     "CH4_FEATURES",
@@ -158,6 +159,10 @@ class PushModelStudyConfig:
                 raise InputError(f"unknown method {m!r}; use 'em' and/or 'vi'.")
         if "em" not in self.methods:
             raise InputError("methods must include 'em': VI starts from the EM mixtures.")
+        try:
+            check_initialization(self.em_init)
+        except InputError as err:
+            raise InputError(f"em_init: {err}") from None
         for name in self.vi_features:
             if name not in self.ch5_features:
                 raise InputError(
@@ -184,6 +189,7 @@ class PushModelStudyConfig:
             if folds < 2:
                 raise InputError(f"cross-validation needs at least 2 folds, got {folds}.")
         check_workers(self.workers)
+        check_scheduler(self.scheduler)
         if self.ch5_pushes < self.ch5_folds:
             raise InputError("ch5_pushes must be at least ch5_folds.")
 

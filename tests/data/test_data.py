@@ -177,3 +177,89 @@ def test_existing_scheduler_gives_the_same_bytes(reference, tmp_path):
     ) as cluster:
         generate(CFG, tmp_path / "sched", scheduler=cluster.scheduler_address, progress=False)
     assert _files(tmp_path / "sched") == _files(reference)
+
+
+def _copy(reference, out):
+    import shutil
+
+    shutil.copytree(reference, out)
+    return out
+
+
+def test_flipped_shard_byte_fails_its_checksum(reference, tmp_path):
+    out = _copy(reference, tmp_path / "flip")
+    shard = out / "shards" / "00001.npz"
+    data = bytearray(shard.read_bytes())
+    data[len(data) // 2] ^= 0x01
+    shard.write_bytes(bytes(data))
+    with pytest.raises(
+        DatasetError, match=r"shard .*00001\.npz does not match its checksum.*--resume"
+    ):
+        load_dataset(out)
+
+
+def test_dataset_without_checksums_loads_with_a_warning_and_damage_is_still_caught(
+    reference, tmp_path
+):
+    out = _copy(reference, tmp_path / "old")
+    manifest = json.loads((out / "manifest.json").read_text())
+    for entry in manifest["shards"].values():
+        del entry["sha256"]
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.warns(UserWarning, match="3 of the 3 shards .* have no checksum"):
+        ds = load_dataset(out)
+    expected = load_dataset(reference)
+    for name in expected.arrays:
+        np.testing.assert_array_equal(ds[name], expected[name])
+
+    # without a checksum, a damaged shard is refused by the zip format or the schema, never
+    # read silently nor reported with a raw exception
+    shard = out / "shards" / "00001.npz"
+    clean = shard.read_bytes()
+    for at in range(0, len(clean), max(1, len(clean) // 40)):
+        data = bytearray(clean)
+        data[at] ^= 0xFF
+        shard.write_bytes(bytes(data))
+        try:
+            with pytest.warns(UserWarning, match="no checksum"):
+                damaged = load_dataset(out)
+        except DatasetError as exc:
+            assert "00001.npz" in str(exc) and "--resume" in str(exc), str(exc)
+        else:
+            for name in expected.arrays:
+                np.testing.assert_array_equal(damaged[name], expected[name])
+    shard.write_bytes(b"PK\x03\x04" + clean[4:100])
+    with (
+        pytest.warns(UserWarning),
+        pytest.raises(DatasetError, match=r"shard .*00001\.npz is corrupt .*--resume"),
+    ):
+        load_dataset(out)
+
+
+def test_unreadable_shards_and_malformed_manifests_are_dataset_errors(reference, tmp_path):
+    out = _copy(reference, tmp_path / "bad")
+    shard = out / "shards" / "00002.npz"
+    shard.unlink()
+    shard.mkdir()
+    with pytest.raises(DatasetError, match=r"cannot read shard .*00002\.npz .*--resume"):
+        load_dataset(out)
+    shard.rmdir()
+    with pytest.raises(DatasetError, match=r"shard .*00002\.npz is missing"):
+        load_dataset(out)
+
+    good = json.loads((reference / "manifest.json").read_text())
+    for change in (
+        {"plan": [1]},
+        {"plan": {**good["plan"], "shard_size": 0}},
+        {"object_names": "book"},
+        {"meta": None},
+        {"shards": {"00000": 5}},
+        {"shards": {"00000": {"rows": "8", "sha256": "x"}}},
+    ):
+        (out / "manifest.json").write_text(json.dumps({**good, **change}))
+        with pytest.raises(DatasetError, match=r"manifest\.json is malformed: its .*regenerate"):
+            load_dataset(out)
+    (out / "manifest.json").unlink()
+    (out / "manifest.json").mkdir()
+    with pytest.raises(DatasetError, match=r"no manifest\.json"):
+        load_dataset(out)

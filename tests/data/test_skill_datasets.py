@@ -408,3 +408,54 @@ def test_record_rate_sets_the_trajectory_samples(tmp_path):
     assert math.isclose(ds.n_samples, default.n_samples / 2, abs_tol=1.0)
     np.testing.assert_array_equal(ds["state_after"], default["state_after"])
     np.testing.assert_allclose(ds["traj_time"][:, 1], 0.1)
+
+
+def test_cli_describes_pick_and_place_datasets(tiny, tmp_path, capsys):
+    assert main(["describe", str(tiny)]) == 0
+    pick = json.loads(capsys.readouterr().out)
+    ds = load_skill_dataset(tiny)
+    assert pick["skill"] == "pick" and pick["scene"] == "pick" and pick["n_samples"] == 4
+    assert set(pick["outcomes"]) == {"fraction_grasped", "fraction_lifted", "fraction_slipped"}
+    assert pick["outcomes"]["fraction_lifted"] == pytest.approx(ds["lifted"].mean())
+    assert sum(pick["target_counts"].values()) == 4
+    assert pick["has_trajectories"] and pick["n_trajectory_samples"] == ds.n_samples
+    assert pick["release_height_m"] is None and pick["fraction_on_table_support"] is None
+    rows = np.arange(4)
+    target = ds["target"].astype(int)
+    lift = (ds["state_after"] - ds["state_before"])[rows, target, 1]
+    assert pick["target"]["mean_effect"]["dz_m"] == pytest.approx(lift.mean())
+    assert set(pick["objects"]) == {f"o{k + 1}" for k in range(ds.n_objects)}
+
+    out = tmp_path / "place"
+    args = ["generate", "--scene", "place", "--n", "4", "--seed", "2", "--out", str(out)]
+    assert main([*args, "--shard-size", "2", "--workers", "0", "--no-trajectories", "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["describe", str(out)]) == 0
+    place = json.loads(capsys.readouterr().out)
+    assert place["skill"] == "place" and place["n_samples"] == 4
+    assert set(place["outcomes"]) == {"fraction_grasped", "fraction_slipped", "fraction_placed"}
+    assert place["target_counts"] == {"cube_10": 4} and not place["has_trajectories"]
+    low, high = WORLD.place.release_height
+    assert low <= place["release_height_m"]["min"] <= place["release_height_m"]["max"] <= high
+    assert 0.0 <= place["fraction_on_table_support"] <= 1.0
+
+
+def test_skill_dataset_without_checksums_loads_with_a_warning(tiny, tmp_path):
+    out = tmp_path / "unchecked"
+    shutil.copytree(tiny, out)
+    manifest = _manifest(out)
+    for entry in manifest["shards"].values():
+        del entry["sha256"]
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.warns(UserWarning, match="2 of the 2 shards .* have no checksum"):
+        ds = load_skill_dataset(out)
+    np.testing.assert_array_equal(ds["state_after"], load_skill_dataset(tiny)["state_after"])
+    shard = out / "shards" / "00001.npz"
+    data = bytearray(shard.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    shard.write_bytes(bytes(data))
+    with (
+        pytest.warns(UserWarning, match="no checksum"),
+        pytest.raises(DatasetError, match=r"shard .*00001\.npz is corrupt .*--resume"),
+    ):
+        load_skill_dataset(out)

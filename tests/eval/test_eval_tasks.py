@@ -3,7 +3,7 @@ import os
 import numpy as np
 import pytest
 
-from probaff.errors import InputError
+from probaff.errors import DatasetError, InputError
 from probaff.eval.tasks import ResultStore, run_tasks
 
 
@@ -64,3 +64,21 @@ def test_bad_keys(tmp_path):
         run_tasks(square, [("a", (1,)), ("a", (2,))], ResultStore(tmp_path), progress=False)
     with pytest.raises(InputError, match="may only hold"):
         ResultStore(tmp_path).path("a/b")
+
+
+def test_damaged_or_blocked_result_files_are_named(tmp_path):
+    store = ResultStore(tmp_path / "results")
+    store.save("a", {"x": 1})
+    assert store.load("a") == {"x": 1}
+    store.path("a").write_text('{"x": 1')  # truncated
+    with pytest.raises(DatasetError, match=r"cannot read the saved result .*a\.json .*delete it"):
+        run_tasks(square, [("a", (1,))], store, progress=False)
+    store.path("a").write_text("[1, 2]")
+    with pytest.raises(DatasetError, match=r"a\.json is not a JSON object; delete it"):
+        store.load("a")
+    with pytest.raises(DatasetError, match="task 'b' has no saved result"):
+        store.load("b")
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(InputError, match=r"result file .*file/c\.json lies under .*file"):
+        ResultStore(blocker).save("c", {"x": 1})

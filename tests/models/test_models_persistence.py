@@ -1,3 +1,7 @@
+import hashlib
+import io
+import warnings
+
 import numpy as np
 import pytest
 import torch
@@ -7,10 +11,13 @@ from probaff.errors import InputError
 from probaff.models import (
     ClusteredGPModel,
     MixtureOfGPExperts,
+    MonolithicTransitionModel,
     NotFittedError,
+    SkillTransitionModel,
     VariationalMixtureOfGPExperts,
     fit_em,
     fit_svi,
+    fit_transition,
 )
 from probaff.models.persistence import FORMATS, load, save
 from probaff.models.synthetic import piecewise_1d
@@ -126,13 +133,158 @@ def test_load_rejects_truncated_and_incomplete_files(tmp_path):
         cut.write_bytes(data[:size])
         with pytest.raises(InputError, match="cannot read"):
             load(cut)
-    payload = torch.load(path, weights_only=True)
+    payload = torch.load(io.BytesIO(_inner_bytes(path)), weights_only=True)
     del payload["state_dict"]
     incomplete = tmp_path / "incomplete.pt"
     torch.save(payload, incomplete)
-    with pytest.raises(InputError, match="state_dict"):
+    with (
+        pytest.warns(UserWarning, match="no content hash"),
+        pytest.raises(InputError, match="state_dict"),
+    ):
         load(incomplete)
-    with pytest.raises(FileNotFoundError):
+    with pytest.raises(InputError, match=r"there is no saved model at .*missing\.pt"):
         load(tmp_path / "missing.pt")
     with pytest.raises(InputError, match="cannot save a dict"):
         save({}, tmp_path / "d.pt")
+
+
+# ------------------------------------------------------------- content hash
+def _inner_bytes(path):
+    """The payload archive inside a saved model file (what earlier releases wrote alone)."""
+    return torch.load(path, weights_only=True)["payload"].numpy().tobytes()
+
+
+def _em_model():
+    x, y, _ = piecewise_1d(30, seed=0)
+    model = MixtureOfGPExperts(2, gp_max_iter=5)
+    fit_em(model, x, y, init="effects", max_iter=1, n_restarts=1, split_merge=0)
+    return model, x
+
+
+def _vi_model():
+    x, y, _ = piecewise_1d(40, seed=0)
+    model = VariationalMixtureOfGPExperts(2, n_inducing=8, gate_features=[0])
+    fit_svi(model, x, y, n_steps=5, batch_size=20, init="effects", seed=1)
+    return model, x
+
+
+def _clustered_model():
+    rng = np.random.default_rng(0)
+    x = rng.uniform(-1, 1, (40, 2))
+    y = np.stack([np.where(x[:, 0] > 0, 0.1, 0.0), 0.01 * x[:, 1]], -1)
+    y = y + rng.normal(0, 0.003, (40, 2))
+    model = ClusteredGPModel(2, expert_kwargs={"max_iter": 5}).fit(x, y)
+    return model, torch.as_tensor(x)
+
+
+def _skill_data(n=30):
+    g = torch.Generator().manual_seed(0)
+    x = torch.rand(n, 3, generator=g, dtype=torch.float64) * 2 - 1
+    y = torch.stack([torch.sin(2 * x.sum(1)), 0.5 * x[:, 0]], dim=1)
+    y = y + 0.02 * torch.randn(n, 2, generator=g, dtype=torch.float64)
+    r = (0.8 * x.sum(1) + 0.01 * torch.randn(n, generator=g, dtype=torch.float64))[:, None]
+    return x, y, r
+
+
+def _skill_gp_model():
+    x, y, r = _skill_data()
+    model = SkillTransitionModel("push", gp_max_iter=5)
+    fit_transition(model, x, y, r)
+    return model, x
+
+
+def _skill_mixture_model():
+    x, y, r = _skill_data()
+    model = SkillTransitionModel("pick", kind="mixture", n_experts=2, gp_max_iter=5)
+    fit_transition(model, x, y, r, n_restarts=1, max_iter=1, split_merge=0)
+    return model, x
+
+
+def _monolithic_model():
+    x, y, _ = _skill_data()
+    model = MonolithicTransitionModel(1, gp_max_iter=5)
+    fit_transition(model, x, y)
+    return model, x
+
+
+KINDS = {
+    "em": _em_model,
+    "vi": _vi_model,
+    "clustered": _clustered_model,
+    "skill_gp": _skill_gp_model,
+    "skill_mixture": _skill_mixture_model,
+    "monolithic": _monolithic_model,
+}
+
+
+def _tensor_offset(data, model):
+    """Offset in `data` of the middle of the largest stored tensor of `model`."""
+    tensors = [getattr(model, "train_X", None)]
+    if isinstance(model, torch.nn.Module):
+        tensors += list(model.state_dict().values())
+    raw = max(
+        (t.detach().contiguous().numpy().tobytes() for t in tensors if t is not None),
+        key=len,
+    )
+    start = data.find(raw)
+    assert len(raw) >= 64 and start >= 0
+    return start + len(raw) // 2
+
+
+@pytest.mark.parametrize("kind", sorted(KINDS))
+def test_corrupted_tensor_is_refused_and_old_files_load_with_a_warning(tmp_path, kind):
+    model, x = KINDS[kind]()
+    path = tmp_path / f"{kind}.pt"
+    save(model, path)
+    container = torch.load(path, weights_only=True)
+    assert container["format"] == FORMATS[type(model)]
+    assert container["sha256"] == hashlib.sha256(_inner_bytes(path)).hexdigest()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a hashed file loads without a warning
+        assert torch.equal(load(path).predict(x).mean, model.predict(x).mean)
+
+    data = bytearray(path.read_bytes())
+    at = _tensor_offset(bytes(data), model)
+    data[at : at + 8] = bytes(b ^ 0x5A for b in data[at : at + 8])
+    corrupt = tmp_path / "corrupt.pt"
+    corrupt.write_bytes(bytes(data))
+    with pytest.raises(InputError, match=r"corrupt\.pt' is corrupted: its content does not match"):
+        load(corrupt)
+
+    old = tmp_path / "old.pt"  # what earlier releases wrote: the payload archive alone
+    old.write_bytes(_inner_bytes(path))
+    with pytest.warns(UserWarning, match=r"old\.pt' carries no content hash"):
+        loaded = load(old)
+    assert torch.equal(loaded.predict(x).mean, model.predict(x).mean)
+
+
+def test_malformed_hash_entries_and_foreign_files(tmp_path):
+    model, _ = _em_model()
+    path = tmp_path / "m.pt"
+    save(model, path)
+    container = torch.load(path, weights_only=True)
+    for change in ({"sha256": 5}, {"payload": torch.zeros(3)}, {"sha256": "0" * 64}):
+        bad = tmp_path / "bad.pt"
+        torch.save({**container, **change}, bad)
+        with pytest.raises(InputError, match=r"bad\.pt' is (an incomplete saved model|corrupted)"):
+            load(bad)
+    text = tmp_path / "notes.json"
+    text.write_text('{"format": "probaff.models.MixtureOfGPExperts/1"}')
+    with pytest.raises(InputError, match=r"cannot read a saved model from .*notes\.json.*re-fit"):
+        load(text)
+    with pytest.raises(InputError, match="is a folder, not a saved model"):
+        load(tmp_path)
+    with pytest.raises(InputError, match="path must be the path of a file"):
+        load(3)
+
+
+def test_save_to_a_bad_path_names_it(tmp_path):
+    model, _ = _em_model()
+    regular = tmp_path / "somefile.txt"
+    regular.write_text("x")
+    with pytest.raises(InputError, match=r"path .*somefile.txt/model.pt lies under .*somefile"):
+        save(model, regular / "model.pt")
+    with pytest.raises(InputError, match=r"path .* is a folder, not a file"):
+        save(model, tmp_path)
+    save(model, tmp_path / "new" / "deeper" / "m.pt")  # missing folders are created
+    assert isinstance(load(tmp_path / "new" / "deeper" / "m.pt"), MixtureOfGPExperts)

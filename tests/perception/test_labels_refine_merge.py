@@ -137,7 +137,7 @@ def test_label_errors(rng):
         LabelClassifier().fit(x, y * 2.0)
     with pytest.raises(InputError, match="empty"):
         LabelClassifier().fit(x[:0], y[:0])
-    with pytest.raises(InputError, match="X must hold numbers"):
+    with pytest.raises(InputError, match="X must be a numeric array"):
         LabelClassifier().fit(np.full(x.shape, "a"), y)
     with pytest.raises(InputError, match="X has shape"):
         LabelClassifier().fit(x, y).predict_proba(x[:, :24])
@@ -531,3 +531,28 @@ def test_merge_proximity_and_point_errors():
         merge_views([with_points(pts, None)])
     with pytest.raises(InputError, match="MergeView or a"):
         merge_views(["abc"])
+
+
+# ------------------------------------------------------------------ non-numeric input
+
+_WORDS = [["a"] * 6 for _ in range(3)]
+
+
+@pytest.mark.parametrize(
+    ("call", "name"),
+    [
+        (lambda: LabelClassifier().fit(_WORDS, np.zeros((3, 6), bool)), "X"),
+        (lambda: reliability(["p", "q"], [0, 1]), "p"),
+        (lambda: refine_segments(_WORDS), "P"),
+        (lambda: label_entropy(_WORDS), "P"),
+        (lambda: purity_completeness([0, 1], [0, 1], weights=["w", "v"]), "weights"),
+        (
+            lambda: merge_views([(_WORDS[:1], np.zeros((1, 6)), np.ones(1))], proximity="centroid"),
+            r"views\[0\] centroids",
+        ),
+    ],
+    ids=["classifier", "reliability", "refine", "entropy", "purity", "merge"],
+)
+def test_strings_are_a_clear_error(call, name):
+    with pytest.raises(InputError, match=rf"{name} must be a numeric array"):
+        call()

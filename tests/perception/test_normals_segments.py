@@ -303,3 +303,33 @@ def test_region_growing_and_features_reject_bad_input():
     for call, match in cases:
         with pytest.raises(ProbaffError, match=match):
             call()
+
+
+# ------------------------------------------------------------------ non-numeric input
+
+
+def _strings(n: int, width: int) -> list[list[str]]:
+    return [["a"] * width for _ in range(n)]
+
+
+@pytest.mark.parametrize(
+    ("call", "name"),
+    [
+        (lambda: estimate_normals(_strings(20, 3), k=5), "points"),
+        (lambda: estimate_normals(np.zeros((20, 3)), k=5, viewpoint=["x", "y", "z"]), "viewpoint"),
+        (lambda: estimate_normals([[0.0, 0.0, 0.0], [1.0, 2.0]], k=5), "points"),
+        (
+            lambda: region_growing(_strings(4, 3), np.zeros((4, 3)), np.zeros(4), k=3),
+            "points",
+        ),
+        (
+            lambda: region_growing(np.zeros((4, 3)), np.zeros((4, 3)), ["c"] * 4, k=3),
+            "curvature",
+        ),
+        (lambda: segment_features(_strings(4, 3), np.zeros(4, dtype=int)), "points"),
+    ],
+    ids=["normals-points", "normals-viewpoint", "normals-ragged", "rg-points", "rg-curv", "feat"],
+)
+def test_a_cloud_of_strings_is_a_clear_error(call, name):
+    with pytest.raises(InputError, match=rf"^{name} (must be a numeric array|is a ragged)"):
+        call()

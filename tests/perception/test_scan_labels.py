@@ -135,3 +135,58 @@ def test_bad_inputs_raise_input_errors():
     data = scenes_dataset([scene], config=ONE_VIEW, camera=CAMERA)
     with pytest.raises(InputError, match="unknown label"):
         data.label("push_up")
+
+
+def test_head_height_the_camera_cannot_see_from_is_refused_at_construction():
+    # 30-degree tilt, 43-degree vertical field of view, 0.5-4.5 m: the floor is in range from
+    # 0.08 m to 3.78 m (the bottom row meets it at h / sin(30 + 21.4 degrees) / cos(21.4)).
+    with pytest.raises(InputError, match=r"head_height 100 m .* must lie in \[0\.080, 3\.779\] m"):
+        PerceptionConfig(head_height=100)
+    with pytest.raises(InputError, match=r"head_height 0\.05 m .*\[0\.080, 3\.779\]"):
+        PerceptionConfig(head_height=0.05)
+    assert PerceptionConfig(head_height=3.7).head_height == 3.7
+    with pytest.raises(InputError, match=r"tilts_deg holds -30: .* use tilts above -21\.4"):
+        PerceptionConfig(tilts_deg=(-30.0,))
+    with pytest.raises(InputError, match=r"tilts_deg \[89\.0, -20\.0\] cannot all image"):
+        PerceptionConfig(tilts_deg=(89.0, -20.0))
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("head_height", "2", r"head_height must be a finite number > 0, got '2'"),
+        ("smoothness_deg", None, r"smoothness_deg must be a finite number > 0, got None"),
+        ("pans_deg", "abc", r"pans_deg must be a non-empty list of finite angles .*'abc'"),
+        ("tilts_deg", ["a"], r"tilts_deg must be a non-empty list of finite angles"),
+        ("noise", "no", r"noise must be True or False, got 'no'"),
+        ("keep_structure", 1, r"keep_structure must be True or False, got 1"),
+    ],
+)
+def test_config_fields_of_the_wrong_type_are_named(field, value, message):
+    with pytest.raises(InputError, match=message):
+        PerceptionConfig(**{field: value})
+
+
+def test_camera_checked_against_the_config_before_any_scan(monkeypatch):
+    from probaff.perception import scan_labels
+
+    def tripwire(*args, **kwargs):
+        raise AssertionError("a scan started")
+
+    monkeypatch.setattr(scan_labels, "scan_views", tripwire)
+    monkeypatch.setattr(scan_labels, "sample_office_scenes", tripwire)
+    scene = _scene()
+    short = DepthCamera(CameraSpec(width=160, height=120, min_range=0.3, max_range=1.0))
+    with pytest.raises(InputError, match=r"head_height 1\.2 m leaves the camera \(range 0\.3-1 m"):
+        scenes_dataset([scene], config=ONE_VIEW, camera=short)
+    with pytest.raises(InputError, match=r"head_height 1\.2 m .* \[0\.049, 0\.838\] m"):
+        label_dataset(load_office(), 2, config=ONE_VIEW, camera=short)
+    tiny = DepthCamera(CameraSpec(width=4, height=4))
+    with pytest.raises(InputError, match=r"k=30 exceeds the camera's 4 x 4 = 16 pixels"):
+        scan_segments(scene, tiny, head_pose(scene), ONE_VIEW)
+    high = head_pose(scene, 1.2)
+    high[2, 3] = 100.0
+    with pytest.raises(InputError, match=r"T_world_head puts the camera 100\.000 m above"):
+        scan_segments(scene, CAMERA, high, ONE_VIEW)
+    with pytest.raises(InputError, match="camera must be a DepthCamera"):
+        scan_segments(scene, "kinect", head_pose(scene), ONE_VIEW)

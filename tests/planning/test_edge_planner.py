@@ -165,3 +165,110 @@ def test_bad_planner_input(task, reach):
         plan_astar(task, qs, np.array([0.1, 0.0, 0.0]), np.array([0.2, 0.05, 0.3]), reach)
     with pytest.raises(InputError, match="task must be an EdgeTask"):
         plan_greedy("push_to_edge", qs, np.zeros(3), FAR, reach)  # type: ignore[arg-type]
+
+
+def test_a_start_off_the_table_is_refused_not_planned(task, reach):
+    qs = QuasiStaticTransition(task)
+    fallen = np.array([0.42, 0.50, 0.0])  # graspable by its overhang, but off the +y side
+    for planner in (plan_astar, plan_greedy):
+        with pytest.raises(InputError, match=r"start pose of the book, \[0.42, 0.5, 0.0\], is off"):
+            planner(task, qs, fallen, FAR, reach)
+    with pytest.raises(InputError, match=r"start pose of the battery, .* is off the"):
+        plan_astar(task, qs, np.zeros(3), np.array([0.0, 0.5, 0.0]), reach)
+
+
+@pytest.mark.parametrize("step", [0, -0.01, float("nan"), float("inf"), "fine"])
+def test_quasi_static_step_must_be_positive(task, step):
+    with pytest.raises(InputError, match=r"QuasiStaticTransition step \(m\) must be a"):
+        QuasiStaticTransition(task, step=step)
+
+
+def test_quasi_static_free_push_travels_the_full_distance_whatever_the_step(task):
+    book = np.array([[0.0, 0.0, 0.0]])
+    out = QuasiStaticTransition(task, step=0.03).predict(book, np.zeros((1, 2)), np.zeros(1), FAR)
+    assert out.mean[0, 0] == pytest.approx(task.push_distance - task.start_gap)
+
+
+@pytest.mark.parametrize(
+    ("kw", "match"),
+    [
+        ({"xy_resolution": 0}, r"xy_resolution \(m\) must be a finite number > 0, got 0"),
+        ({"xy_resolution": -0.01}, r"xy_resolution \(m\) must be a finite number > 0"),
+        ({"yaw_bins": 0}, "yaw_bins must be a positive integer, got 0"),
+        ({"yaw_bins": 2.5}, "yaw_bins must be a positive integer, got 2.5"),
+    ],
+)
+def test_reachability_grid_must_be_positive(task, kw, match):
+    with pytest.raises(InputError, match=match):
+        PushReachability(task, **kw)
+
+
+def test_search_resolutions_must_be_positive(task):
+    from probaff.planning.edge_task import SearchOptions
+
+    for name in ("xy_resolution", "yaw_resolution", "step_bound"):
+        with pytest.raises(InputError, match=rf"search.{name} must be a finite number > 0"):
+            SearchOptions(**{name: 0.0})
+
+
+def test_planners_refuse_what_is_not_a_model(task, reach):
+    qs = QuasiStaticTransition(task)
+    book = np.zeros(3)
+    for planner in (plan_astar, plan_greedy):
+        with pytest.raises(
+            InputError, match=r"transition must be a push transition model.*got str"
+        ):
+            planner(task, "quasi-static", book, FAR, reach)  # type: ignore[arg-type]
+        with pytest.raises(InputError, match="reach must be the arm's PushReachability"):
+            planner(task, qs, book, FAR, None)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=r"transition must be a push transition model.*got str"):
+        run_edge_episode(task, "quasi-static", 0, reach=reach)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="simulator must be a PushSimulator"):
+        run_edge_episode(task, qs, 0, simulator="pymunk", reach=reach)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="unknown search"):
+        run_edge_episode(task, qs, 0, search=["astar"])  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="task must be an EdgeTask"):
+        QuasiStaticTransition("push_to_edge")  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="task must be an EdgeTask"):
+        SimulatorTransition(None)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="name must be a non-empty label"):
+        QuasiStaticTransition(task, name="")
+
+
+class _Broken:
+    """A model whose predicted means (or only its draws) are NaN."""
+
+    name = "broken"
+
+    def __init__(self, draws_only: bool = False) -> None:
+        self.draws_only = draws_only
+
+    def predict(self, book, origins, yaws, battery, n_samples=0):
+        mean = book + 0.01
+        samples = np.full((n_samples, *book.shape), np.nan) if n_samples else None
+        if not self.draws_only:
+            mean = np.full_like(book, np.nan)
+        return TransitionPrediction(mean, samples)
+
+
+def test_non_finite_predictions_are_an_error_not_a_dead_end(task, reach):
+    book = np.zeros(3)
+    match = r"transition model _Broken 'broken' predicted \d+ NaN .* predictions are not finite"
+    for planner in (plan_astar, plan_greedy):
+        with pytest.raises(InputError, match=match):
+            planner(task, _Broken(), book, FAR, reach)
+    with pytest.raises(InputError, match=match + ".*refit the model"):
+        run_edge_episode(task, _Broken(), 0, reach=reach, trajectories=False)
+    with pytest.raises(InputError, match=r"predicted .* NaN or infinite value.* predictive draws"):
+        plan_greedy(task, _Broken(draws_only=True), book, FAR, reach, risk=True)
+
+
+def test_a_prediction_of_the_wrong_shape_is_refused(task, reach):
+    class Short:
+        name = "short"
+
+        def predict(self, book, origins, yaws, battery, n_samples=0):
+            return TransitionPrediction(book[:1])
+
+    with pytest.raises(InputError, match=r"transition model Short 'short' returned predicted"):
+        plan_greedy(task, Short(), np.zeros(3), FAR, reach)

@@ -161,3 +161,53 @@ def test_task_file_errors_name_the_key(tmp_path):
         load_edge_task(bad)
     with pytest.raises(ConfigError, match="no task file"):
         load_edge_task(tmp_path / "missing.yaml")
+
+
+def test_a_fallen_book_is_never_graspable(task):
+    # overhangs the edge by enough, centre inside it: a goal on the table, not off its +y side
+    on_table = np.array([0.42, 0.0, 0.0])
+    off_side = np.array([0.42, 0.50, 0.0])
+    assert task.graspable(np.stack([on_table, off_side])).tolist() == [True, False]
+
+
+def test_a_start_off_the_table_or_on_the_battery_is_refused(task):
+    with pytest.raises(InputError, match=r"start pose of the book, \[0.42, 0.5, 0.0\], is off the"):
+        task.check_start(np.array([0.42, 0.50, 0.0]), np.array([-0.4, 0.35, 0.0]))
+    with pytest.raises(InputError, match=r"start pose of the battery, \[0.0, -0.6, 0.0\], is off"):
+        task.check_start(np.zeros(3), np.array([0.0, -0.6, 0.0]))
+    with pytest.raises(InputError, match=r"start pose of the book, .* overlaps the battery"):
+        task.check_start(np.zeros(3), np.array([0.05, 0.0, 0.0]))
+
+
+@pytest.mark.parametrize(
+    ("kw", "match"),
+    [
+        ({"start_y": (0.45, 0.5)}, r"start.y = \[0.45, 0.5\] leaves the table"),
+        ({"start_x": (-float("inf"), 0.0)}, r"start.x = \[-inf, 0.0\] leaves the table"),
+        ({"start_gap": 0.2}, "start_gap = 0.2 m is not shorter than the push distance"),
+        ({"scene": "push_to_edge"}, "scene must be a SceneSpec"),
+        ({"world": None}, "world must be a TabletopSpec"),
+    ],
+)
+def test_bad_task_geometry_is_refused(task, kw, match):
+    args = {"scene": task.scene, "world": task.world, **kw}
+    with pytest.raises(ConfigError, match=match):
+        EdgeTask(**args)
+
+
+def test_sample_episode_needs_a_task_and_a_generator(task):
+    with pytest.raises(InputError, match=r"rng must be a numpy.random.Generator"):
+        sample_episode(task, 0)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="task must be an EdgeTask"):
+        sample_episode("push_to_edge", np.random.default_rng(0))  # type: ignore[arg-type]
+
+
+def test_a_task_file_that_is_not_yaml_is_a_config_error(tmp_path):
+    binary = tmp_path / "task.yaml"
+    binary.write_bytes(b"\xff\xfe\x00binary")
+    with pytest.raises(ConfigError, match="is not UTF-8 text"):
+        load_edge_task(binary)
+    broken = tmp_path / "broken.yaml"
+    broken.write_text("scene: [unclosed\n")
+    with pytest.raises(ConfigError, match="is not valid YAML"):
+        load_edge_task(broken)

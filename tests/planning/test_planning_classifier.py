@@ -85,3 +85,22 @@ def test_small_evaluation():
 def test_bad_evaluation_settings(kwargs):
     with pytest.raises(InputError):
         evaluate(**kwargs)
+
+
+def test_classifier_settings_are_validated(data):
+    rng = np.random.default_rng(0)
+    for bad in (0, -1.0, float("nan")):
+        with pytest.raises(InputError, match=r"C \(inverse regularisation strength\) must be a"):
+            AffordanceClassifier(C=bad)
+    with pytest.raises(InputError, match=r"C \(inverse regularisation strength\) must be a"):
+        evaluate(n_maps=2, folds=2, C=0)
+    with pytest.raises(InputError, match="spec must be the warehouse world, a WarehouseSpec"):
+        collect_voxels("warehouse", 1, rng)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=r"rng must be a numpy.random.Generator .*got int"):
+        collect_voxels(load_warehouse(), 1, 0)  # type: ignore[arg-type]
+    model = AffordanceClassifier().fit(data.features, data.labels)
+    cells = np.zeros((2, 2), dtype=int)
+    with pytest.raises(InputError, match="map_shape rows must be a positive integer, got 0"):
+        model.predict_cells(data.features[:2], cells, (0, 12))
+    with pytest.raises(InputError, match=r"map_shape must be \(rows, cols\)"):
+        model.predict_cells(data.features[:2], cells, 12)  # type: ignore[arg-type]

@@ -160,3 +160,13 @@ def test_old_planner_module_warns_and_keeps_its_signature():
     assert len(old.candidate_pushes(graph, ~OCC, ROBOT)) == len(
         candidate_pushes(graph, travel_distances(~OCC, ROBOT))
     )
+
+
+def test_a_graph_that_is_not_an_affordance_graph_is_refused():
+    dist = travel_distances(~OCC, ROBOT)
+    with pytest.raises(InputError, match=r"graph must be an AffordanceGraph .*got ndarray"):
+        plan_pushes(OCC, dist)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=r"graph must be an AffordanceGraph .*got str"):
+        candidate_pushes("map", dist)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=r"graph must be an AffordanceGraph .*got NoneType"):
+        plan_pushes_on_grid(None, ~OCC, ROBOT)  # type: ignore[arg-type]

@@ -19,6 +19,7 @@ from probaff.planning.manipulation_loop import (
     VerifiedPush,
     cloud_distance,
     detect_push,
+    predict_unary,
 )
 from probaff.sim.config import load_warehouse
 from probaff.sim.depth import DepthSensor
@@ -233,3 +234,37 @@ def test_a_moved_box_takes_its_points_along(world, classifier):
     assert len(in_dest[True]) == len(in_dest[False]) + len(carried)
     moved = in_dest[True][-len(carried) :]
     np.testing.assert_allclose(np.sort(moved, 0), np.sort(carried + step, 0))
+
+
+def test_loop_arguments_of_the_wrong_kind_are_refused(world, classifier):
+    m, ex = world
+    with pytest.raises(InputError, match=r"method must be one of \('auto', 'bp', 'exact'\)"):
+        ManipulationLoop(SPEC, m, ex, classifier, method="magic")
+    for bad in (0, 1.5, float("nan")):
+        with pytest.raises(InputError, match="free_fraction"):
+            ManipulationLoop(SPEC, m, ex, classifier, free_fraction=bad)
+    with pytest.raises(InputError, match="classifier must be an AffordanceClassifier"):
+        ManipulationLoop(SPEC, m, ex, "logistic")  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="spec must be a WarehouseSpec"):
+        ManipulationLoop("warehouse", m, ex, classifier)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="exploration must be an Exploration"):
+        ManipulationLoop(SPEC, m, None, classifier)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=r"rng must be a numpy.random.Generator or None"):
+        ManipulationLoop(SPEC, m, ex, classifier, rng=0)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="exploration holds no scan cell"):
+        ManipulationLoop(SPEC, m, dataclasses.replace(ex, cells=ex.cells[:0]), classifier)
+
+
+def test_change_detection_refuses_cells_and_directions_off_the_map(world):
+    m, _ = world
+    observed, position = np.zeros((4, 3)), np.zeros(2)
+    with pytest.raises(InputError, match=r"cell \(9, 0\) lies outside the 7 x 7 map"):
+        detect_push(SPEC, m.occupancy, (9, 0), 0, observed, position)
+    with pytest.raises(InputError, match="direction must be an index into DIRECTION_NAMES"):
+        detect_push(SPEC, m.occupancy, (1, 1), 4, observed, position)
+    with pytest.raises(InputError, match="direction must be an index into DIRECTION_NAMES"):
+        detect_push(SPEC, m.occupancy, (1, 1), 1.0, observed, position)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="observed has shape"):
+        detect_push(SPEC, m.occupancy, (1, 1), 0, np.zeros(3), position)
+    with pytest.raises(InputError, match="classifier must be an AffordanceClassifier"):
+        predict_unary(None, observed, None)  # type: ignore[arg-type]

@@ -6,6 +6,7 @@ import json
 import numpy as np
 import pytest
 import torch
+from torch.distributions import Independent, Normal
 
 from probaff._threads import torch_threads
 from probaff.data.generation import GenerateConfig, generate
@@ -20,6 +21,7 @@ from probaff.planning.tool_push import (
     ToolPushTrial,
     draw_tool_push_episode,
     fit_tool_push_model,
+    plan_random_push,
     plan_single_push,
     plan_tool_push,
     reachable_region,
@@ -236,6 +238,94 @@ def test_bad_states_planners_and_models_are_refused(dataset, model):
     only_o = fit_tool_push_model(
         dataset, n_experts=1, groups=("f_o",), max_iter=1, n_restarts=1, gp_max_iter=5
     )
-    wrong = dataclasses.replace(only_o, groups=("f_o", "f_c"))
-    with pytest.raises(InputError, match="fitted on 8 feature columns"):
-        run_tool_push_trial("single_step", wrong, 0, SMALL)
+    assert list(only_o.model.groups) == ["f_o"]
+    with pytest.raises(
+        InputError,
+        match=r"fitted on feature groups \['f_o'\], but the planner would give it "
+        r"\['f_o', 'f_c'\] \(ch5\)",
+    ):
+        dataclasses.replace(only_o, groups=("f_o", "f_c"))
+
+
+class _NaNTransition:
+    """A transition model whose predicted poses are all NaN."""
+
+    def predict_poses(self, objects, poses, push_origin, push_yaw, push_distance, rng):
+        return np.full(np.shape(poses), np.nan)
+
+
+class _NaNQueryModel:
+    """A learned model whose predicted effects are all NaN."""
+
+    cloud_points = 64
+    cloud_noise = 0.002
+
+    def predict(self, queries):
+        loc = torch.full((len(queries), 6), float("nan"), dtype=torch.float64)
+        return Independent(Normal(loc, torch.ones_like(loc), validate_args=False), 1)
+
+
+def test_non_finite_predictions_name_the_model():
+    state, rng = _state(0), np.random.default_rng(0)
+    match = r"transition model _NaNTransition predicted \d+ NaN .* not finite; refit the model"
+    with pytest.raises(InputError, match=match):
+        plan_single_push(_NaNTransition(), state, rng, SMALL)
+    with pytest.raises(InputError, match=match):
+        plan_tool_push(_NaNTransition(), state, rng, SMALL)
+    learned = ModelTransition(_NaNQueryModel(), load_tabletop())
+    with pytest.raises(InputError, match=r"push model _NaNQueryModel predicted NaN .* not finite"):
+        plan_single_push(learned, state, rng, SMALL)
+
+
+def test_tool_push_refuses_non_models_and_bad_arguments():
+    state, rng, world = _state(0), np.random.default_rng(0), load_tabletop()
+    sim = SimTransition(world)
+    with pytest.raises(InputError, match=r"ModelTransition.model must be a fitted chapter-5 model"):
+        ModelTransition("gp", world)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=r"SimTransition.world must be the tabletop world"):
+        SimTransition("tabletop")  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="transition must have predict_poses"):
+        plan_single_push("sim", state, rng, SMALL)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=r"config must be a ToolPushConfig .*got dict"):
+        plan_tool_push(sim, state, rng, {"n_first": 4})  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=r"rng must be a numpy.random.Generator .*got int"):
+        plan_tool_push(sim, state, 0, SMALL)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="n_keep=5 exceeds n_first=4"):
+        plan_tool_push(sim, state, rng, sizes=(4, 5, 2))
+    with pytest.raises(InputError, match=r"sizes must be \(n_first, n_keep, n_second\)"):
+        plan_tool_push(sim, state, rng, sizes=(4, 2))  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="state must be a ToolPushState"):
+        plan_random_push(state.poses, rng)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=r"objects must be the \(tool, target\) ObjectSpec"):
+        sample_tool_pushes("cracker_box", state.poses, 4, rng)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="config must be a ToolPushConfig"):
+        run_tool_push_trial("random", None, 0, "fast")  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="unknown planner"):
+        run_tool_push_trial(["random"], None, 0)  # type: ignore[arg-type]
+
+
+def test_fit_tool_push_model_refuses_bad_settings(dataset):
+    with pytest.raises(
+        InputError, match=r"groups \['f_q'\] must name distinct chapter-5 feature groups"
+    ):
+        fit_tool_push_model(dataset, groups=("f_q",))
+    with pytest.raises(InputError, match="n_restarts must be a positive integer, got 0"):
+        fit_tool_push_model(dataset, n_restarts=0)
+    with pytest.raises(InputError, match="seed must be an integer >= 0, got -2"):
+        fit_tool_push_model(dataset, seed=-2)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"region_resolution": 0}, "region_resolution must be a finite number > 0, got 0"),
+        ({"region_resolution": -0.02}, "region_resolution must be a finite number > 0"),
+        ({"region_resolution": float("nan")}, "region_resolution must be a finite number > 0"),
+        ({"region_yaws": 0}, "region_yaws must be a positive integer, got 0"),
+    ],
+)
+def test_region_grid_must_be_positive(kwargs, match):
+    with pytest.raises(InputError, match=match):
+        ToolPushConfig(**kwargs)
+    with pytest.raises(InputError, match="config must be a ToolPushConfig"):
+        reachable_region(kwargs)  # type: ignore[arg-type]

@@ -16,6 +16,7 @@ from probaff.sim.office import (
     assemble_office_scene,
     label_index,
     load_office,
+    office_labels,
     sample_office_scene,
     sample_office_scenes,
 )
@@ -350,3 +351,92 @@ def test_bad_counts_and_streams(spec):
         sample_office_scene(spec, 3)
     with pytest.raises(InputError, match="OfficeSpec"):
         sample_office_scene("office.yaml", np.random.default_rng(0))
+
+
+# ------------------------------------------------------------------------ scene consistency
+
+
+def _round_table(oid, x, y) -> OfficeObject:
+    """A pedestal table: a 0.8 m square top 0.75 m high on a 0.1 m-radius cylinder."""
+    return OfficeObject(
+        oid,
+        "table",
+        f"table_{oid}",
+        boxes=[[x, y, 0.735, 0.8, 0.8, 0.03, 0]],
+        cylinders=[[x, y, 0.36, 0.1, 0.72]],
+        mass=20.0,
+    )
+
+
+def test_overlapping_objects_are_refused_naming_both():
+    a = _box(1, 0.0, 0.0, (0.4, 0.4, 0.4))
+    b = _box(2, 0.3, 0.1, (0.4, 0.4, 0.4))  # 0.1 m into box_1 along x
+    with pytest.raises(InputError, match=r"box_1 \(id 1\) and box_2 \(id 2\) overlap by 100\.0 mm"):
+        assemble_office_scene([_floor(), a, b], RULES)
+    turned = OfficeObject(2, "box", "box_2", boxes=[[0.3, 0.0, 0.2, 0.4, 0.1, 0.4, 0.7]], mass=1)
+    with pytest.raises(InputError, match=r"box_1 \(id 1\) and box_2 \(id 2\) overlap"):
+        office_labels([_floor(), a, turned], RULES)
+    # a box pushed into a pedestal, and one stacked into the table top
+    with pytest.raises(InputError, match=r"table_3 \(id 3\) and box_4 \(id 4\) overlap"):
+        assemble_office_scene(
+            [_floor(), _round_table(3, 2, 0), _box(4, 2.15, 0, (0.2,) * 3)], RULES
+        )
+    sunk = _box(4, 2.0, 0.0, (0.2, 0.2, 0.2), z0=0.74, support=3)
+    with pytest.raises(
+        InputError, match=r"table_3 \(id 3\) and box_4 \(id 4\) overlap by 10\.0 mm"
+    ):
+        assemble_office_scene([_floor(), _round_table(3, 2, 0), sunk], RULES)
+    # touching faces and a box under the table top, beside the pedestal, are fine
+    touching = _box(2, 0.4, 0.0, (0.4, 0.4, 0.4))
+    clear = OfficeObject(2, "box", "box_2", boxes=[[0.45, 0.0, 0.2, 0.4, 0.1, 0.4, 0.7]], mass=1)
+    assemble_office_scene([_floor(), a, clear], RULES)  # turned, 6.5 cm clear of box_1
+    under = _box(4, 2.25, 0.0, (0.2, 0.2, 0.2))
+    assemble_office_scene([_floor(), a, touching, _round_table(3, 2, 0), under], RULES)
+
+
+def test_support_cycles_and_impossible_supports_are_refused():
+    one = _box(1, 0.0, 0.0, (0.4, 0.4, 0.3), z0=0.3, support=2)
+    two = _box(2, 0.0, 0.0, (0.4, 0.4, 0.3), support=1)
+    with pytest.raises(InputError, match=r"cycle, box_1 \(id 1\) on box_2 \(id 2\) on box_1"):
+        assemble_office_scene([_floor(), one, two], RULES)
+    on_wall = _box(2, 1.7, 0.0, (0.2, 0.2, 0.2), support=1)
+    with pytest.raises(InputError, match=r"has support 1, the wall wall_\+x; .* support -1"):
+        assemble_office_scene([_floor(), _wall_px(), on_wall], RULES)
+    on_floor = _box(2, 1.0, 0.0, (0.2, 0.2, 0.2), support=0)
+    with pytest.raises(InputError, match=r"has support 0, the floor floor"):
+        assemble_office_scene([_floor(), on_floor], RULES)
+    carried = OfficeObject(1, "wall", "wall_+x", 2, boxes=[[2.05, 0, 1.2, 0.1, 10, 2.4, 0]])
+    with pytest.raises(InputError, match=r"wall_\+x \(id 1\) is a wall and stands on nothing"):
+        assemble_office_scene([_floor(), carried, _box(2, 1.0, 0, (0.2,) * 3)], RULES)
+
+
+def test_floating_sunk_or_unsupported_objects_are_refused():
+    floating = _box(1, 0.0, 0.0, (0.2, 0.2, 0.2), z0=0.5)
+    with pytest.raises(InputError, match=r"box_1 \(id 1\) has support -1 .* z=0\.500 m"):
+        assemble_office_scene([_floor(), floating], RULES)
+    off = _box(1, 4.9, 0.0, (0.4, 0.4, 0.4))  # the floor ends at x = 5
+    with pytest.raises(InputError, match=r"box_1 \(id 1\) reaches off the floor"):
+        assemble_office_scene([_floor(), off], RULES)
+    beside = _box(4, 3.0, 0.0, (0.2, 0.2, 0.2), z0=0.75, support=3)  # 1 m from the table
+    with pytest.raises(InputError, match=r"box_4 \(id 4\) stands on table_3 \(id 3\), but"):
+        assemble_office_scene([_floor(), _round_table(3, 2, 0), beside], RULES)
+    hovering = _box(4, 2.0, 0.0, (0.2, 0.2, 0.2), z0=0.9, support=3)
+    with pytest.raises(InputError, match=r"z=0\.900 m\) is not on a top face of table_3"):
+        assemble_office_scene([_floor(), _round_table(3, 2, 0), hovering], RULES)
+
+
+def test_objects_must_be_office_objects():
+    with pytest.raises(InputError, match=r"objects\[1\] must be an OfficeObject, got dict"):
+        assemble_office_scene([_floor(), {"id": 1}], RULES)
+    with pytest.raises(InputError, match="objects must be a list of OfficeObject, got str"):
+        office_labels("floor", RULES)
+
+
+def test_sampler_never_builds_a_scene_the_checks_refuse(spec):
+    # assemble_office_scene checks every sampled scene; 150 scenes exercise every rule
+    scenes = sample_office_scenes(spec, 150, 2)
+    stacked = [o for s in scenes for o in s.objects if o.support >= 0]
+    assert len(stacked) > 50
+    # a box drawn for a table whose tops are full goes to the floor (this draw filled them)
+    crowded = sample_office_scene(spec, np.random.default_rng(583))
+    assert sum(o.kind == "box" for o in crowded.objects) >= 3

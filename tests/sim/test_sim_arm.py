@@ -85,6 +85,8 @@ def test_malformed_urdf_is_reported(tmp_path):
         Arm(spec)
     with pytest.raises(ConfigError, match="cannot read"):
         Arm(dataclasses.replace(spec, urdf=tmp_path / "missing.urdf"))
+    with pytest.raises(ConfigError, match=r"cannot read the arm URDF .*make arm\.urdf"):
+        Arm(dataclasses.replace(spec, urdf=tmp_path))
 
 
 def test_ik_rejects_nan(arm):

@@ -15,17 +15,31 @@ import pytest
 from probaff.errors import ConfigError, InputError
 from probaff.grid import DIRECTION_OFFSETS
 from probaff.sim import (
+    DepthCamera,
+    PrimitiveScene,
     PushSimulator,
     SceneInstance,
+    SideViewScene,
+    head_views,
     load_catalogue,
+    load_sideview,
     load_tabletop,
+    object_cloud,
+    plan_skills,
     push_frame_effect,
+    scan_scene,
+    scan_views,
     simulate_push,
+    simulate_rest,
+    simulate_sideview,
     straight_path,
+    table_cloud,
+    trapezoid_progress,
 )
 from probaff.sim import tabletop as tabletop_module
 from probaff.sim import warehouse as warehouse_module
 from probaff.sim.config import load_warehouse
+from probaff.sim.depth import DepthSensor
 from probaff.sim.friction import add_sliding_body
 from probaff.sim.pusher import TrackedPusher
 
@@ -242,3 +256,137 @@ def test_push_box_direction_must_be_an_index():
         warehouse_module.push_box(spec, m, (1, 1), 1.5)
     with pytest.raises(InputError, match="cell_size must be a finite number > 0"):
         warehouse_module.WarehouseMap(m.occupancy, cell_size=-1.0)
+
+
+# 8. scene builders refuse overlapping or off-table objects and inputs of the wrong type
+
+
+def test_tabletop_objects_that_overlap_are_refused(world, no_pymunk):
+    book = load_catalogue()["book"]
+    grid = world.physics.friction_grid
+    with pytest.raises(
+        InputError, match=r"objects 0 \(book\) and 1 \(book\) overlap by \d+\.\d mm at the start"
+    ):
+        SceneInstance.nominal(
+            [book, book], [[0.0, 0.0, 0.0], [0.05, 0.0, 0.3]], [-0.13, 0.0], 0.0, 0.15, grid
+        )
+    # footprints in contact (within the physics' 2 mm) are accepted
+    touching = [[0.0, 0.0, 0.0], [book.size[0] + 0.001, 0.0, 0.0]]
+    SceneInstance.nominal([book, book], touching, [-0.13, 0.0], 0.0, 0.15, grid)
+
+
+def test_tabletop_objects_off_the_table_are_refused(world, scene, sim, no_pymunk):
+    path = straight_path(world, scene.push_origin, scene.push_yaw, scene.push_distance)
+    off = dataclasses.replace(scene, poses=np.array([[0.8, 0.0, 0.0]]))
+    with pytest.raises(InputError, match=r"poses\[0\] puts 'book'.s centre at \(0\.800, 0\.000\)"):
+        simulate_push(world, off, path)
+    with pytest.raises(InputError, match=r"scenes\[0\]: SceneInstance\.poses\[0\] .* off the 1 x"):
+        sim.execute([off])
+
+
+def test_push_entry_points_refuse_wrong_types(world, scene, no_pymunk):
+    path = straight_path(world, scene.push_origin, scene.push_yaw, scene.push_distance)
+    with pytest.raises(InputError, match="world must be a TabletopSpec"):
+        simulate_push("tabletop", scene, path)
+    with pytest.raises(InputError, match="scene must be a SceneInstance"):
+        simulate_push(world, {"poses": [0, 0, 0]}, path)
+    with pytest.raises(InputError, match=r"hand_path must be a \(T_c, 3\) numeric array"):
+        simulate_push(world, scene, [["a", 0, 0]])
+    with pytest.raises(InputError, match="scene must be a scene name"):
+        PushSimulator(3)
+    with pytest.raises(InputError, match=r"distance must be a finite number > 0, got '0\.15'"):
+        straight_path(world, [0.0, 0.0], 0.0, "0.15")
+    with pytest.raises(InputError, match=r"start_xy has shape \(3,\), expected \(2\)"):
+        straight_path(world, [0.0, 0.0, 0.0], 0.0, 0.15)
+    with pytest.raises(InputError, match="distance must be a finite number > 0, got 0"):
+        trapezoid_progress(0, 0.2, 1.0, 40.0)
+
+
+def test_spec_fields_must_be_numbers():
+    book = load_catalogue()["book"]
+    with pytest.raises(ConfigError, match=r"ObjectSpec\.mass must be a number, got '1'"):
+        dataclasses.replace(book, mass="1")
+    with pytest.raises(ConfigError, match=r"ObjectSpec\.size\[0\] must be a number, got True"):
+        dataclasses.replace(book, size=(True, 0.1))
+
+
+def test_warehouse_builders_name_bad_cells_and_types():
+    spec = load_warehouse()
+    WarehouseMap = warehouse_module.WarehouseMap
+    with pytest.raises(InputError, match=r"boxes\[0\]\[0\] must be an integer, got 0\.5"):
+        WarehouseMap.from_boxes((4, 4), [(0.5, 1)])
+    with pytest.raises(InputError, match=r"boxes\[0\] must be a \(row, col\) pair of integers"):
+        WarehouseMap.from_boxes((4, 4), [1, 2])
+    with pytest.raises(InputError, match=r"shape\[1\] must be an integer >= 2, got 1"):
+        WarehouseMap.from_boxes((4, 1), [])
+    with pytest.raises(InputError, match="cell_size must be a finite number > 0, got '1'"):
+        WarehouseMap(np.zeros((3, 3), dtype=bool), "1")
+    m = WarehouseMap.from_boxes((3, 3), [(1, 1)])
+    with pytest.raises(InputError, match=r"cell\[0\] must be an integer, got 1\.5"):
+        warehouse_module.push_box(spec, m, (1.5, 1), 0)
+    with pytest.raises(InputError, match="spec must be a WarehouseSpec"):
+        warehouse_module.push_box("warehouse.yaml", m, (1, 1), 0)
+    with pytest.raises(InputError, match="m must be a WarehouseMap"):
+        warehouse_module.physics_affordances(spec, m.occupancy)
+    with pytest.raises(InputError, match=r"direction must be 0\.\.3 .*got 7"):
+        m.moved((1, 1), 7)
+    with pytest.raises(InputError, match=r"rng must be a numpy\.random\.Generator"):
+        warehouse_module.generate_map(spec, 3)
+    with pytest.raises(InputError, match="m must be a WarehouseMap"):
+        DepthSensor(spec, "map")
+    with pytest.raises(InputError, match=r"rng must be a numpy\.random\.Generator"):
+        DepthSensor(spec, m).scan([0.5, 0.5], 0)
+
+
+def test_warehouse_camera_must_see_the_floor():
+    spec = load_warehouse()
+    assert spec.sensor_kind == "camera"
+    with pytest.raises(
+        ConfigError,
+        match=r"WarehouseSpec\.sensor_height 10 m leaves the camera .* must lie in \[0\.000, 2\.4",
+    ):
+        dataclasses.replace(spec, sensor_height=10.0)
+    with pytest.raises(ConfigError, match=r"camera_tilt_deg -40 points the camera wholly above"):
+        dataclasses.replace(spec, camera_tilt_deg=-40.0)
+    with pytest.raises(ConfigError, match=r"camera_tilt_deg must be a number of degrees, got '10'"):
+        dataclasses.replace(spec, camera_tilt_deg="10")
+    with pytest.raises(ConfigError, match=r"sensor_elevations must be a non-empty tuple of angles"):
+        dataclasses.replace(spec, sensor_elevations=(0.0, math.nan))
+
+
+def test_point_clouds_refuse_bad_objects_poses_and_streams():
+    book = load_catalogue()["book"]
+    rng = np.random.default_rng(0)
+    with pytest.raises(InputError, match="pose contains 1 NaN"):
+        object_cloud(book, [0.0, np.nan, 0.0], 10, 0.0, rng)
+    with pytest.raises(InputError, match="obj must be a catalogue ObjectSpec"):
+        object_cloud("book", [0.0, 0.0, 0.0], 10, 0.0, rng)
+    with pytest.raises(InputError, match=r"rng must be a numpy\.random\.Generator"):
+        object_cloud(book, [0.0, 0.0, 0.0], 10, 0.0, 0)
+    with pytest.raises(InputError, match="objects must be a non-empty list"):
+        scan_scene((), np.zeros((0, 3)), (1.0, 0.8), rng)
+    with pytest.raises(InputError, match=r"poses has shape \(1, 2\), expected \(1, 3\)"):
+        scan_scene((book,), [[0.0, 0.0]], (1.0, 0.8), rng)
+    with pytest.raises(InputError, match=r"table_size\[1\] must be a finite number > 0"):
+        table_cloud((1.0, -0.8), 0.02, 0.0, rng)
+    with pytest.raises(InputError, match="table_size must hold numbers"):
+        table_cloud(("a", 0.8), 0.02, 0.0, rng)
+
+
+def test_side_view_and_camera_entry_points_refuse_strings():
+    side = load_sideview()
+    cube = SideViewScene.nominal("pick", ["cube_10"], np.array([[0.0, 0.05, 0.0]]), 0)
+    with pytest.raises(InputError, match=r"duration must be a finite number > 0 \(s\), got '1'"):
+        simulate_rest(side, cube, "1")
+    with pytest.raises(InputError, match="world must be a SideViewSpec"):
+        simulate_rest("sideview.yaml", cube, 1.0)
+    with pytest.raises(InputError, match="initial_opening must hold numbers"):
+        simulate_sideview(side, cube, np.zeros((2, 3)), np.zeros(2), initial_opening="open")
+    with pytest.raises(InputError, match=r"world must be a SideViewSpec \(load_sideview\(\)\)"):
+        plan_skills([cube], world="sideview.yaml")
+    with pytest.raises(InputError, match=r"boxes must be an \(N, 7\) array of numbers"):
+        PrimitiveScene(boxes=[["a"] * 7])
+    with pytest.raises(InputError, match="pans_deg must hold numbers"):
+        head_views(np.eye(4), "left", [30.0])
+    with pytest.raises(InputError, match="poses must hold numbers"):
+        scan_views(DepthCamera(), PrimitiveScene([[0, 0, 0, 1, 1, 1, 0]], [0]), "front")

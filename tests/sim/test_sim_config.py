@@ -94,3 +94,18 @@ def test_missing_worlds_dir(tmp_path, monkeypatch):
     monkeypatch.setenv("PROBAFF_WORLDS", str(tmp_path / "none"))
     with pytest.raises(ConfigError, match="PROBAFF_WORLDS"):
         worlds_dir()
+
+
+def test_world_file_that_is_binary_a_folder_or_missing(tmp_path):
+    binary = tmp_path / "tabletop.yaml"
+    binary.write_bytes(b"\xff\xfe\x00\x01 not text")
+    with pytest.raises(ConfigError, match=r"world file .*tabletop\.yaml is not UTF-8 text"):
+        load_tabletop(binary)
+    with pytest.raises(ConfigError, match=r"world file .* is a folder, not a YAML file"):
+        load_tabletop(tmp_path)
+    with pytest.raises(ConfigError, match=r"missing\.yaml does not exist; give the path"):
+        load_tabletop(tmp_path / "missing.yaml")
+    folder = tmp_path / "objects.yaml"
+    folder.mkdir()
+    with pytest.raises(ConfigError, match=r"objects\.yaml is a folder"):
+        load_catalogue(folder)

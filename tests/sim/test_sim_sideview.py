@@ -116,17 +116,26 @@ def test_stack_of_two_settles(world, cat):
     assert np.abs(objs[-1, :, 2]).max() < 2e-3
 
 
+def _squeezed(world, force):
+    return dataclasses.replace(
+        world, gripper=dataclasses.replace(world.gripper, squeeze_force=force)
+    )
+
+
+def _min_squeeze(world, cat, name):
+    """The friction analysis' least squeeze force (N) that holds `name` against gravity."""
+    mu = math.sqrt(world.gripper.pad_friction * cat[name].contact_friction)
+    return cat[name].mass * world.physics.gravity / (2 * mu)
+
+
 def test_min_squeeze_force_matches_friction_analysis(world, cat):
     scene = _pick_scene(["cube_10"], [_on_table("cube_10", 0.0, cat)])
     plan = plan_skills([scene], world)[0]
-    mu = math.sqrt(world.gripper.pad_friction * cat["cube_10"].contact_friction)
-    analytic = cat["cube_10"].mass * world.physics.gravity / (2 * mu)
+    analytic = _min_squeeze(world, cat, "cube_10")
 
     def lifts(force):
-        w = dataclasses.replace(
-            world, gripper=dataclasses.replace(world.gripper, squeeze_force=force)
-        )
-        return simulate_skill(scene, plan, w).lifted
+        out = simulate_skill(scene, plan, _squeezed(world, force))
+        return out.lifted and not out.slipped
 
     lo, hi = 0.5 * analytic, 1.5 * analytic
     assert lifts(hi) and not lifts(lo)
@@ -134,6 +143,21 @@ def test_min_squeeze_force_matches_friction_analysis(world, cat):
         mid = 0.5 * (lo + hi)
         lo, hi = (lo, mid) if lifts(mid) else (mid, hi)
     assert 0.5 * (lo + hi) == pytest.approx(analytic, rel=0.10)
+
+
+def test_slip_is_reported_when_the_fingers_reach_a_narrow_post_late(world, cat):
+    """Closing ends before the fingers reach the 5 cm post; the lift's slip still counts."""
+    scene = _pick_scene(["post_5x15"], [_on_table("post_5x15", 0.0, cat)])
+    plan = plan_skills([scene], world)[0]
+    weak = simulate_skill(
+        scene, plan, _squeezed(world, 1.05 * _min_squeeze(world, cat, "post_5x15"))
+    )
+    assert weak.slipped or not weak.lifted
+    assert weak.slipped  # it rises but slides several cm down between the fingers
+    rise = weak.state_after[0, 1] - weak.state_before[0, 1]
+    assert rise < world.pick.lift - 2 * world.slip_tolerance
+    nominal = simulate_skill(scene, plan, world)
+    assert nominal.lifted and not nominal.slipped
 
 
 def test_pick_lifts_a_graspable_object(world, cat):

@@ -54,3 +54,39 @@ def test_overrides_win():
     add_config_arguments(parser, PushModelStudyConfig, skip=("out",))
     cfg = config_from_args(PushModelStudyConfig, parser.parse_args([]), out="elsewhere")
     assert cfg.out == "elsewhere"
+
+
+def test_smoke_sizes_never_replace_a_value_the_user_gave():
+    from probaff.studies.config_cli import study_config, study_parser
+    from probaff.studies.modular import SMOKE_OVERRIDES, ModularStudyConfig
+
+    parser = study_parser(ModularStudyConfig, "doc")
+    cfg = study_config(
+        ModularStudyConfig,
+        parser.parse_args(["--smoke", "--trials", "5", "--n-experts", "3"]),
+        SMOKE_OVERRIDES,
+    )
+    assert cfg.trials == 5 and cfg.settings.n_experts == 3  # the user's
+    assert cfg.push_train == SMOKE_OVERRIDES["push_train"]  # the smoke size
+    assert cfg.settings.em_iterations == SMOKE_OVERRIDES["settings"].em_iterations
+    # Without --smoke nothing changes; a value equal to the default still counts as given.
+    plain = study_config(ModularStudyConfig, parser.parse_args(["--trials", "5"]), SMOKE_OVERRIDES)
+    assert plain == dataclasses.replace(ModularStudyConfig(), trials=5)
+    given = study_config(
+        ModularStudyConfig,
+        parser.parse_args(["--smoke", "--push-train", "221"]),
+        SMOKE_OVERRIDES,
+    )
+    assert given.push_train == 221
+
+
+def test_a_bad_value_is_refused_even_under_smoke():
+    from probaff.errors import InputError
+    from probaff.studies.config_cli import study_config, study_parser
+    from probaff.studies.modular import SMOKE_OVERRIDES, ModularStudyConfig
+
+    parser = study_parser(ModularStudyConfig, "doc")
+    with pytest.raises(InputError, match="n_experts must be a positive integer, got 0"):
+        study_config(
+            ModularStudyConfig, parser.parse_args(["--n-experts", "0", "--smoke"]), SMOKE_OVERRIDES
+        )

@@ -142,7 +142,10 @@ def test_bad_config():
         run(ModularStudyConfig(scales=(0.5,)))
     with pytest.raises(InputError, match="chain_lengths may hold 3, 4 and 5"):
         run(ModularStudyConfig(chain_lengths=(7,)))
-    with pytest.raises(InputError, match="unknown feature groups"):
-        run(ModularStudyConfig(settings=TrialSettings(push_groups=("colour",))))
-    with pytest.raises(InputError, match=r"settings\.chain_samples"):
-        run(ModularStudyConfig(settings=TrialSettings(chain_samples=1)))
+    # TrialSettings checks itself when it is built, before any study sees it.
+    with pytest.raises(InputError, match="push_groups: unknown feature groups"):
+        TrialSettings(push_groups=("colour",))
+    with pytest.raises(InputError, match="chain_samples must be an integer >= 2"):
+        TrialSettings(chain_samples=1)
+    with pytest.raises(InputError, match="settings must be a TrialSettings"):
+        run(ModularStudyConfig(settings="fast"))  # type: ignore[arg-type]

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from probaff.errors import InputError
+from probaff.errors import DatasetError, InputError
 from probaff.eval.label_figures import (
     plot_entropy_tree,
     plot_label_probabilities,
@@ -174,3 +174,18 @@ def test_entropy_tree_and_merge_figures_are_written(tmp_path):
         [1, 2, 4], [0.9, 0.85, 0.8], [0.6, 0.7, 0.8], [0.7, 0.75, 0.8], tmp_path / "views.png"
     )
     assert Path(tree).stat().st_size > 0 and Path(views).stat().st_size > 0
+
+
+def test_damaged_scan_arrays_are_named(tmp_path):
+    from probaff.studies.point_cloud_labels import _read_arrays
+
+    npz = tmp_path / "scan_0.npz"
+    np.savez(npz, points=np.zeros((3, 3)), point_segments=np.zeros(3, dtype=np.int32))
+    assert _read_arrays(npz, ("points",))["points"].shape == (3, 3)
+    with pytest.raises(DatasetError, match=r"scan_0\.npz .*delete it and rerun the study"):
+        _read_arrays(npz, ("point_views",))  # an array the file lacks
+    npz.write_bytes(npz.read_bytes()[:50])
+    with pytest.raises(DatasetError, match=r"cannot read the scan arrays .*scan_0\.npz"):
+        _read_arrays(npz, ("points",))
+    with pytest.raises(DatasetError, match="cannot read the scan arrays"):
+        _read_arrays(tmp_path, ("points",))
