@@ -32,8 +32,6 @@ import numpy as np
 import torch
 
 from probaff.maps import (
-    DEFAULT_COUPLING,
-    GRID_BYTES_PER_CELL,
     AffordanceGraph,
     BPOptions,
     affordance_marginals,
@@ -43,6 +41,8 @@ from probaff.maps import (
     map_entropy,
     single_variable_evidence,
 )
+from probaff.maps.grid_bp import GRID_BYTES_PER_CELL
+from probaff.maps.options import DEFAULT_COUPLING
 
 COUPLING = DEFAULT_COUPLING
 GIB = 1024**3

@@ -15,14 +15,14 @@ import numpy as np
 import torch
 
 from probaff.maps import (
-    DEFAULT_COUPLING,
     AffordanceGraph,
     BPOptions,
     affordance_marginals,
     exact_marginals,
     single_variable_evidence,
 )
-from probaff.sim.config import load_warehouse
+from probaff.maps.options import DEFAULT_COUPLING
+from probaff.sim import load_warehouse
 from probaff.sim.warehouse import generate_map
 
 

@@ -73,6 +73,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import csv
+import dataclasses
 import functools
 import hashlib
 import inspect
@@ -290,6 +291,16 @@ def vi(
     return model.predict(X_test)
 
 
+def fit_em_accepts(name: str) -> bool:
+    """Whether this probaff's `fit_em` takes the option `name` (as a keyword or an
+    `EMOptions` field), so that the benchmark also runs against earlier versions."""
+    import probaff.models
+
+    options = getattr(probaff.models, "EMOptions", None)
+    fields = {f.name for f in dataclasses.fields(options)} if options is not None else set()
+    return name in inspect.signature(fit_em).parameters or name in fields
+
+
 EM_INITS = ("effects", "joint", "grow")
 """Initialisations of `fit_em` benchmarked as ``em_<name>`` when `fit_em` accepts ``init``."""
 
@@ -299,10 +310,10 @@ MODELS: dict[str, FitPredict] = {
     "clustered": clustered,
     "em": em,
 }
-if "init" in inspect.signature(fit_em).parameters:
+if fit_em_accepts("init"):
     for _init in EM_INITS:
         MODELS[f"em_{_init}"] = functools.partial(em, fit=functools.partial(fit_em, init=_init))
-if "n_finish" in inspect.signature(fit_em).parameters:
+if fit_em_accepts("n_finish"):
     MODELS["em_finish2"] = functools.partial(em, fit=functools.partial(fit_em, n_finish=2))
 MODELS["vi"] = vi
 

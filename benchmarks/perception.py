@@ -32,8 +32,8 @@ from probaff.perception.normals import Normals, estimate_normals
 from probaff.perception.region_growing import Segmentation, region_growing
 from probaff.perception.scan_labels import PerceptionConfig, head_pose, scenes_dataset
 from probaff.perception.segment_features import SegmentFeatures, segment_features
+from probaff.sim import load_office, sample_office_scenes
 from probaff.sim.camera import DepthCamera, DepthImage, head_views, load_camera
-from probaff.sim.office import load_office, sample_office_scenes
 
 T = TypeVar("T")
 

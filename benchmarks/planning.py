@@ -43,15 +43,11 @@ import torch
 from threadpoolctl import threadpool_limits
 
 from probaff.data import GenerateConfig, PushDataset, generate, load_dataset
-from probaff.planning.edge_models import fit_edge_model
-from probaff.planning.edge_planner import plan_astar
-from probaff.planning.edge_task import EdgeTask, load_edge_task, sample_episode
-from probaff.planning.edge_transitions import (
-    EdgeTransition,
-    LearnedTransition,
-    PushReachability,
-    QuasiStaticTransition,
-)
+from probaff.planning.catalogue import fit_edge_model
+from probaff.planning.push_to_edge.planners import PushReachability, plan_astar, predict_books
+from probaff.planning.push_to_edge.task import EdgeTask, load_edge_task, sample_episode
+from probaff.planning.transitions import LearnedTransition, QuasiStaticTransition
+from probaff.planning.transitions import Transition as EdgeTransition
 
 GOAL_SECONDS = 1.0
 NODES = 8  # book poses of one planning step in (b): the task's search.batch
@@ -247,19 +243,21 @@ def bench_batch(
         tr = make(0)
 
         def batched(tr: EdgeTransition = tr) -> np.ndarray:
-            return tr.predict(books, origins, yaws, battery).mean
+            return predict_books(task, tr, books, origins, yaws, battery).mean
 
         def single(tr: EdgeTransition = tr) -> np.ndarray:
             return np.concatenate(
                 [
-                    tr.predict(books[i : i + 1], origins[i : i + 1], yaws[i : i + 1], battery).mean
+                    predict_books(
+                        task, tr, books[i : i + 1], origins[i : i + 1], yaws[i : i + 1], battery
+                    ).mean
                     for i in range(n)
                 ]
             )
 
         t_batched, a = best_of(batched, repeats)
         t_single, b = best_of(single, max(1, repeats - 1))
-        other = make(1).predict(books, origins, yaws, battery).mean
+        other = predict_books(task, make(1), books, origins, yaws, battery).mean
         diff = 1e3 * float(np.abs(np.asarray(a)[:, :2] - np.asarray(b)[:, :2]).max())
         spread = 1e3 * float(np.abs(np.asarray(a)[:, :2] - other[:, :2]).max())
         print(

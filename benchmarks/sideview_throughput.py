@@ -15,7 +15,8 @@ import time
 import numpy as np
 import torch
 
-from probaff.sim import PushSimulator, load_sideview, load_sideview_scene, run_sampled
+from probaff.sim import PushSimulator, load_sideview, load_sideview_scene
+from probaff.sim.skills import run_sampled
 
 
 def skill(scene: str, n: int) -> tuple[float, float, dict[str, float]]:

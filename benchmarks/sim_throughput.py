@@ -16,7 +16,9 @@ import numpy as np
 import torch
 
 from probaff.data.generation import GenerateConfig, make_shard
-from probaff.sim import PushSimulator, sample_scene, simulate_push, straight_path
+from probaff.sim import PushSimulator, simulate_push
+from probaff.sim.runner import straight_path
+from probaff.sim.sampling import sample_scene
 
 
 def physics_only(scene: str, n: int) -> float:

@@ -1,8 +1,8 @@
 """Affordance-map study (thesis chapter 3): information-gain pushing against exhaustive pushing.
 
 Tables and figures (Figs. 3.5-3.7) go to results/affordance_map/. Every field of
-`probaff.studies.affordance_map.AffordanceMapConfig` (and of its `MRFParams`) is a flag
-(``--help`` lists them).
+`probaff.experiments.affordance_map.AffordanceMapConfig` (and of its `MRFParams`) is a flag
+(``--help`` lists them); ``probaff study affordance_map`` runs the same.
 
     python inference/affordance_map.py [--n-maps N] [--workers K | --scheduler ADDR] [--smoke]
 """
@@ -11,24 +11,13 @@ import json
 import sys
 
 from probaff._cli_errors import run_cli
-from probaff.studies.affordance_map import AffordanceMapConfig, run
-from probaff.studies.config_cli import study_config, study_parser
-
-SMOKE = {"n_maps": 2, "train_maps": 2, "max_steps": 3, "progress": False}
+from probaff.experiments.affordance_map import SMOKE, Config, run
+from probaff.experiments.config_cli import parse_study_args
 
 
 def main() -> None:
     """Parse the command line into a study config and run it."""
-    p = study_parser(AffordanceMapConfig, __doc__)
-    p.add_argument(
-        "--no-stop",
-        action="store_true",
-        help="keep the information-gain loop pushing when every gain is negative "
-        "(the same as --no-stop-at-no-gain)",
-    )
-    a = p.parse_args()
-    extra = {"stop_at_no_gain": False} if a.no_stop else {}
-    result = run(study_config(AffordanceMapConfig, a, SMOKE, **extra))
+    result = run(parse_study_args(Config, SMOKE, __doc__))
     print(json.dumps({"files": result["files"], "computed": result["computed"]}, indent=1))
 
 

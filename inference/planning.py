@@ -1,7 +1,8 @@
-"""Planning study (thesis chapter 4): push-to-edge planners closed loop in the simulator.
+"""Planning study (thesis chapters 4 and 5): push-to-edge and tool-push planners, closed loop.
 
 Tables and figures go to results/planning/. Every field of
-`probaff.studies.planning.PlanningStudyConfig` is a flag (``--help`` lists them).
+`probaff.experiments.planning.PlanningStudyConfig` is a flag (``--help`` lists them);
+``probaff study planning`` runs the same.
 
     python inference/planning.py [--workers K | --scheduler ADDR] [--smoke] [--FIELD VALUE]
 """
@@ -10,16 +11,15 @@ import json
 import sys
 
 from probaff._cli_errors import run_cli
-from probaff.studies.config_cli import study_config, study_parser
-from probaff.studies.planning import SMOKE_OVERRIDES, PlanningStudyConfig, run
+from probaff.experiments.config_cli import parse_study_args
+from probaff.experiments.planning import SMOKE, Config, run
 
 
 def main() -> None:
     """Parse the command line into a study config and run it."""
-    args = study_parser(PlanningStudyConfig, __doc__).parse_args()
-    summary = run(study_config(PlanningStudyConfig, args, SMOKE_OVERRIDES))
+    summary = run(parse_study_args(Config, SMOKE, __doc__))
     print(json.dumps({"files": summary["files"]}, indent=1))
 
 
 if __name__ == "__main__":
-    sys.exit(run_cli(main))
+    sys.exit(run_cli(main))  # a bad flag: one line on stderr, exit status 2

@@ -2,23 +2,32 @@
 
 Every capability is one hop from here:
 
-Subpackages:
-    sim: the simulated robot: pymunk worlds (tabletop, warehouse), the URDF arm through
-        pytorch-kinematics, push skills and a simulated depth sensor.
-    data: versioned, sharded, resumable push datasets, generated on Dask; pose noise.
-    features: object, contact and context features (chapters 4, 5), per-cell features of
-        the warehouse (chapter 3).
-    perception: the occupancy grid and frontier exploration of the warehouse.
-    models: GP experts, gates, the mixture of GP experts (EM, Pyro SVI), the clustered
-        baseline (chapter 4), saving and loading.
+Subpackages, low layers first (each imports only from those above it in this list):
+    models: GP experts (exact, weighted), gates, the mixture of GP experts (EM, Pyro SVI),
+        the clustered baseline (chapter 4), chapter 6's skill, modular and monolithic
+        transition models, typed fit options (`EMOptions`, `SVIOptions`, `GPOptions`), the
+        registry of model kinds with its type-dispatched `fit`, saving and loading.
     maps: a pure factor-graph library: the affordance MRF as a gtsam.DiscreteFactorGraph,
         exact, enumeration and batched loopy BP marginals, entropies.
-    planning: acting on what was learned: the affordance classifier, information-gain pushes
-        and the verify-by-pushing manipulation loop (chapter 3).
+    sim: the simulated robot: a registry of world kinds (tabletop, side view, warehouse,
+        office), the URDF arm through pytorch-kinematics, push, pick and place skills, the
+        ray-cast depth camera, the shared world-file readers.
+    data: datasets of every registered kind (push, skill): schemas, checksummed shards, one
+        resumable `generate` on Dask, pose noise, summaries.
+    perception: occupancy and exploration (chapter 3); normals, region growing, segment
+        features, label classifiers, refinement and multi-view merging (chapter 2).
+    features: chapter 3 voxel, chapter 4 and 5 push and chapter 6 interaction features,
+        computed from dataset arrays.
+    planning: what is scored (one transition protocol: learned, simulator, quasi-static)
+        apart from how it is searched (A*, greedy, sampling); one subpackage per task (push
+        to edge, tool push, the chapter 3 manipulation loop) and the planner catalogue.
     eval: metrics (RMSE, NLPD, coverage), model selection, the resumable task runner,
-        fingerprints, figures.
-    studies: one ``run(config)`` per study (push models, affordance maps).
-    cli: the ``probaff`` command (``probaff demo``, ``probaff generate``, ...).
+        fingerprints, tables, shared plotting helpers.
+    experiments: one folder per study over `StudyConfig` and `StudyRun`:
+        point_cloud_labels (chapter 2), affordance_map (chapter 3), planning (chapters 4 and
+        5), push_models (chapters 5 and 4), modular (chapter 6).
+    cli: the ``probaff`` command (``demo``, ``generate``, ``describe``, ``scenes``,
+        ``study``).
 
 Errors: every error probaff raises on purpose is a `ProbaffError`.
 """

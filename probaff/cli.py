@@ -1,4 +1,4 @@
-"""The `probaff` command: generate, describe, scenes, demo."""
+"""The `probaff` command: generate, describe, scenes, demo, study."""
 
 from __future__ import annotations
 
@@ -58,16 +58,23 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--resume", action="store_true", help="finish an interrupted dataset")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
 
-    d = sub.add_parser("describe", help="print a JSON summary of a push or skill dataset")
+    d = sub.add_parser("describe", help="print a JSON summary of a dataset of any kind")
     d.add_argument("path")
 
-    sub.add_parser("scenes", help="list the scene templates (tabletop and side view)")
+    sub.add_parser("scenes", help="list the scene templates of every world kind")
 
     m = sub.add_parser("demo", help="generate a small two-object dataset and draw it")
     m.add_argument("--out", default="results/demo")
     m.add_argument("--n", type=int, default=96)
     m.add_argument("--seed", type=int, default=0)
     m.add_argument("--workers", type=int, default=0)
+
+    sub.add_parser(
+        "study",
+        help="run one study: probaff study NAME [--smoke] [--FIELD VALUE ...] "
+        "(probaff study --help lists them)",
+        add_help=False,
+    )
     return p
 
 
@@ -76,10 +83,10 @@ def _dispatch(args: argparse.Namespace) -> None:
         from probaff._checks import check_output_dir
 
         check_output_dir("--out", args.out)  # before the simulator is loaded
-        from probaff.data.generation import GenerateConfig, generate, generate_skills, scene_kind
+        from probaff.data.config import GenerateConfig
+        from probaff.data.generation import generate
         from probaff.data.noise import parse_pose_noise
 
-        kind = scene_kind(args.scene)
         noise = None if args.pose_noise is None else parse_pose_noise(args.pose_noise)
         cfg = GenerateConfig(
             scene=args.scene,
@@ -90,8 +97,7 @@ def _dispatch(args: argparse.Namespace) -> None:
             pose_noise=noise,
             record_rate=args.record_rate,
         )
-        write = generate if kind == "push" else generate_skills
-        ds = write(
+        ds = generate(
             cfg,
             args.out,
             workers=args.workers,
@@ -99,31 +105,21 @@ def _dispatch(args: argparse.Namespace) -> None:
             resume=args.resume,
             progress=not args.quiet,
         )
-        what = "pushes" if kind == "push" else f"{ds.meta.get('skill', 'skill')}s"
-        print(f"wrote {len(ds)} {what} to {args.out}")
+        print(f"wrote {len(ds)} {ds.rows_label} to {args.out}")
     elif args.command == "describe":
         from pathlib import Path
 
-        from probaff.data.store import (
-            load_dataset,
-            load_skill_dataset,
-            manifest_kind,
-            read_manifest,
-        )
-        from probaff.data.summary import summarize
+        from probaff.data.kinds import dataset_kind
+        from probaff.data.store import load_any_dataset, manifest_kind, read_manifest
 
-        kind = manifest_kind(read_manifest(Path(args.path)))
-        load = load_skill_dataset if kind == "skill" else load_dataset
-        print(json.dumps(summarize(load(args.path)), indent=1))
+        kind = dataset_kind(manifest_kind(read_manifest(Path(args.path))))
+        print(json.dumps(kind.summarize(load_any_dataset(args.path)), indent=1))
     elif args.command == "scenes":
-        from probaff.sim.config import list_scenes, load_scene
-        from probaff.sim.sideview_config import list_sideview_scenes, load_sideview_scene
+        from probaff.sim.registry import world_kinds
 
-        for name in list_scenes():
-            print(f"{name:16s} {load_scene(name).description}")
-        for name in list_sideview_scenes():
-            spec = load_sideview_scene(name)
-            print(f"{name:16s} side view, {spec.skill}: {spec.description}")
+        for world in world_kinds():
+            for name in world.scene_names():
+                print(f"{name:16s} {world.describe(name)}")
     elif args.command == "demo":
         from probaff._checks import check_output_dir
 
@@ -136,9 +132,17 @@ def _dispatch(args: argparse.Namespace) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; errors that probaff raises on purpose print one clear line.
 
+    ``probaff study NAME ...`` hands everything after ``study`` to the study's own parser
+    (`probaff.experiments.study_main`).
+
     Returns:
         The exit status: 0 on success, 2 for a probaff error.
     """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["study"]:
+        from probaff.experiments import study_main
+
+        return study_main(argv[1:])
     args = build_parser().parse_args(argv)
     try:
         _dispatch(args)

@@ -29,21 +29,19 @@ from torch.distributions import Normal
 
 from probaff._checks import check_count
 from probaff._threads import torch_threads
-from probaff.data.generation import GenerateConfig, generate
+from probaff.data import GenerateConfig, generate
 from probaff.data.noise import PoseNoise
 from probaff.data.schema import PushDataset
 from probaff.data.summary import summarize
 from probaff.eval.metrics import interval_coverage, nlpd, rmse
-from probaff.eval.model_figures import plot_predictive_density
-from probaff.eval.push_figures import plot_pushes
+from probaff.experiments.affordance_map.demo import demo as affordance_demo
+from probaff.experiments.modular.demo import demo as modular_demo
+from probaff.experiments.planning.demo import demo as planning_demo
+from probaff.experiments.point_cloud_labels.demo import demo as point_cloud_demo
+from probaff.experiments.push_models.figures import plot_predictive_density, plot_pushes
 from probaff.features import chapter5_features
 from probaff.models import MixtureOfGPExperts, fit_em
-from probaff.sim.arm import load_arm
-from probaff.sim.config import load_tabletop
-from probaff.studies.affordance_map import demo as affordance_demo
-from probaff.studies.modular import demo as modular_demo
-from probaff.studies.planning import demo as planning_demo
-from probaff.studies.point_cloud_labels import demo as point_cloud_demo
+from probaff.sim import load_arm, load_tabletop
 
 __all__ = ["DemoConfig", "run"]
 

@@ -7,7 +7,7 @@ import sys
 from probaff.cli import main
 from probaff.data.generation import GenerateConfig, generate
 from probaff.data.noise import PoseNoise
-from probaff.studies.modular import demo as modular_demo
+from probaff.experiments.modular.demo import demo as modular_demo
 
 
 def test_generate_and_describe(tmp_path, capsys):
@@ -142,3 +142,18 @@ def test_demo_smoke(tmp_path):
 def test_scenes_listing(capsys):
     assert main(["scenes"]) == 0
     assert "two_objects" in capsys.readouterr().out
+
+
+def test_study_subcommand_runs_the_registered_studies_with_their_flags(capsys, tmp_path):
+    from probaff.cli import main
+
+    assert main(["study", "--help"]) == 0
+    assert (
+        "studies: affordance_map, modular, planning, point_cloud_labels" in capsys.readouterr().out
+    )
+    assert main(["study", "nope"]) == 2
+    assert "unknown study 'nope'" in capsys.readouterr().err
+    out = str(tmp_path / "out")
+    assert main(["study", "planning", "--trials", "0", "--out", out]) == 2
+    err = capsys.readouterr().err
+    assert err == "probaff study planning: error: trials must be a positive integer, got 0.\n"

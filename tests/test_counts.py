@@ -15,6 +15,9 @@ from probaff.data import GenerateConfig, generate
 from probaff.errors import ConfigError, InputError
 from probaff.eval.metrics import interval_coverage
 from probaff.eval.selection import select_n_experts
+from probaff.experiments.affordance_map import AffordanceMapConfig, train_classifier
+from probaff.experiments.affordance_map.demo import demo
+from probaff.experiments.affordance_map.run import map_task
 from probaff.features.cells import cell_features
 from probaff.features.ch4 import chapter4_features
 from probaff.maps.bp import loopy_belief_propagation
@@ -25,15 +28,15 @@ from probaff.maps.graph import AffordanceGraph
 from probaff.maps.grid_bp import grid_belief_propagation
 from probaff.maps.inference import affordance_marginals
 from probaff.perception.occupancy import OccupancyGrid
-from probaff.planning.classifier import AffordanceClassifier, collect_voxels, evaluate
+from probaff.planning.manipulation.classifier import AffordanceClassifier, collect_voxels, evaluate
+from probaff.sim import load_catalogue, load_tabletop, load_warehouse
 from probaff.sim.arm import load_arm
-from probaff.sim.config import load_catalogue, load_tabletop, load_warehouse, worlds_dir
 from probaff.sim.geometry import friction_points
 from probaff.sim.runner import PushSimulator
 from probaff.sim.sensing import object_cloud, scan_scene
 from probaff.sim.tabletop import SceneInstance
 from probaff.sim.warehouse import WarehouseMap, generate_map, push_box
-from probaff.studies.affordance_map import AffordanceMapConfig, demo, map_task, train_classifier
+from probaff.sim.world_files import worlds_dir
 
 BAD = [0.5, True, -1]
 CFG = GenerateConfig(scene="two_objects", n=2, seed=0, shard_size=2, cloud_points=8)

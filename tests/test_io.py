@@ -6,8 +6,8 @@ import pytest
 from probaff._checks import check_output_file
 from probaff._io import atomic_write_bytes
 from probaff.errors import InputError
-from probaff.eval.map_figures import plot_step_curves
 from probaff.eval.tables import write_csv
+from probaff.experiments.affordance_map.figures import plot_step_curves
 
 
 def test_check_output_file(tmp_path):

@@ -16,8 +16,9 @@ import numpy as np
 from probaff._checks import check_count, check_finite, check_positive, check_shape
 from probaff.data.schema import PushDataset
 from probaff.errors import InputError
-from probaff.sim.config import ObjectSpec, TabletopSpec
 from probaff.sim.sensing import object_cloud
+from probaff.sim.specs import ObjectSpec
+from probaff.sim.tabletop_config import TabletopSpec
 
 __all__ = ["QUERY_ARRAYS", "PushInputs", "PushQueries", "world_meta"]
 

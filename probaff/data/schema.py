@@ -55,11 +55,11 @@ the clouds are sensed around the exact start poses with their own noise.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
+from probaff.data.dataset import ArrayDataset
 from probaff.errors import DatasetError
 
 __all__ = [
@@ -125,8 +125,7 @@ def schema_version_for(pose_noise: bool) -> int:
     return SCHEMA_VERSION if pose_noise else 1
 
 
-@dataclass
-class PushDataset:
+class PushDataset(ArrayDataset):
     """Pushes of one scene template, in memory.
 
     Attributes:
@@ -135,38 +134,19 @@ class PushDataset:
         meta: Scene name, seed, world settings and generation options.
     """
 
-    arrays: dict[str, np.ndarray]
-    object_names: list[str]
-    meta: dict[str, Any] = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        self.validate()
+    KIND = "push"
+    REQUIRED = REQUIRED_ARRAYS
+    OPTIONAL = OPTIONAL_ARRAYS
+    GROUPS: ClassVar[dict[str, tuple[str, ...]]] = {"ground-truth": GROUND_TRUTH_ARRAYS}
+    ROWS = "effect"
 
     def validate(self) -> None:
-        """Check names, dtypes and that every array has the same number of rows.
+        """Check names, dtypes, row counts, the ground-truth shapes and the object ids.
 
         Raises:
             DatasetError: Naming the offending array.
         """
-        missing = set(REQUIRED_ARRAYS) - set(self.arrays)
-        if missing:
-            raise DatasetError(f"push dataset is missing arrays {sorted(missing)}.")
-        unknown = set(self.arrays) - set(REQUIRED_ARRAYS) - set(OPTIONAL_ARRAYS)
-        if unknown:
-            raise DatasetError(f"push dataset has unknown arrays {sorted(unknown)}.")
-        n = len(self.arrays["effect"])
-        for name, arr in self.arrays.items():
-            want = {**REQUIRED_ARRAYS, **OPTIONAL_ARRAYS}[name]
-            if arr.dtype != np.dtype(want):
-                raise DatasetError(f"array {name!r} has dtype {arr.dtype}, expected {want}.")
-            if len(arr) != n:
-                raise DatasetError(f"array {name!r} has {len(arr)} rows, expected {n}.")
-        truth = [name in self.arrays for name in GROUND_TRUTH_ARRAYS]
-        if any(truth) and not all(truth):
-            raise DatasetError(
-                f"push dataset holds only some of the ground-truth arrays {GROUND_TRUTH_ARRAYS}; "
-                "they are stored all together or not at all."
-            )
+        super().validate()
         for name in (n for n in GROUND_TRUTH_ARRAYS if n in self.arrays):
             observed = self.arrays[name.removeprefix("true_")]
             if self.arrays[name].shape != observed.shape:
@@ -179,11 +159,10 @@ class PushDataset:
         if ids.size and (ids.min() < 0 or ids.max() >= len(self.object_names)):
             raise DatasetError("object_ids index outside object_names.")
 
-    def __len__(self) -> int:
-        return len(self.arrays["effect"])
-
-    def __getitem__(self, name: str) -> np.ndarray:
-        return self.arrays[name]
+    @property
+    def rows_label(self) -> str:
+        """``"pushes"``."""
+        return "pushes"
 
     @property
     def n_objects(self) -> int:
@@ -209,21 +188,12 @@ class PushDataset:
         """
         return self.arrays["true_effect"] if self.has_pose_noise else self.arrays["effect"]
 
-    def objects_of(self, i: int) -> list[str]:
-        """Catalogue names of the objects of push `i`."""
-        return [self.object_names[j] for j in self.arrays["object_ids"][i]]
-
-    @staticmethod
-    def concatenate(parts: list[PushDataset]) -> PushDataset:
-        """Join datasets of the same scene row-wise (metadata from the first)."""
-        if not parts:
-            raise DatasetError("cannot concatenate zero datasets.")
-        names = parts[0].object_names
-        if any(p.object_names != names for p in parts):
-            raise DatasetError("datasets with different object vocabularies cannot be joined.")
-        keys = parts[0].arrays.keys()
-        return PushDataset(
-            {k: np.concatenate([p.arrays[k] for p in parts]) for k in keys},
-            list(names),
-            dict(parts[0].meta),
+    def check_plan(self, plan: dict[str, Any]) -> str | None:
+        """What contradicts the plan's pose noise: the ground-truth arrays come with it."""
+        noisy = plan.get("pose_noise") is not None
+        if self.has_pose_noise == noisy:
+            return None
+        return (
+            f"{'lack' if noisy else 'hold'} the ground-truth arrays but its manifest says pose "
+            f"noise is {'on' if noisy else 'off'}"
         )

@@ -18,10 +18,10 @@ import numpy as np
 
 from probaff._checks import check_count, check_positive
 from probaff._threads import torch_threads
-from probaff.data.skill_schema import NO_OBJECT
+from probaff.data.config import GenerateConfig, base_plan
+from probaff.data.skill_schema import NO_OBJECT, SKILL_SCHEMA_VERSION
 from probaff.errors import DatasetError
 from probaff.sim.arm import load_arm
-from probaff.sim.config import load_catalogue
 from probaff.sim.runner import trapezoid_progress
 from probaff.sim.sideview import SideViewScene
 from probaff.sim.sideview_config import (
@@ -31,6 +31,7 @@ from probaff.sim.sideview_config import (
     load_sideview_scene,
 )
 from probaff.sim.skills import SkillOutcome, run_sampled
+from probaff.sim.specs import load_catalogue
 
 __all__ = [
     "SkillDimensions",
@@ -38,8 +39,11 @@ __all__ = [
     "outcomes_to_arrays",
     "resample_times",
     "skill_dimensions",
+    "skill_manifest",
     "skill_meta",
     "skill_object_names",
+    "skill_plan",
+    "skill_shard",
 ]
 
 _TIME_TOL = 1e-9  # s; a skill's end this close to a grid time is that grid time
@@ -333,3 +337,48 @@ def make_skill_shard(
     with torch_threads(1):
         samples = run_sampled(spec, rows, rng, world)
     return outcomes_to_arrays(samples, skill_object_names(world), dims, world, rate, trajectories)
+
+
+def _record_rate(config: GenerateConfig) -> float:
+    """The record rate of a skill dataset: the config's, else the side-view world's (Hz)."""
+    if config.record_rate is not None:
+        return float(config.record_rate)
+    return load_sideview().physics.record_rate
+
+
+def skill_shard(
+    config: GenerateConfig, rows: int, seeds: np.random.SeedSequence
+) -> dict[str, np.ndarray]:
+    """The `rows` skills of one shard, drawn and simulated from its seeds' first child.
+
+    Args:
+        config: The dataset's generation config (a side-view scene).
+        rows: Skills in the shard.
+        seeds: The shard's seed sequence.
+
+    Returns:
+        The shard's arrays (`probaff.data.skill_schema`).
+    """
+    return make_skill_shard(
+        config.scene,
+        rows,
+        np.random.default_rng(seeds.spawn(1)[0]),
+        record_rate=config.record_rate,
+        trajectories=config.trajectories,
+    )
+
+
+def skill_plan(config: GenerateConfig) -> dict[str, Any]:
+    """The manifest's record of a skill `config`: `base_plan` and the resolved ``record_rate``."""
+    return {**base_plan(config), "record_rate": _record_rate(config)}
+
+
+def skill_manifest(config: GenerateConfig) -> dict[str, Any]:
+    """The schema version, object names and meta of a new skill dataset (validates the scene)."""
+    world = load_sideview()
+    spec = load_sideview_scene(config.scene)
+    return {
+        "schema_version": SKILL_SCHEMA_VERSION,
+        "object_names": skill_object_names(world),
+        "meta": skill_meta(spec, world, _record_rate(config)),
+    }

@@ -69,11 +69,12 @@ The optional trajectory arrays are stored all together or not at all.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, ClassVar
 
 import numpy as np
 
+from probaff.data.dataset import ArrayDataset
 from probaff.errors import DatasetError
 
 __all__ = [
@@ -130,8 +131,7 @@ _PER_STEP = {
 }
 
 
-@dataclass
-class SkillDataset:
+class SkillDataset(ArrayDataset):
     """Picks or places of one side-view scene template, in memory.
 
     Attributes:
@@ -141,12 +141,11 @@ class SkillDataset:
         meta: Scene name, skill, seed, world settings and generation options.
     """
 
-    arrays: dict[str, np.ndarray]
-    object_names: list[str]
-    meta: dict[str, Any] = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        self.validate()
+    KIND = "skill"
+    REQUIRED = SKILL_ARRAYS
+    OPTIONAL = SKILL_TRAJECTORY_ARRAYS
+    GROUPS: ClassVar[dict[str, tuple[str, ...]]] = {"trajectory": tuple(SKILL_TRAJECTORY_ARRAYS)}
+    ROWS = "object_ids"
 
     def validate(self) -> None:
         """Check names, dtypes, row counts, shapes and indices.
@@ -154,29 +153,32 @@ class SkillDataset:
         Raises:
             DatasetError: Naming the offending array.
         """
-        arrays = self.arrays
-        missing = set(SKILL_ARRAYS) - set(arrays)
-        if missing:
-            raise DatasetError(f"skill dataset is missing arrays {sorted(missing)}.")
-        unknown = set(arrays) - set(SKILL_ARRAYS) - set(SKILL_TRAJECTORY_ARRAYS)
-        if unknown:
-            raise DatasetError(f"skill dataset has unknown arrays {sorted(unknown)}.")
-        traj = [name in arrays for name in SKILL_TRAJECTORY_ARRAYS]
-        if any(traj) and not all(traj):
-            raise DatasetError(
-                "skill dataset holds only some of the trajectory arrays "
-                f"{sorted(SKILL_TRAJECTORY_ARRAYS)}; they are stored all together or not at all."
-            )
-        ids = arrays["object_ids"]
-        if ids.ndim != 2:
+        ids = self.arrays.get("object_ids")
+        if ids is not None and ids.ndim != 2:
             raise DatasetError(f"array 'object_ids' has shape {ids.shape}, expected (N, K).")
+        super().validate()
+        arrays = self.arrays
+        ids = arrays["object_ids"]
         n, k = ids.shape
-        for name, arr in arrays.items():
-            want = {**SKILL_ARRAYS, **SKILL_TRAJECTORY_ARRAYS}[name]
-            if arr.dtype != np.dtype(want):
-                raise DatasetError(f"array {name!r} has dtype {arr.dtype}, expected {want}.")
-            if len(arr) != n:
-                raise DatasetError(f"array {name!r} has {len(arr)} rows, expected {n}.")
+        self._check_shapes(n, k)
+        q = arrays["q_waypoints"]
+        if q.ndim != 3:
+            raise DatasetError(f"array 'q_waypoints' has shape {q.shape}, expected (N, W, D).")
+        if ids.size and (ids.min() < NO_OBJECT or ids.max() >= len(self.object_names)):
+            raise DatasetError("object_ids index outside object_names (or below -1, no object).")
+        rows = np.arange(n)
+        target, support = arrays["target"].astype(int), arrays["support"].astype(int)
+        if n and (target.min() < 0 or target.max() >= k or np.any(ids[rows, target] < 0)):
+            raise DatasetError("target must be the slot of a present object (0..K-1).")
+        if n and (support.min() < -1 or support.max() >= k):
+            raise DatasetError("support must be -1 (the table) or an object slot (0..K-1).")
+        self._check_lengths("n_waypoints", q.shape[1])
+        if self.has_trajectories:
+            self._check_lengths("traj_length", arrays["traj_time"].shape[1])
+
+    def _check_shapes(self, n: int, k: int) -> None:
+        """Raise `DatasetError` for an array whose shape does not fit N rows and K slots."""
+        arrays = self.arrays
         shapes: dict[str, tuple[int, ...]] = {
             **{name: (n, k, *tail) for name, tail in _PER_OBJECT.items()},
             **{name: (n, *tail) for name, tail in _PER_SAMPLE.items()},
@@ -194,31 +196,16 @@ class SkillDataset:
                 raise DatasetError(
                     f"array {name!r} has shape {arrays[name].shape}, expected {shape}."
                 )
-        q = arrays["q_waypoints"]
-        if q.ndim != 3:
-            raise DatasetError(f"array 'q_waypoints' has shape {q.shape}, expected (N, W, D).")
-        if ids.size and (ids.min() < NO_OBJECT or ids.max() >= len(self.object_names)):
-            raise DatasetError("object_ids index outside object_names (or below -1, no object).")
-        rows = np.arange(n)
-        target, support = arrays["target"].astype(int), arrays["support"].astype(int)
-        if n and (target.min() < 0 or target.max() >= k or np.any(ids[rows, target] < 0)):
-            raise DatasetError("target must be the slot of a present object (0..K-1).")
-        if n and (support.min() < -1 or support.max() >= k):
-            raise DatasetError("support must be -1 (the table) or an object slot (0..K-1).")
-        self._check_lengths("n_waypoints", q.shape[1])
-        if self.has_trajectories:
-            self._check_lengths("traj_length", arrays["traj_time"].shape[1])
 
     def _check_lengths(self, name: str, most: int) -> None:
         lengths = self.arrays[name]
         if lengths.size and (lengths.min() < 1 or lengths.max() > most):
             raise DatasetError(f"array {name!r} must lie in 1..{most}.")
 
-    def __len__(self) -> int:
-        return len(self.arrays["object_ids"])
-
-    def __getitem__(self, name: str) -> np.ndarray:
-        return self.arrays[name]
+    @property
+    def rows_label(self) -> str:
+        """The skill's name, plural: ``"picks"`` or ``"places"``."""
+        return f"{self.skill or 'skill'}s"
 
     @property
     def n_objects(self) -> int:
@@ -245,22 +232,20 @@ class SkillDataset:
         """``"pick"`` or ``"place"``, from ``meta`` (empty if it is not recorded)."""
         return str(self.meta.get("skill", ""))
 
-    def objects_of(self, i: int) -> list[str]:
-        """Catalogue names of the objects present in row `i`, in slot order."""
-        return [self.object_names[j] for j in self.arrays["object_ids"][i] if j != NO_OBJECT]
+    def check_plan(self, plan: dict[str, Any]) -> str | None:
+        """What contradicts the plan's ``trajectories``: the trajectory arrays come with it."""
+        wanted = bool(plan.get("trajectories"))
+        if self.has_trajectories == wanted:
+            return None
+        return (
+            f"{'hold' if self.has_trajectories else 'lack'} the trajectory arrays but its "
+            f"manifest says trajectories are {'on' if wanted else 'off'}"
+        )
 
-    @staticmethod
-    def concatenate(parts: list[SkillDataset]) -> SkillDataset:
-        """Join datasets of the same scene row-wise (metadata from the first).
-
-        Raises:
-            DatasetError: For no parts, other vocabularies, other arrays or other K, W or T.
-        """
-        if not parts:
-            raise DatasetError("cannot concatenate zero datasets.")
-        names = parts[0].object_names
-        if any(p.object_names != names for p in parts):
-            raise DatasetError("datasets with different object vocabularies cannot be joined.")
+    @classmethod
+    def check_joinable(cls, parts: Sequence[ArrayDataset]) -> None:
+        """Raise `DatasetError` unless the parts share vocabularies, arrays and K, W and T."""
+        super().check_joinable(parts)
         keys = parts[0].arrays.keys()
         if any(p.arrays.keys() != keys for p in parts):
             raise DatasetError(
@@ -274,8 +259,3 @@ class SkillDataset:
                     f"array {name!r} has per-row shapes {sorted(tails)} in the parts; only "
                     "datasets of one scene template and record rate can be joined."
                 )
-        return SkillDataset(
-            {k: np.concatenate([p.arrays[k] for p in parts]) for k in keys},
-            list(names),
-            dict(parts[0].meta),
-        )

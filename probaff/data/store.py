@@ -28,6 +28,10 @@ A manifest without ``kind`` is a push dataset, so push datasets are written exac
 ``format`` stays ``probaff-push-dataset`` for both kinds, so an earlier release refuses a skill
 dataset by its version number. `load_dataset` reads push datasets and `load_skill_dataset`
 skill datasets; each refuses the other kind, naming the function to use.
+
+The kinds and the versions this probaff reads are those registered in `probaff.data.kinds`
+(`probaff.data.kinds.readable_versions`); `load_any_dataset` reads a dataset of any of them into
+the kind's dataset class.
 """
 
 from __future__ import annotations
@@ -38,21 +42,22 @@ import json
 import os
 import warnings
 import zipfile
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 import numpy as np
 
 from probaff._io import atomic_write_bytes
-from probaff.data.schema import READABLE_SCHEMA_VERSIONS, PushDataset
-from probaff.data.skill_schema import SKILL_SCHEMA_VERSION, SkillDataset
+from probaff.data.dataset import ArrayDataset
+from probaff.data.kinds import DEFAULT_KIND, dataset_kind, readable_versions
+from probaff.data.schema import PushDataset
+from probaff.data.skill_schema import SkillDataset
 from probaff.errors import DatasetError
 
 __all__ = [
     "FORMAT_NAME",
-    "READABLE_VERSIONS",
     "count_rows",
+    "load_any_dataset",
     "load_dataset",
     "load_skill_dataset",
     "manifest_kind",
@@ -64,14 +69,7 @@ __all__ = [
 ]
 
 FORMAT_NAME = "probaff-push-dataset"
-READABLE_VERSIONS: dict[str, tuple[int, ...]] = {
-    "push": READABLE_SCHEMA_VERSIONS,
-    "skill": (SKILL_SCHEMA_VERSION,),
-}
-"""Dataset kinds this probaff reads, and the schema versions of each."""
 _EPOCH = (1980, 1, 1, 0, 0, 0)
-_LOADERS = {"push": "load_dataset", "skill": "load_skill_dataset"}
-_D = TypeVar("_D", PushDataset, SkillDataset)
 
 
 def _readable() -> str:
@@ -79,13 +77,13 @@ def _readable() -> str:
     return " and ".join(
         f"{kind} datasets of schema version{'s' if len(v) > 1 else ''} "
         + ", ".join(str(x) for x in v)
-        for kind, v in READABLE_VERSIONS.items()
+        for kind, v in readable_versions().items()
     )
 
 
 def manifest_kind(manifest: dict[str, Any]) -> str:
-    """The kind of dataset a manifest describes: its ``kind``, ``"push"`` when it has none."""
-    return str(manifest.get("kind", "push"))
+    """The kind of dataset a manifest describes: its ``kind``, `DEFAULT_KIND` when it has none."""
+    return str(manifest.get("kind", DEFAULT_KIND))
 
 
 def count_rows(arrays: dict[str, np.ndarray]) -> int:
@@ -220,14 +218,15 @@ def read_manifest(root: Path) -> dict[str, Any]:
     if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
         raise DatasetError(f"{path} does not describe a {FORMAT_NAME}.")
     version = manifest.get("schema_version")
-    kind = manifest.get("kind", "push")
-    if not isinstance(kind, str) or kind not in READABLE_VERSIONS:
+    kind = manifest.get("kind", DEFAULT_KIND)
+    readable = readable_versions()
+    if not isinstance(kind, str) or kind not in readable:
         raise DatasetError(
             f"{root} holds a dataset of kind {kind!r}, but this probaff reads {_readable()}; "
             "read it with the probaff release that wrote it, or regenerate it with "
             "`probaff generate`."
         )
-    if version not in READABLE_VERSIONS[kind]:
+    if version not in readable[kind]:
         raise DatasetError(
             f"{root} is a {kind} dataset of schema version {version}, but this probaff reads "
             f"{_readable()}; read it with the probaff release that wrote it, or regenerate it "
@@ -274,10 +273,8 @@ def _layout_problem(manifest: dict[str, Any]) -> str | None:
     return None
 
 
-def _load_parts(
-    root: Path, manifest: dict[str, Any], make: Callable[[dict[str, np.ndarray]], _D]
-) -> list[_D]:
-    """Every shard of a complete dataset, verified and wrapped by `make`.
+def _load_parts(root: Path, manifest: dict[str, Any], make: type[ArrayDataset]) -> list[Any]:
+    """Every shard of a complete dataset, verified and wrapped by the dataset class `make`.
 
     Raises:
         DatasetError: If a shard is missing, corrupt or has another row count.
@@ -299,8 +296,9 @@ def _load_parts(
             f"manifest.json (first: {unchecked[0]}), so damage to them may go unnoticed; rerun "
             "`probaff generate ... --resume` to recompute them with checksums.",
             UserWarning,
-            stacklevel=3,
+            stacklevel=4,
         )
+    names, meta = list(manifest["object_names"]), manifest["meta"]
     parts = []
     for i in range(n_shards):
         entry = shards[f"{i:05d}"]
@@ -312,7 +310,7 @@ def _load_parts(
                 f"{entry['rows']}; delete it and rerun `probaff generate ... --resume`."
             )
         try:
-            parts.append(make(arrays))
+            parts.append(make(arrays, names, meta))
         except DatasetError as exc:
             raise DatasetError(
                 f"shard {shard_path(root, i)} does not hold a valid dataset ({exc}); delete it "
@@ -321,17 +319,49 @@ def _load_parts(
     return parts
 
 
-def _read_kind(root: Path, kind: str) -> dict[str, Any]:
-    """`read_manifest`, refusing a dataset of another kind with the function that reads it."""
+def _load(root: str | os.PathLike[str], kind: str | None) -> Any:
+    """Load a complete dataset of `kind` (any registered kind for ``None``), shard by shard.
+
+    Raises:
+        DatasetError: If the dataset is incomplete, corrupt, of another version, of another
+            kind than `kind` (naming the function that loads it), or its shards contradict
+            its manifest's plan.
+    """
+    root = Path(root)
     manifest = read_manifest(root)
     found = manifest_kind(manifest)
-    if found != kind:
+    if kind is not None and found != kind:
         scene = manifest.get("plan", {}).get("scene")
         raise DatasetError(
             f"{root} is a {found} dataset (scene {scene!r}), not a {kind} dataset; load it with "
-            f"probaff.data.{_LOADERS[found]}."
+            f"probaff.data.{dataset_kind(found).loader}."
         )
-    return manifest
+    dtype = dataset_kind(found).dataset_type
+    ds = dtype.concatenate(_load_parts(root, manifest, dtype))
+    plan = manifest["plan"]
+    problem = ds.check_plan(plan)
+    if problem:
+        raise DatasetError(
+            f"the shards of {root} {problem}; regenerate the dataset with `probaff generate`."
+        )
+    ds.meta = {**manifest["meta"], **plan}
+    return ds
+
+
+def load_any_dataset(root: str | os.PathLike[str]) -> Any:
+    """Load a complete dataset of any registered kind, verifying every shard.
+
+    Args:
+        root: Dataset folder written by `probaff generate`.
+
+    Returns:
+        The dataset of the kind its manifest names (a `PushDataset`, a `SkillDataset`, ...).
+
+    Raises:
+        DatasetError: If the dataset is incomplete, corrupt, of a kind or version this probaff
+            does not read, or its shards contradict its manifest.
+    """
+    return _load(root, None)
 
 
 def load_dataset(root: str | os.PathLike[str]) -> PushDataset:
@@ -344,21 +374,7 @@ def load_dataset(root: str | os.PathLike[str]) -> PushDataset:
         DatasetError: If the dataset is incomplete, corrupt, of another version, or a skill
             dataset (read those with `load_skill_dataset`).
     """
-    root = Path(root)
-    manifest = _read_kind(root, "push")
-    plan = manifest["plan"]
-    names, meta = list(manifest["object_names"]), manifest["meta"]
-    ds = PushDataset.concatenate(
-        _load_parts(root, manifest, lambda arrays: PushDataset(arrays, names, meta))
-    )
-    noisy = plan.get("pose_noise") is not None
-    if ds.has_pose_noise != noisy:
-        raise DatasetError(
-            f"the shards of {root} {'lack' if noisy else 'hold'} the ground-truth arrays but its "
-            f"manifest says pose noise is {'on' if noisy else 'off'}; regenerate the dataset "
-            "with `probaff generate`."
-        )
-    ds.meta = {**manifest["meta"], **plan}
+    ds: PushDataset = _load(root, "push")
     return ds
 
 
@@ -372,19 +388,5 @@ def load_skill_dataset(root: str | os.PathLike[str]) -> SkillDataset:
         DatasetError: If the dataset is incomplete, corrupt, of another version, or a push
             dataset (read those with `load_dataset`).
     """
-    root = Path(root)
-    manifest = _read_kind(root, "skill")
-    plan = manifest["plan"]
-    names, meta = list(manifest["object_names"]), manifest["meta"]
-    ds = SkillDataset.concatenate(
-        _load_parts(root, manifest, lambda arrays: SkillDataset(arrays, names, meta))
-    )
-    if ds.has_trajectories != bool(plan.get("trajectories")):
-        raise DatasetError(
-            f"the shards of {root} {'hold' if ds.has_trajectories else 'lack'} the trajectory "
-            f"arrays but its manifest says trajectories are "
-            f"{'on' if plan.get('trajectories') else 'off'}; regenerate the dataset with "
-            "`probaff generate`."
-        )
-    ds.meta = {**manifest["meta"], **plan}
+    ds: SkillDataset = _load(root, "skill")
     return ds

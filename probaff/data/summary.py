@@ -10,7 +10,13 @@ import numpy as np
 from probaff.data.schema import PushDataset
 from probaff.data.skill_schema import SkillDataset
 
-__all__ = ["MOVED_THRESHOLD", "SKILL_OUTCOMES", "summarize", "summarize_skills"]
+__all__ = [
+    "MOVED_THRESHOLD",
+    "SKILL_OUTCOMES",
+    "summarize",
+    "summarize_pushes",
+    "summarize_skills",
+]
 
 MOVED_THRESHOLD = 0.01  # an object "moved" when its centre travelled more than 1 cm
 SKILL_OUTCOMES: dict[str, tuple[str, ...]] = {
@@ -21,10 +27,18 @@ SKILL_OUTCOMES: dict[str, tuple[str, ...]] = {
 
 
 def summarize(ds: PushDataset | SkillDataset) -> dict[str, Any]:
-    """Counts and effect statistics per object slot (o1 is the pushed object).
+    """The summary of a push dataset (`summarize_pushes`) or a skill dataset (`summarize_skills`).
 
-    A `SkillDataset` is summarised by `summarize_skills`; the rest of this docstring
-    describes push datasets.
+    Args:
+        ds: The dataset.
+    """
+    if isinstance(ds, SkillDataset):
+        return summarize_skills(ds)
+    return summarize_pushes(ds)
+
+
+def summarize_pushes(ds: PushDataset) -> dict[str, Any]:
+    """Counts and effect statistics per object slot (o1 is the pushed object).
 
     Every statistic describes what the simulator did: the mean |effect| and the "moved"
     fractions use the exact effect (`PushDataset.true_effect`), never a noisy observation, and
@@ -42,8 +56,6 @@ def summarize(ds: PushDataset | SkillDataset) -> dict[str, Any]:
         fraction in which it fell off the table, contact rates and, with pose noise,
         ``observed_effect_error_std`` (m, m, rad).
     """
-    if isinstance(ds, SkillDataset):
-        return summarize_skills(ds)
     eff = ds.true_effect
     moved = np.hypot(eff[..., 0], eff[..., 1]) > MOVED_THRESHOLD
     names = Counter(n for i in range(len(ds)) for n in ds.objects_of(i))

@@ -5,10 +5,10 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import Any
 
-__all__ = ["config_fingerprint"]
+__all__ = ["config_fingerprint", "settings_fingerprint"]
 
 
 def _plain(value: Any) -> Any:
@@ -24,6 +24,22 @@ def _plain(value: Any) -> Any:
     if isinstance(value, (str, int, float, bool)) or value is None:
         return value
     return repr(value)
+
+
+def settings_fingerprint(settings: Mapping[str, Any], *, version: int = 1, length: int = 10) -> str:
+    """Short hash of named settings (plain values, dataclasses, mappings, sequences).
+
+    Args:
+        settings: Setting name -> value.
+        version: Version of the code that computes the results.
+        length: Number of hexadecimal characters returned.
+
+    Returns:
+        The first `length` characters of the SHA-256 of the canonical JSON of `settings`.
+    """
+    fields = {str(k): _plain(v) for k, v in settings.items()}
+    text = json.dumps({"version": version, "fields": fields}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:length]
 
 
 def config_fingerprint(
@@ -45,7 +61,7 @@ def config_fingerprint(
         length: Number of hexadecimal characters returned.
 
     Returns:
-        The first `length` characters of the SHA-256 of the canonical JSON of the fields.
+        `settings_fingerprint` of the fields that are not excluded.
 
     Raises:
         TypeError: If `config` is not a dataclass instance.
@@ -53,10 +69,6 @@ def config_fingerprint(
     if not dataclasses.is_dataclass(config) or isinstance(config, type):
         raise TypeError(f"config must be a dataclass instance, got {type(config).__name__}.")
     skip = set(exclude)
-    fields = {
-        f.name: _plain(getattr(config, f.name))
-        for f in dataclasses.fields(config)
-        if f.name not in skip
-    }
-    text = json.dumps({"version": version, "fields": fields}, sort_keys=True)
-    return hashlib.sha256(text.encode()).hexdigest()[:length]
+    fields = {f.name: getattr(config, f.name) for f in dataclasses.fields(config)}
+    kept = {k: v for k, v in fields.items() if k not in skip}
+    return settings_fingerprint(kept, version=version, length=length)

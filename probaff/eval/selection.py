@@ -19,7 +19,7 @@ from probaff._checks import check_count
 from probaff.errors import InputError
 from probaff.eval.metrics import nlpd, rmse
 from probaff.models import MixtureOfGPExperts, fit_em
-from probaff.models._tensors import as_matrix
+from probaff.models.tensors import as_matrix
 
 __all__ = ["ExpertSelection", "select_n_experts"]
 

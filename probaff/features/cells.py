@@ -166,6 +166,42 @@ def _sub_voxel_normals(
     return hist / np.maximum(total, 1)
 
 
+def _neighbours(
+    fractions: np.ndarray,
+    counts: np.ndarray,
+    v_cell: np.ndarray,
+    v_layer: np.ndarray,
+    v_counts: np.ndarray,
+) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Per direction, the neighbouring cell's state fractions and the voxel pair's balance.
+
+    Args:
+        fractions: (rows, cols, 3) the grid's free / occupied / unknown fractions per cell.
+        counts: (rows, cols, layers) points per voxel.
+        v_cell: (V, 2) (row, col) of each described voxel.
+        v_layer: (V,) its layer.
+        v_counts: (V,) its points.
+
+    Returns:
+        ``(access, pair)``: for each of `DIRECTION_OFFSETS`, the (V, 3) fractions of the
+        neighbouring cell (a cell beyond the map counts as occupied: a wall) and the (V,)
+        share ``n_nb / (n_nb + n)`` of the neighbouring voxel's points (1 beyond the map).
+    """
+    rows, cols = fractions.shape[:2]
+    walls = np.pad(fractions, ((1, 1), (1, 1), (0, 0)))
+    walls[[0, -1], :, 1] = 1.0
+    walls[:, [0, -1], 1] = 1.0
+    padded_counts = np.pad(counts.astype(float), ((1, 1), (1, 1), (0, 0)))
+    r1, c1 = v_cell[:, 0] + 1, v_cell[:, 1] + 1
+    access, pair = [], []
+    for dr, dc in DIRECTION_OFFSETS:
+        access.append(walls[r1 + dr, c1 + dc])
+        nb = padded_counts[r1 + dr, c1 + dc, v_layer]
+        beyond_wall = ~((r1 + dr >= 1) & (r1 + dr <= rows) & (c1 + dc >= 1) & (c1 + dc <= cols))
+        pair.append(np.where(beyond_wall, 1.0, nb / (nb + v_counts)))
+    return access, pair
+
+
 def cell_features(
     points: np.ndarray,
     grid: OccupancyGrid,
@@ -232,17 +268,7 @@ def cell_features(
     starts = np.concatenate([[0], np.cumsum(g.counts)[:-1]])
     span = np.maximum.reduceat(pts[order], starts, 0) - np.minimum.reduceat(pts[order], starts, 0)
 
-    walls = np.pad(fractions, ((1, 1), (1, 1), (0, 0)))
-    walls[[0, -1], :, 1] = 1.0
-    walls[:, [0, -1], 1] = 1.0
-    padded_counts = np.pad(counts.astype(float), ((1, 1), (1, 1), (0, 0)))
-    r1, c1 = v_cell[:, 0] + 1, v_cell[:, 1] + 1
-    access, pair = [], []
-    for dr, dc in DIRECTION_OFFSETS:
-        access.append(walls[r1 + dr, c1 + dc])
-        nb = padded_counts[r1 + dr, c1 + dc, v_layer]
-        beyond_wall = ~((r1 + dr >= 1) & (r1 + dr <= rows) & (c1 + dc >= 1) & (c1 + dc <= cols))
-        pair.append(np.where(beyond_wall, 1.0, nb / (nb + g.counts)))
+    access, pair = _neighbours(fractions, counts, v_cell, v_layer, g.counts)
 
     hmp = [
         _sub_voxel_normals(

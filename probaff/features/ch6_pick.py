@@ -32,7 +32,7 @@ from probaff.data.skill_schema import SkillDataset
 from probaff.errors import InputError
 from probaff.features.action_frame import effect_in_action_frame, sideview_transform
 from probaff.features.ch6_push import _check_finite_rows
-from probaff.features.chain_geometry import Ch6Geometry, resolve_geometry
+from probaff.features.chain_geometry import Ch6Geometry, InteractionRows, resolve_geometry
 from probaff.sim.sideview_config import SideViewSpec, load_sideview
 
 __all__ = ["SIDEVIEW_EFFECT_COLUMNS", "PickInteractions", "pick_interactions"]
@@ -42,7 +42,7 @@ SIDEVIEW_EFFECT_COLUMNS = (1, 2, 3)
 
 
 @dataclass(frozen=True)
-class PickInteractions:
+class PickInteractions(InteractionRows):
     """Interaction rows of a pick dataset, one per pick.
 
     Attributes:
@@ -56,16 +56,8 @@ class PickInteractions:
             from.
     """
 
-    features: np.ndarray
-    touches: np.ndarray
-    T_world_action: np.ndarray
-    effect: np.ndarray
-    reaction: np.ndarray
     lifted: np.ndarray
     T_world_before: np.ndarray
-
-    def __len__(self) -> int:
-        return int(self.lifted.shape[0])
 
 
 def _fingers(

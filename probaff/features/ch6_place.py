@@ -43,7 +43,7 @@ from probaff.data.skill_schema import SkillDataset
 from probaff.errors import InputError
 from probaff.features.action_frame import effect_in_action_frame, sideview_transform
 from probaff.features.ch6_pick import _check_skill_arrays, _tcp_reaction
-from probaff.features.chain_geometry import Ch6Geometry, resolve_geometry
+from probaff.features.chain_geometry import Ch6Geometry, InteractionRows, resolve_geometry
 from probaff.sim.sideview_config import SideViewSpec, load_sideview
 
 __all__ = ["TABLE_SLAB_THICKNESS", "PlaceInteractions", "place_interactions"]
@@ -53,7 +53,7 @@ TABLE_SLAB_THICKNESS = 0.02
 
 
 @dataclass(frozen=True)
-class PlaceInteractions:
+class PlaceInteractions(InteractionRows):
     """Interaction rows of a place dataset, one per place.
 
     Attributes:
@@ -67,16 +67,8 @@ class PlaceInteractions:
         T_world_before: (N, 4, 4) the held cube's release pose, which `effect` starts from.
     """
 
-    features: np.ndarray
-    touches: np.ndarray
-    T_world_action: np.ndarray
-    effect: np.ndarray
-    reaction: np.ndarray
     placed: np.ndarray
     T_world_before: np.ndarray
-
-    def __len__(self) -> int:
-        return int(self.placed.shape[0])
 
 
 def _support_boxes(

@@ -38,8 +38,8 @@ from probaff.data.schema import PushDataset
 from probaff.errors import InputError
 from probaff.features._common import FINGER_LENGTH, meta_float
 from probaff.features.action_frame import effect_in_action_frame, tabletop_transform
-from probaff.features.chain_geometry import Ch6Geometry, resolve_geometry
-from probaff.sim.config import load_catalogue
+from probaff.features.chain_geometry import Ch6Geometry, InteractionRows, resolve_geometry
+from probaff.sim.specs import load_catalogue
 
 __all__ = ["PAIR_KINDS", "PLANAR_EFFECT_COLUMNS", "PushInteractions", "push_interactions"]
 
@@ -51,7 +51,7 @@ PLANAR_EFFECT_COLUMNS = (0, 1, 5)
 
 
 @dataclass(frozen=True)
-class PushInteractions:
+class PushInteractions(InteractionRows):
     """Interaction rows of a push dataset.
 
     Attributes:
@@ -66,17 +66,9 @@ class PushInteractions:
         target: (n,) the target object's index.
     """
 
-    features: np.ndarray
-    touches: np.ndarray
-    T_world_action: np.ndarray
-    effect: np.ndarray
-    reaction: np.ndarray
     push: np.ndarray
     actor: np.ndarray
     target: np.ndarray
-
-    def __len__(self) -> int:
-        return int(self.push.shape[0])
 
 
 def _check_finite_rows(name: str, values: np.ndarray, length: np.ndarray | None = None) -> None:

@@ -24,6 +24,7 @@ keeps that margin with about half the points of a 1 cm grid; the pair search of
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -40,12 +41,38 @@ from probaff.features.ch6 import (
 if TYPE_CHECKING:
     from probaff.models.modular import InteractionGeometry
 
-__all__ = ["MOTION_COLUMNS", "Ch6Geometry", "resolve_geometry"]
+__all__ = ["MOTION_COLUMNS", "Ch6Geometry", "InteractionRows", "resolve_geometry"]
 
 _SPACING_PER_CONTACT = 1.25  # default surface spacing in units of r_d (below sqrt(2))
 
 MOTION_COLUMNS: tuple[str, ...] = ("action_length", "travel")
 """Names of the columns `Ch6Geometry` appends to the interaction features, in order."""
+
+
+@dataclass(frozen=True)
+class InteractionRows:
+    """What every skill's interaction rows hold: one row per actor motion towards a target.
+
+    The push, pick and place rows (`probaff.features.ch6_push.PushInteractions`, ...) add
+    their own columns after these.
+
+    Attributes:
+        features: (N, D) the geometry's features of the N rows.
+        touches: (N,) whether the actor touches the target during its action.
+        T_world_action: (N, 4, 4) the action frames A_t.
+        effect: (N, 6) the target's observed displacement in its action frame.
+        reaction: (N, 2) the actor's end-point deviation from its command in the action
+            frame (m).
+    """
+
+    features: np.ndarray
+    touches: np.ndarray
+    T_world_action: np.ndarray
+    effect: np.ndarray
+    reaction: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.features.shape[0])
 
 
 def _check_columns(columns: Any) -> tuple[int, ...]:

@@ -19,12 +19,33 @@ import math
 
 import torch
 
+from probaff.errors import InputError
+
 __all__ = [
+    "check_log_potentials",
     "clamp_fields",
     "damped_update_",
     "ising_messages_",
     "marginals_from_fields",
 ]
+
+
+def check_log_potentials(unary: torch.Tensor) -> torch.Tensor:
+    """Refuse NaN or ``+inf`` log unary potentials; mark variables with no possible state.
+
+    Args:
+        unary: ``(*event_shape, 2)`` log unary potentials.
+
+    Returns:
+        ``event_shape`` bool mask of the variables whose two states both have log potential
+        ``-inf`` (an infeasible model; the caller says where).
+
+    Raises:
+        InputError: If an entry is NaN or ``+inf``.
+    """
+    if bool(torch.isnan(unary).any()) or bool((unary == float("inf")).any()):
+        raise InputError("unary_log contains NaN or +inf; log potentials must be < +inf.")
+    return torch.isinf(unary).all(dim=-1)
 
 
 def clamp_fields(fields: torch.Tensor, evidence: torch.Tensor) -> torch.Tensor:

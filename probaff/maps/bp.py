@@ -18,6 +18,7 @@ import torch
 from probaff._checks import check_finite, check_shape
 from probaff.errors import InputError
 from probaff.maps._kernels import (
+    check_log_potentials,
     clamp_fields,
     damped_update_,
     ising_messages_,
@@ -87,9 +88,7 @@ def ising_form(
     """
     unary = torch.as_tensor(unary_log).detach().to(torch.float64)
     check_shape("unary_log", unary, (None, 2))
-    if bool(torch.isnan(unary).any()) or bool((unary == float("inf")).any()):
-        raise InputError("unary_log contains NaN or +inf; log potentials must be < +inf.")
-    impossible = torch.isinf(unary).all(dim=1)
+    impossible = check_log_potentials(unary)
     if bool(impossible.any()):
         raise InputError(
             f"unary_log gives zero potential to both states of variable(s) "
@@ -136,10 +135,7 @@ def loopy_belief_propagation(
     evidence: Any = None,
     *,
     options: BPOptions | None = None,
-    damping: float | None = None,
-    tol: float | None = None,
-    max_iterations: int | None = None,
-    dtype: torch.dtype | None = None,
+    **overrides: Any,
 ) -> BeliefPropagationResult:
     """Sum-product loopy BP with damped parallel updates, batched over evidence.
 
@@ -153,10 +149,8 @@ def loopy_belief_propagation(
             variable's unary is replaced by the indicator of its value.
         options: Solver settings; None for `BPOptions()` (damping `DEFAULT_DAMPING`, tol
             `DEFAULT_TOL`, `DEFAULT_MAX_ITERATIONS` iterations, float32).
-        damping: Overrides ``options.damping`` when given.
-        tol: Overrides ``options.tol`` when given.
-        max_iterations: Overrides ``options.max_iterations`` when given.
-        dtype: Overrides ``options.dtype`` when given.
+        **overrides: ``damping``, ``tol``, ``max_iterations`` or ``dtype``: override that
+            field of `options` when given (not None).
 
     Returns:
         Result whose ``marginals`` are ``(V, 2)``, or ``(B, V, 2)`` for ``(B, V)`` evidence.
@@ -164,9 +158,7 @@ def loopy_belief_propagation(
     Raises:
         InputError: On malformed potentials, edges, evidence or solver options.
     """
-    opts = resolve_bp_options(
-        options, damping=damping, tol=tol, max_iterations=max_iterations, dtype=dtype
-    )
+    opts = resolve_bp_options(options, **overrides)
     damping, tol, dtype = opts.damping, opts.tol, opts.dtype
     fields, coupling, edge_t = ising_form(unary_log, edges, pairwise_log)
     num_variables, num_edges = fields.shape[0], edge_t.shape[0]

@@ -21,6 +21,7 @@ import torch
 from probaff._checks import check_finite, check_shape
 from probaff.errors import InputError
 from probaff.maps._kernels import (
+    check_log_potentials,
     clamp_fields,
     damped_update_,
     ising_messages_,
@@ -66,16 +67,41 @@ def _grid_beliefs(
     out[:, :, :-1].add_(left)
 
 
+def _grid_fields(
+    unary_log: Any, coupling: float | tuple[Any, Any], evidence: Any, dtype: torch.dtype
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, bool]:
+    """Check a grid problem; clamped fields ``(B, H, W)``, tanh couplings, and batchedness.
+
+    Returns:
+        The half log-odds fields with evidence clamped ``(B, H, W)``, ``tanh(J)`` of the
+        vertical ``(H - 1, W)`` and horizontal ``(H, W - 1)`` edges (`dtype`, on the device
+        of `unary_log`), and whether the evidence was batched.
+    """
+    unary = torch.as_tensor(unary_log).detach()
+    device = unary.device
+    check_shape("unary_log", unary, (None, None, 2))
+    if bool(check_log_potentials(unary).any()):
+        raise InputError("unary_log gives zero potential to both states of some cell.")
+    height, width = int(unary.shape[0]), int(unary.shape[1])
+    if isinstance(coupling, tuple):
+        vertical, horizontal = coupling
+    else:
+        vertical = horizontal = coupling
+    tk_v = _tanh_coupling("vertical coupling", vertical, (height - 1, width))
+    tk_h = _tanh_coupling("horizontal coupling", horizontal, (height, width - 1))
+    tk_v, tk_h = tk_v.to(dtype=dtype, device=device), tk_h.to(dtype=dtype, device=device)
+    ev, batched = as_evidence(evidence, (height, width))
+    fields = (unary[..., 1].to(dtype) - unary[..., 0].to(dtype)) / 2.0
+    return clamp_fields(fields, ev.to(device)), tk_v, tk_h, batched
+
+
 def grid_belief_propagation(
     unary_log: Any,
     coupling: float | tuple[Any, Any],
     evidence: Any = None,
     *,
     options: BPOptions | None = None,
-    damping: float | None = None,
-    tol: float | None = None,
-    max_iterations: int | None = None,
-    dtype: torch.dtype | None = None,
+    **overrides: Any,
 ) -> BeliefPropagationResult:
     """Loopy BP on an H x W grid with Ising factors ``exp(J s_i s_j)`` between 4-neighbours.
 
@@ -89,10 +115,8 @@ def grid_belief_propagation(
             (between ``(r, c)`` and ``(r, c + 1)``); ``|J| <= MAX_COUPLING``.
         evidence: None, ``(H, W)`` or ``(B, H, W)`` values in {-1 (free), 0, 1}.
         options: Solver settings; None for `BPOptions()`.
-        damping: Overrides ``options.damping`` when given.
-        tol: Overrides ``options.tol`` when given.
-        max_iterations: Overrides ``options.max_iterations`` when given.
-        dtype: Overrides ``options.dtype`` when given.
+        **overrides: ``damping``, ``tol``, ``max_iterations`` or ``dtype``: override that
+            field of `options` when given (not None).
 
     Returns:
         Result whose ``marginals`` are ``(H, W, 2)``, or ``(B, H, W, 2)`` for batched
@@ -101,30 +125,10 @@ def grid_belief_propagation(
     Raises:
         InputError: On malformed potentials, couplings, evidence or solver options.
     """
-    opts = resolve_bp_options(
-        options, damping=damping, tol=tol, max_iterations=max_iterations, dtype=dtype
-    )
+    opts = resolve_bp_options(options, **overrides)
     damping, tol, dtype = opts.damping, opts.tol, opts.dtype
-    unary = torch.as_tensor(unary_log).detach()
-    device = unary.device
-    check_shape("unary_log", unary, (None, None, 2))
-    if bool(torch.isnan(unary).any()) or bool((unary == float("inf")).any()):
-        raise InputError("unary_log contains NaN or +inf; log potentials must be < +inf.")
-    if bool(torch.isinf(unary).all(dim=-1).any()):
-        raise InputError("unary_log gives zero potential to both states of some cell.")
-    height, width = int(unary.shape[0]), int(unary.shape[1])
-    if isinstance(coupling, tuple):
-        vertical, horizontal = coupling
-    else:
-        vertical = horizontal = coupling
-    tk_v = _tanh_coupling("vertical coupling", vertical, (height - 1, width))
-    tk_h = _tanh_coupling("horizontal coupling", horizontal, (height, width - 1))
-    tk_v, tk_h = tk_v.to(dtype=dtype, device=device), tk_h.to(dtype=dtype, device=device)
-    ev, batched = as_evidence(evidence, (height, width))
-
-    fields = (unary[..., 1].to(dtype) - unary[..., 0].to(dtype)) / 2.0
-    h = clamp_fields(fields, ev.to(device))  # (B, H, W), read only
-    del fields, ev
+    h, tk_v, tk_h, batched = _grid_fields(unary_log, coupling, evidence, dtype)
+    height, width, device = int(h.shape[1]), int(h.shape[2]), h.device
     batch = h.shape[0]
     down = torch.zeros(batch, height - 1, width, dtype=dtype, device=device)
     up = torch.zeros_like(down)

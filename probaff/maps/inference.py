@@ -114,10 +114,7 @@ def affordance_marginals(
     method: str = "auto",
     max_exact_width: int = DEFAULT_MAX_EXACT_WIDTH,
     options: BPOptions | None = None,
-    damping: float | None = None,
-    tol: float | None = None,
-    max_iterations: int | None = None,
-    dtype: torch.dtype | None = None,
+    **overrides: Any,
 ) -> MapMarginals:
     """Marginal pushability of every (box, direction), optionally under evidence.
 
@@ -133,10 +130,8 @@ def affordance_marginals(
         max_exact_width: Width limit of exact inference (an integer >= 0).
         options: BP settings (`BPOptions`); ``options.dtype`` is also the dtype of the
             returned marginals. None for the defaults.
-        damping: Overrides ``options.damping`` when given.
-        tol: Overrides ``options.tol`` when given.
-        max_iterations: Overrides ``options.max_iterations`` when given.
-        dtype: Overrides ``options.dtype`` when given.
+        **overrides: ``damping``, ``tol``, ``max_iterations`` or ``dtype``: override that
+            field of `options` when given (not None).
 
     Returns:
         The marginals and per-component methods.
@@ -148,10 +143,7 @@ def affordance_marginals(
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}.")
     max_exact_width = check_count("max_exact_width", max_exact_width, minimum=0)
-    opts = resolve_bp_options(
-        options, damping=damping, tol=tol, max_iterations=max_iterations, dtype=dtype
-    )
-    dtype = opts.dtype
+    opts = resolve_bp_options(options, **overrides)
     ev, batched = as_evidence(evidence, (graph.num_variables,))
     count = len(graph.components)
     if method == "bp" and graph.num_edges and is_full_grid(graph):
@@ -167,8 +159,24 @@ def affordance_marginals(
         )
         return MapMarginals(full if batched else full[0], ("bp",) * count, diagnostics, "grid")
     if method == "exact":
-        exact = exact_marginals(graph, ev, max_width=max_exact_width).to(dtype)
+        exact = exact_marginals(graph, ev, max_width=max_exact_width).to(opts.dtype)
         return MapMarginals(exact if batched else exact[0], ("exact",) * count, None)
+    methods = _component_methods(graph, ev, method, max_exact_width)
+    out, bp_result = _mixed_marginals(graph, ev, methods, max_exact_width, opts)
+    return MapMarginals(
+        out if batched else out[0], methods, bp_result, "generic" if bp_result is not None else None
+    )
+
+
+def _component_methods(
+    graph: AffordanceGraph, ev: torch.Tensor, method: str, max_exact_width: int
+) -> tuple[str, ...]:
+    """How each component is solved under `method` (``"auto"`` or ``"bp"``).
+
+    See `affordance_marginals`; one of ``"enumeration"``, ``"exact"`` or ``"bp"`` per entry
+    of ``graph.components``.
+    """
+    count = len(graph.components)
     use_enum: list[int] = []
     if method == "bp":
         use_bp = list(range(count))
@@ -182,8 +190,23 @@ def affordance_marginals(
         else:
             use_bp = rest
     bp_set, enum_set = set(use_bp), set(use_enum)
-    use_exact = [k for k in range(count) if k not in bp_set and k not in enum_set]
+    return tuple(
+        "bp" if k in bp_set else "enumeration" if k in enum_set else "exact" for k in range(count)
+    )
 
+
+def _mixed_marginals(
+    graph: AffordanceGraph,
+    ev: torch.Tensor,
+    methods: tuple[str, ...],
+    max_exact_width: int,
+    opts: BPOptions,
+) -> tuple[torch.Tensor, BeliefPropagationResult | None]:
+    """Marginals ``(B, V, 2)`` with each component solved by its method, and the BP run."""
+    dtype = opts.dtype
+    use_enum, use_exact, use_bp = (
+        [k for k, m in enumerate(methods) if m == name] for name in ("enumeration", "exact", "bp")
+    )
     out = torch.empty((ev.shape[0], graph.num_variables, 2), dtype=dtype)
     if use_enum:
         enum = enumerate_marginals(graph, ev, use_enum, torch.float64)
@@ -208,9 +231,4 @@ def affordance_marginals(
             options=opts,
         )
         out[:, var_t] = bp_result.marginals
-    methods = tuple(
-        "bp" if k in bp_set else "enumeration" if k in enum_set else "exact" for k in range(count)
-    )
-    return MapMarginals(
-        out if batched else out[0], methods, bp_result, "generic" if bp_result is not None else None
-    )
+    return out, bp_result

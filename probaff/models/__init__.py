@@ -1,19 +1,25 @@
-"""Probabilistic push-effect models: a mixture of Gaussian-process experts.
+"""Probabilistic push-effect models: a mixture of Gaussian-process experts, and their registry.
 
 `MixtureOfGPExperts` is fitted by EM (`fit_em`, or `fit_em_path` for several sizes at once)
 with exact GP experts (`GPExpert`) and a softmax gate (`SoftmaxGate`, or `FourierGate` for
 regimes no hyperplane separates); `VariationalMixtureOfGPExperts` is the same model with sparse
 variational experts, fitted by Pyro SVI (`fit_svi`). Both derive from `GatedMixture`.
 `ClusteredGPModel` is chapter 4's baseline: GMM effect clusters, one GP per cluster and an SVM
-gate. Every model is a `PushModel` (``predict(X)`` gives a distribution over effects); the
-fitting procedures are registered by name in `FITTERS` (`get_fitter`, `register_fitter`), and
-`save` and `load` store any fitted model in one file.
+gate. Chapter 6's transition models (`SkillTransitionModel`, `MonolithicTransitionModel`) are
+fitted by `fit_transition` and chained by `ModularTransitionModel`. Every push model is a
+`PushModel` (``predict(X)`` gives a distribution over effects).
+
+Fits take typed options (`EMOptions`, `SVIOptions`, `GPOptions`), with single fields as
+keyword overrides. Every kind of model is a `ModelKind` in one registry (`model_kind`,
+`model_kinds`, `register_model_kind`): its class, fitter, options, save format and builder
+(`ModelSettings`); `fit` fits any registered model, and `save` and `load` store any
+registered model in one file. `FITTERS`, `get_fitter` and `register_fitter` see the registry
+as fitting procedures by name.
 """
 
 from probaff.errors import NotFittedError
 from probaff.models.clustered import ClusteredGPModel
 from probaff.models.em import EMHistory, fit_em, fit_em_path
-from probaff.models.fitting import FITTERS, get_fitter, register_fitter
 from probaff.models.gate import FourierGate, SoftmaxGate, make_gate
 from probaff.models.gated import GatedMixture
 from probaff.models.gp_expert import GPExpert
@@ -25,7 +31,21 @@ from probaff.models.modular import (
     InteractionGeometry,
     ModularTransitionModel,
 )
+from probaff.models.options import EMOptions, GPOptions, SVIOptions
 from probaff.models.persistence import load, save
+from probaff.models.registry import (
+    FITTERS,
+    Codec,
+    ModelKind,
+    ModelSettings,
+    fit,
+    get_fitter,
+    model_kind,
+    model_kinds,
+    register_fitter,
+    register_model_kind,
+    unregister_model_kind,
+)
 from probaff.models.svi import SVIHistory, fit_svi
 from probaff.models.transition import (
     MonolithicTransitionModel,
@@ -40,21 +60,28 @@ __all__ = [
     "ChainPrediction",
     "ChainScene",
     "ClusteredGPModel",
+    "Codec",
     "EMHistory",
+    "EMOptions",
     "FourierGate",
     "GPExpert",
+    "GPOptions",
     "GatedMixture",
     "InteractionGeometry",
     "MixtureOfGPExperts",
+    "ModelKind",
+    "ModelSettings",
     "ModularTransitionModel",
     "MonolithicTransitionModel",
     "NotFittedError",
     "PushModel",
     "SVIHistory",
+    "SVIOptions",
     "SkillTransitionModel",
     "SoftmaxGate",
     "TransitionHistory",
     "VariationalMixtureOfGPExperts",
+    "fit",
     "fit_em",
     "fit_em_path",
     "fit_svi",
@@ -62,6 +89,10 @@ __all__ = [
     "get_fitter",
     "load",
     "make_gate",
+    "model_kind",
+    "model_kinds",
     "register_fitter",
+    "register_model_kind",
     "save",
+    "unregister_model_kind",
 ]

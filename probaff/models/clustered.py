@@ -22,11 +22,12 @@ from torch.distributions import MixtureSameFamily, Normal
 
 from probaff._checks import check_count
 from probaff.errors import InputError, NotFittedError
-from probaff.models._tensors import as_matrix
 from probaff.models.gated import gated_probs, mixture_distribution
 from probaff.models.gp_expert import GPExpert
+from probaff.models.registry import Codec, ModelKind, ModelSettings, register_model_kind
+from probaff.models.tensors import as_matrix
 
-__all__ = ["ClusteredGPModel"]
+__all__ = ["ClusteredGPModel", "fit_clustered"]
 
 
 class ClusteredGPModel:
@@ -73,15 +74,8 @@ class ClusteredGPModel:
 
     def config(self) -> dict[str, Any]:
         """Constructor arguments, so that ``ClusteredGPModel(**model.config())`` rebuilds it."""
-        return {
-            "n_clusters": self.n_clusters,
-            "cluster_dims": self.cluster_dims,
-            "seed": self.seed,
-            "n_init": self.n_init,
-            "svm_c": self.svm_c,
-            "soft_gate": self.soft_gate,
-            "expert_kwargs": dict(self.expert_kwargs),
-        }
+        names = ("n_clusters", "cluster_dims", "seed", "n_init", "svm_c", "soft_gate")
+        return {**{n: getattr(self, n) for n in names}, "expert_kwargs": dict(self.expert_kwargs)}
 
     @property
     def is_fitted(self) -> bool:
@@ -190,3 +184,79 @@ class ClusteredGPModel:
         return mixture_distribution(
             gated_probs(self.gate_probs(X), gating), self.expert_predictions(X)
         )
+
+
+# ----------------------------------------------------- the "clustered" kind
+def fit_clustered(
+    model: ClusteredGPModel, X: Any, Y: Any, options: None = None, **overrides: Any
+) -> ClusteredGPModel:
+    """Fit chapter 4's clustered model (`ClusteredGPModel.fit`).
+
+    Args:
+        model: The model to fit.
+        X: Features, `(N, D)`.
+        Y: Effects, `(N, E)`.
+        options: Must be None: the model's settings are its constructor's.
+        **overrides: Must be empty, for the same reason.
+
+    Returns:
+        The fitted model.
+
+    Raises:
+        InputError: If `model` is not a `ClusteredGPModel`, options are given, or as
+            `ClusteredGPModel.fit`.
+    """
+    if not isinstance(model, ClusteredGPModel):
+        raise InputError(
+            f"the 'clustered' fitter fits a ClusteredGPModel, got {type(model).__name__}."
+        )
+    if options is not None or overrides:
+        given = sorted(overrides) + (["options"] if options is not None else [])
+        raise InputError(
+            f"a ClusteredGPModel takes no fitting options, got {given}; set its seed and "
+            "expert_kwargs in its constructor."
+        )
+    return model.fit(X, Y)
+
+
+def _dump(model: ClusteredGPModel) -> dict[str, Any]:
+    assert model.labels_ is not None
+    return {
+        "config": model.config(),
+        "X": model.train_X,
+        "Y": model.train_Y,
+        "labels": torch.as_tensor(model.labels_, dtype=torch.int64),
+        "state_dict": [e.state_dict() for e in model.experts],
+    }
+
+
+def _restore(payload: dict[str, Any]) -> ClusteredGPModel:
+    model = ClusteredGPModel(**payload["config"])
+    x, y, labels = payload["X"], payload["Y"], payload["labels"]
+    experts = []
+    for k, state in zip(labels.unique().tolist(), payload["state_dict"], strict=True):
+        rows = labels == k
+        expert = GPExpert(x.shape[1], y.shape[1], **model.expert_kwargs)
+        expert.condition(x[rows], y[rows])
+        expert.load_state_dict(state)
+        experts.append(expert)
+    model.experts = experts
+    model.fit_gate(x, y, labels.numpy())
+    return model
+
+
+def _build(settings: ModelSettings) -> ClusteredGPModel:
+    if settings.gate:
+        raise InputError(
+            "a ClusteredGPModel's gate is an SVM on every column it is given; leave gate unset "
+            f"(got {list(settings.gate)})."
+        )
+    gp: dict[str, Any] = {"lengthscale_prior": settings.lengthscale_prior}
+    if settings.gp_max_iter is not None:
+        gp["max_iter"] = settings.gp_max_iter
+    return ClusteredGPModel(settings.n_experts, seed=settings.seed, expert_kwargs=gp)
+
+
+_FORMAT = "probaff.models.ClusteredGPModel/1"
+_CODEC = Codec(_FORMAT, _dump, _restore, ("config", "X", "Y", "labels", "state_dict"))
+register_model_kind(ModelKind("clustered", ClusteredGPModel, fit_clustered, None, _CODEC, _build))

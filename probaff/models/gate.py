@@ -18,7 +18,7 @@ from torch import Tensor
 from probaff._checks import check_count, check_positive, check_probability
 from probaff.errors import InputError, NotFittedError
 from probaff.models._scaling import Standardizer
-from probaff.models._tensors import as_matrix, as_vector
+from probaff.models.tensors import as_matrix, as_vector
 
 __all__ = ["DEFAULT_L2_GRID", "GATE_KINDS", "FourierGate", "SoftmaxGate", "make_gate"]
 
@@ -81,16 +81,9 @@ def _penalised_loss(
 ) -> float:
     """The fitting objective of `SoftmaxGate` at `weight` `(M, P)` and `bias` `(M,)`.
 
-    Args:
-        phi: Basis, `(N, P)`.
-        r: Targets, `(N, M)`.
-        s: Sample weights summing to 1, `(N,)`.
-        l2: Penalty.
-        weight: Weights, `(M, P)`.
-        bias: Intercepts, `(M,)`.
-
-    Returns:
-        Weighted cross-entropy plus the L2 penalty.
+    The weighted cross-entropy of targets `r` `(N, M)` under the softmax of the basis `phi`
+    `(N, P)`, with sample weights `s` `(N,)` that sum to 1, plus ``l2 / 2`` times the
+    squared norm of `weight`.
     """
     log_p = torch.log_softmax(phi @ weight.T + bias, dim=-1)
     return float(-(s * (r * log_p).sum(-1)).sum() + 0.5 * l2 * weight.square().sum())
@@ -511,11 +504,9 @@ class FourierGate(SoftmaxGate):
             by the same cross-validation as `l2` from that median times each of
             `lengthscale_factors`.
         lengthscale_factors: Multiples of the median tried by ``lengthscale="cv"``.
-        max_iter: L-BFGS iterations of the final fit in each call to `fit`.
-        l2_grid: Penalties tried by ``l2="cv"``.
-        n_folds: Folds of the inner cross-validation.
-        cv_max_iter: L-BFGS iterations per penalty on the cross-validation path.
-        seed: Seed of :math:`\Omega`, :math:`b_\phi` and the folds.
+        **fit_settings: `SoftmaxGate`'s ``max_iter``, ``l2_grid``, ``n_folds``,
+            ``cv_max_iter`` and ``seed`` (here also the seed of :math:`\Omega` and
+            :math:`b_\phi`).
 
     Attributes:
         weight: `W`, `(M, D + K)`.
@@ -538,22 +529,9 @@ class FourierGate(SoftmaxGate):
         n_random_features: int = 128,
         lengthscale: float | str = "median",
         lengthscale_factors: Sequence[float] = (0.5, 1.0, 2.0),
-        max_iter: int = 200,
-        l2_grid: Sequence[float] | None = None,
-        n_folds: int = 3,
-        cv_max_iter: int = 10,
-        seed: int = 0,
+        **fit_settings: Any,
     ) -> None:
-        super().__init__(
-            n_features,
-            n_experts,
-            l2=l2,
-            max_iter=max_iter,
-            l2_grid=l2_grid,
-            n_folds=n_folds,
-            cv_max_iter=cv_max_iter,
-            seed=seed,
-        )
+        super().__init__(n_features, n_experts, l2=l2, **fit_settings)
         self.n_random_features = check_count("n_random_features", n_random_features)
         if isinstance(lengthscale, str):
             if lengthscale not in ("median", "cv"):

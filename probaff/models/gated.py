@@ -18,7 +18,6 @@ from torch import Tensor
 from torch.distributions import Categorical, Independent, MixtureSameFamily, Normal
 
 from probaff.errors import InputError, NotFittedError
-from probaff.models._tensors import as_matrix
 from probaff.models.columns import (
     FeatureGroups,
     FeatureSpec,
@@ -27,8 +26,16 @@ from probaff.models.columns import (
     resolve_groups,
 )
 from probaff.models.gate import SoftmaxGate
+from probaff.models.tensors import as_matrix
 
-__all__ = ["ExpertList", "GatedMixture", "gated_probs", "mixture_distribution", "plain_spec"]
+__all__ = [
+    "ExpertList",
+    "GatedMixture",
+    "gated_probs",
+    "mixture_distribution",
+    "mixture_payload",
+    "plain_spec",
+]
 
 ExpertT = TypeVar("ExpertT", bound=torch.nn.Module)
 
@@ -81,6 +88,25 @@ def plain_spec(spec: FeatureSpec) -> str | list[str] | list[int] | None:
     if len(names) == len(spec):
         return names
     return [int(s) for s in spec if not isinstance(s, str)]
+
+
+def mixture_payload(model: GatedMixture[Any], **entries: Any) -> dict[str, Any]:
+    """What `probaff.models.save` stores of a gated mixture, in the file's order.
+
+    Args:
+        model: A fitted mixture.
+        **entries: The subclass's own entries, stored between the sizes and the state dict.
+
+    Returns:
+        ``config``, ``n_features``, ``n_outputs``, the `entries`, then ``state_dict``.
+    """
+    return {
+        "config": model.config(),
+        "n_features": model.n_features,
+        "n_outputs": model.n_outputs,
+        **entries,
+        "state_dict": model.state_dict(),
+    }
 
 
 class ExpertList(torch.nn.ModuleList, Generic[ExpertT]):

@@ -18,13 +18,14 @@ from linear_operator.utils.errors import NanError, NotPSDError
 from torch import Tensor
 from torch.distributions import Normal
 
-from probaff._checks import check_count, check_finite, check_positive
+from probaff._checks import check_count, check_finite
 from probaff.errors import InputError, NotFittedError
 from probaff.models._scaling import Standardizer
-from probaff.models._tensors import as_matrix, as_vector
 from probaff.models.gaussian_density import gaussian_log_density
 from probaff.models.kernels import ard_se_kernel
 from probaff.models.likelihood import WeightedGaussianLikelihood
+from probaff.models.options import NOISE_BOUNDS, OUTPUTSCALE_BOUNDS, GPOptions, resolve_options
+from probaff.models.tensors import as_matrix, as_vector
 
 __all__ = ["GPExpert", "exact_gp_settings", "noise_floor_vector"]
 
@@ -32,8 +33,6 @@ __all__ = ["GPExpert", "exact_gp_settings", "noise_floor_vector"]
 _JITTERS = (1e-8, 1e-6, 1e-4, 1e-2)
 # Box constraints (standardised units) that keep every hyperparameter finite and positive.
 _LENGTHSCALE_BOUNDS = (1e-3, 1e4)
-_OUTPUTSCALE_BOUNDS = (1e-4, 1e4)
-_NOISE_BOUNDS = (1e-6, 1e2)
 # Floor on predictive variances (in standardised output units).
 _MIN_VARIANCE = 1e-12
 
@@ -65,18 +64,6 @@ def noise_floor_vector(
             f"(one per output), got {noise_floor!r}."
         )
     return floor.clone()
-
-
-def _initial_value(name: str, value: float, bounds: tuple[float, float]) -> float:
-    """`value` as a float, or `InputError` unless it is finite and strictly inside `bounds`."""
-    check_positive(name, value)
-    v = float(value)
-    if not bounds[0] < v < bounds[1]:
-        raise InputError(
-            f"{name} must lie strictly between {bounds[0]:g} and {bounds[1]:g} "
-            f"(standardised units), got {value!r}."
-        )
-    return v
 
 
 @contextlib.contextmanager
@@ -117,7 +104,7 @@ class _BatchedExactGP(gpytorch.models.ExactGP):
             n_features,
             batch,
             lengthscale_bounds=_LENGTHSCALE_BOUNDS,
-            outputscale_bounds=_OUTPUTSCALE_BOUNDS,
+            outputscale_bounds=OUTPUTSCALE_BOUNDS,
             lengthscale_prior=lengthscale_prior,
         )
 
@@ -147,17 +134,16 @@ class GPExpert(torch.nn.Module):
     Args:
         n_features: Number of input features `D`.
         n_outputs: Number of outputs `E`.
-        max_iter: L-BFGS iterations per call to `fit`.
-        lengthscale_prior: Put the dimension-scaled log-normal prior on the length scales.
-        noise_floor: Smallest observation-noise standard deviation, in output units: a
-            scalar or one value per output `(E,)`. The noise variance is the learned one plus
-            the floor's square, so experts whose samples have (nearly) identical targets,
-            such as the exact zeros of an object that did not move, keep a finite noise
-            level and a meaningful predictive density. ``None`` (default) is no floor.
-        outputscale: Initial signal variance (the kernel amplitude theta0) of every output,
-            in standardised output units, inside [1e-4, 1e4]; 1 by default.
-        noise: Initial observation-noise variance of every output, in standardised output
-            units, inside [1e-6, 1e2]; 0.1 by default.
+        options: The GP's settings (`GPOptions`: `max_iter`, L-BFGS iterations per call to
+            `fit`; `lengthscale_prior`, the dimension-scaled log-normal prior on the length
+            scales; `noise_floor`, the smallest observation-noise standard deviation in
+            output units, one value or one per output `(E,)`, added as its square to the
+            learned noise variance so that experts whose samples have (nearly) identical
+            targets, such as the exact zeros of an object that did not move, keep a finite
+            noise level; `outputscale` and `noise`, the initial signal and noise variances
+            in standardised units); None for `GPOptions()`.
+        **overrides: Fields of `GPOptions` that replace those of `options`, e.g.
+            ``GPExpert(3, 2, max_iter=20, lengthscale_prior=True)``.
 
     Attributes:
         gp: The batched gpytorch model.
@@ -171,23 +157,20 @@ class GPExpert(torch.nn.Module):
         self,
         n_features: int,
         n_outputs: int,
-        *,
-        max_iter: int = 50,
-        lengthscale_prior: bool = False,
-        noise_floor: float | Sequence[float] | Tensor | None = None,
-        outputscale: float = 1.0,
-        noise: float = 0.1,
+        options: GPOptions | None = None,
+        **overrides: Any,
     ) -> None:
         super().__init__()
         self.n_features = check_count("n_features", n_features)
         self.n_outputs = check_count("n_outputs", n_outputs)
-        self.max_iter = check_count("max_iter", max_iter)
-        self.initial_outputscale = _initial_value("outputscale", outputscale, _OUTPUTSCALE_BOUNDS)
-        self.initial_noise = _initial_value("noise", noise, _NOISE_BOUNDS)
-        self.lengthscale_prior = bool(lengthscale_prior)
+        self.options = resolve_options(GPOptions, options, overrides)
+        self.max_iter = self.options.max_iter
+        self.initial_outputscale = self.options.outputscale
+        self.initial_noise = self.options.noise
+        self.lengthscale_prior = self.options.lengthscale_prior
         batch = torch.Size([self.n_outputs])
         self.likelihood = WeightedGaussianLikelihood(
-            batch_shape=batch, noise_constraint=Interval(*_NOISE_BOUNDS)
+            batch_shape=batch, noise_constraint=Interval(*NOISE_BOUNDS)
         )
         prior = (
             LogNormalPrior(
@@ -201,7 +184,9 @@ class GPExpert(torch.nn.Module):
         self.x_scaler = Standardizer(self.n_features)
         self.y_scaler = Standardizer(self.n_outputs)
         self.register_buffer("jitter", torch.tensor(_JITTERS[0], dtype=torch.float64))
-        self.register_buffer("noise_floor", noise_floor_vector(noise_floor, self.n_outputs))
+        self.register_buffer(
+            "noise_floor", noise_floor_vector(self.options.noise_floor, self.n_outputs)
+        )
         self.to(torch.float64)
         self.reset_hyperparameters()
         self.eval()

@@ -11,11 +11,10 @@ from torch.distributions import Normal
 
 from probaff._checks import check_count
 from probaff.errors import InputError, NotFittedError
-from probaff.models._tensors import as_matrix
-from probaff.models.columns import FeatureGroups, FeatureSpec
 from probaff.models.gate import GATE_KINDS, make_gate
 from probaff.models.gated import ExpertList, GatedMixture, gated_probs, mixture_distribution
 from probaff.models.gp_expert import GPExpert, noise_floor_vector
+from probaff.models.tensors import as_matrix, training_rows
 
 __all__ = ["MixtureOfGPExperts", "gated_probs", "mixture_distribution", "training_data"]
 
@@ -39,13 +38,7 @@ def training_data(X: Any, Y: Any, n_experts: int) -> tuple[Tensor, Tensor]:
     Raises:
         InputError: For NaN/inf, empty or mismatched inputs, or more experts than samples.
     """
-    x = as_matrix("features X", X)
-    y = as_matrix("effects Y", Y)
-    if y.shape[0] != x.shape[0]:
-        raise InputError(
-            f"features X has {x.shape[0]} samples but effects Y has {y.shape[0]}; "
-            "they must have one row per push."
-        )
+    x, y = training_rows(X, Y, "push")
     if n_experts > x.shape[0]:
         raise InputError(
             f"n_experts={n_experts} exceeds the {x.shape[0]} training samples; "
@@ -66,9 +59,6 @@ class MixtureOfGPExperts(GatedMixture[GPExpert]):
 
     Args:
         n_experts: Number of experts `M`.
-        groups: Named column groups (slices or index lists of the feature matrix).
-        gate_features: Gate columns: ``None`` (all), group name(s) or column indices.
-        expert_features: Expert columns, shared by every expert, in the same forms.
         gate: Kind of gate: ``"linear"`` (the thesis's softmax on the gate features) or
             ``"fourier"`` (softmax on random Fourier features, for regimes that no
             hyperplane separates); see `probaff.models.gate.make_gate`.
@@ -81,6 +71,8 @@ class MixtureOfGPExperts(GatedMixture[GPExpert]):
             effect units: ``"auto"`` (default) is 1 % of each effect's standard deviation
             over the training set; a scalar or one value per effect sets it (for data from
             a sensor, its measurement noise); ``None`` is no floor. See `GPExpert`.
+        **columns: The column selection of `GatedMixture`: ``groups`` (named column groups),
+            ``gate_features`` and ``expert_features``.
 
     Raises:
         InputError: If a selection names an unknown group or `n_experts` is not positive.
@@ -92,22 +84,14 @@ class MixtureOfGPExperts(GatedMixture[GPExpert]):
         self,
         n_experts: int,
         *,
-        groups: FeatureGroups | None = None,
-        gate_features: FeatureSpec = None,
-        expert_features: FeatureSpec = None,
         gate: str = "linear",
         gate_l2: float | str = "cv",
         gp_max_iter: int = 50,
         lengthscale_prior: bool = False,
         noise_floor: float | Sequence[float] | str | None = "auto",
+        **columns: Any,
     ) -> None:
-        super().__init__(
-            n_experts,
-            groups=groups,
-            gate_features=gate_features,
-            expert_features=expert_features,
-            gate_l2=gate_l2,
-        )
+        super().__init__(n_experts, gate_l2=gate_l2, **columns)
         check_count("gp_max_iter", gp_max_iter)
         if isinstance(noise_floor, str) and noise_floor != "auto":
             raise InputError(

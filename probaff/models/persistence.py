@@ -1,7 +1,8 @@
 """Saving and loading a fitted push model as one file.
 
-Every model class has its own format tag (``FORMATS``), stored in the file; `load` reads the
-tag and rebuilds a model of that class. Files are ``torch.save`` archives of builtins and
+Every registered model kind with a codec (`probaff.models.registry.Codec`: its format tag,
+``dump`` and ``restore``) can be saved; the tag is stored in the file, and
+`load` reads it and rebuilds a model of that kind. Files are ``torch.save`` archives of builtins and
 tensors only, read back with ``weights_only=True``.
 
 A file holds ``{"format": TAG, "sha256": HEX, "payload": BYTES}``: ``BYTES`` (a uint8 tensor)
@@ -20,7 +21,7 @@ import io
 import os
 import pickle
 import warnings
-from collections.abc import Callable
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -30,184 +31,64 @@ import torch
 from probaff._checks import check_output_file
 from probaff._io import atomic_write_bytes
 from probaff.errors import InputError, ProbaffError
-from probaff.models.clustered import ClusteredGPModel
-from probaff.models.gp_expert import GPExpert
-from probaff.models.mixture import MixtureOfGPExperts
-from probaff.models.transition import MonolithicTransitionModel, SkillTransitionModel
-from probaff.models.vi import VariationalMixtureOfGPExperts
+from probaff.models.em import FORMAT
+from probaff.models.registry import Codec, model_kind, model_kinds
 
-__all__ = ["FORMAT", "FORMATS", "SavableModel", "load", "save"]
-
-SavableModel = (
-    MixtureOfGPExperts
-    | VariationalMixtureOfGPExperts
-    | ClusteredGPModel
-    | SkillTransitionModel
-    | MonolithicTransitionModel
-)
-"""The model classes `save` and `load` handle."""
-
-FORMAT = "probaff.models.MixtureOfGPExperts/1"
-"""Identifier and version stored in every saved EM mixture."""
-
-FORMATS: dict[type, str] = {
-    MixtureOfGPExperts: FORMAT,
-    VariationalMixtureOfGPExperts: "probaff.models.VariationalMixtureOfGPExperts/1",
-    ClusteredGPModel: "probaff.models.ClusteredGPModel/1",
-    SkillTransitionModel: "probaff.models.SkillTransitionModel/1",
-    MonolithicTransitionModel: "probaff.models.MonolithicTransitionModel/1",
-}
-"""Format tag (identifier and version) of every model class `save` handles."""
+__all__ = ["FORMAT", "FORMATS", "load", "save"]
 
 
-# ----------------------------------------------------------------- payloads
-def _dump_em(model: MixtureOfGPExperts) -> dict[str, Any]:
-    return {
-        "config": model.config(),
-        "n_features": model.n_features,
-        "n_outputs": model.n_outputs,
-        "X": model.train_X,
-        "Y": model.train_Y,
-        "weights": model.train_weights,
-        "state_dict": model.state_dict(),
-    }
+class _FormatTable(Mapping[type, str]):
+    """The registry as ``model class -> format tag``, for every kind that can be saved."""
+
+    def _table(self) -> dict[type, str]:
+        return {
+            k.model_class: k.codec.format
+            for k in model_kinds().values()
+            if k.model_class is not None and k.codec is not None
+        }
+
+    def __getitem__(self, cls: type) -> str:
+        return self._table()[cls]
+
+    def __iter__(self) -> Iterator[type]:
+        return iter(self._table())
+
+    def __len__(self) -> int:
+        return len(self._table())
+
+    def __repr__(self) -> str:
+        return repr(self._table())
 
 
-def _load_em(payload: dict[str, Any]) -> MixtureOfGPExperts:
-    model = MixtureOfGPExperts(**payload["config"])
-    model.build(payload["n_features"], payload["n_outputs"])
-    model.condition(payload["X"], payload["Y"], payload["weights"])
-    model.load_state_dict(payload["state_dict"])
-    return model
+FORMATS: Mapping[type, str] = _FormatTable()
+"""Format tag (identifier and version) of every model class `save` handles: a live view of
+the model kinds registered with a format (`probaff.models.registry`)."""
 
 
-def _dump_vi(model: VariationalMixtureOfGPExperts) -> dict[str, Any]:
-    return {
-        "config": model.config(),
-        "n_features": model.n_features,
-        "n_outputs": model.n_outputs,
-        "n_inducing": model.inducing_size,
-        "state_dict": model.state_dict(),
-    }
+def _codec_of(model: Any) -> Codec:
+    """The codec of the registered kind of `model`."""
+    try:
+        codec = model_kind(model).codec
+    except InputError:
+        codec = None
+    if codec is None:
+        known = ", ".join(sorted(c.__name__ for c in FORMATS))
+        raise InputError(f"cannot save a {type(model).__name__}; save handles {known}.")
+    return codec
 
 
-def _load_vi(payload: dict[str, Any]) -> VariationalMixtureOfGPExperts:
-    model = VariationalMixtureOfGPExperts(**payload["config"])
-    model.build_empty(payload["n_features"], payload["n_outputs"], payload["n_inducing"])
-    model.load_state_dict(payload["state_dict"])
-    model.fitted = True
-    model.eval()
-    return model
-
-
-def _dump_clustered(model: ClusteredGPModel) -> dict[str, Any]:
-    assert model.labels_ is not None
-    return {
-        "config": model.config(),
-        "X": model.train_X,
-        "Y": model.train_Y,
-        "labels": torch.as_tensor(model.labels_, dtype=torch.int64),
-        "state_dict": [e.state_dict() for e in model.experts],
-    }
-
-
-def _load_clustered(payload: dict[str, Any]) -> ClusteredGPModel:
-    model = ClusteredGPModel(**payload["config"])
-    x, y, labels = payload["X"], payload["Y"], payload["labels"]
-    experts = []
-    for k, state in zip(labels.unique().tolist(), payload["state_dict"], strict=True):
-        rows = labels == k
-        expert = GPExpert(x.shape[1], y.shape[1], **model.expert_kwargs)
-        expert.condition(x[rows], y[rows])
-        expert.load_state_dict(state)
-        experts.append(expert)
-    model.experts = experts
-    model.fit_gate(x, y, labels.numpy())
-    return model
-
-
-def _dump_skill(model: SkillTransitionModel) -> dict[str, Any]:
-    return {
-        "config": model.config(),
-        "sizes": [model.n_features, model.n_outputs, model.n_reaction],
-        "X": model.train_X,
-        "Y": model.train_Y,
-        "R": model.train_R,
-        "weights": model.component_weights(),
-        "state_dict": model.state_dict(),
-    }
-
-
-def _load_skill(payload: dict[str, Any]) -> SkillTransitionModel:
-    model = SkillTransitionModel(**payload["config"])
-    model.build(*payload["sizes"])
-    model.condition(payload["X"], payload["Y"], payload["R"], payload["weights"])
-    model.load_state_dict(payload["state_dict"])
-    return model
-
-
-def _dump_monolithic(model: MonolithicTransitionModel) -> dict[str, Any]:
-    return {
-        "config": model.config(),
-        "sizes": [model.n_features, model.n_outputs],
-        "X": model.train_X,
-        "Y": model.train_Y,
-        "state_dict": model.state_dict(),
-    }
-
-
-def _load_monolithic(payload: dict[str, Any]) -> MonolithicTransitionModel:
-    model = MonolithicTransitionModel(**payload["config"])
-    model.build(*payload["sizes"])
-    model.condition(payload["X"], payload["Y"])
-    model.load_state_dict(payload["state_dict"])
-    return model
-
-
-_CODECS: dict[
-    str, tuple[Callable[[Any], dict[str, Any]], Callable[[dict[str, Any]], Any], tuple[str, ...]]
-] = {
-    FORMATS[MixtureOfGPExperts]: (
-        _dump_em,
-        _load_em,
-        ("config", "n_features", "n_outputs", "X", "Y", "weights", "state_dict"),
-    ),
-    FORMATS[VariationalMixtureOfGPExperts]: (
-        _dump_vi,
-        _load_vi,
-        ("config", "n_features", "n_outputs", "n_inducing", "state_dict"),
-    ),
-    FORMATS[ClusteredGPModel]: (
-        _dump_clustered,
-        _load_clustered,
-        ("config", "X", "Y", "labels", "state_dict"),
-    ),
-    FORMATS[SkillTransitionModel]: (
-        _dump_skill,
-        _load_skill,
-        ("config", "sizes", "X", "Y", "R", "weights", "state_dict"),
-    ),
-    FORMATS[MonolithicTransitionModel]: (
-        _dump_monolithic,
-        _load_monolithic,
-        ("config", "sizes", "X", "Y", "state_dict"),
-    ),
-}
-
-
-def _format_of(model: Any) -> str:
-    for cls, tag in FORMATS.items():
-        if isinstance(model, cls):
-            return tag
-    known = ", ".join(sorted(c.__name__ for c in FORMATS))
-    raise InputError(f"cannot save a {type(model).__name__}; save handles {known}.")
+def _codec_of_format(tag: Any) -> Codec | None:
+    for kind in model_kinds().values():
+        if kind.codec is not None and kind.codec.format == tag:
+            return kind.codec
+    return None
 
 
 # --------------------------------------------------------------- save / load
 _FIX = "re-save the model from the fitted original, or re-fit it"
 
 
-def save(model: SavableModel, path: str | os.PathLike[str]) -> None:
+def save(model: Any, path: str | os.PathLike[str]) -> None:
     """Write a fitted model to `path` atomically.
 
     The file (``torch.save`` of a dict) holds the model's format tag (`FORMATS`) and the
@@ -219,10 +100,11 @@ def save(model: SavableModel, path: str | os.PathLike[str]) -> None:
     missing parent folders are created.
 
     Args:
-        model: A `MixtureOfGPExperts` fitted with `fit_em`, a
-            `VariationalMixtureOfGPExperts` fitted with `fit_svi`, a fitted
-            `ClusteredGPModel`, or a `SkillTransitionModel` or `MonolithicTransitionModel`
-            fitted with `fit_transition`.
+        model: A fitted model of a registered kind with a format (`FORMATS`): a
+            `MixtureOfGPExperts` fitted with `fit_em`, a `VariationalMixtureOfGPExperts`
+            fitted with `fit_svi`, a fitted `ClusteredGPModel`, a `SkillTransitionModel` or
+            `MonolithicTransitionModel` fitted with `fit_transition`, or a model of a kind
+            added with `register_model_kind`.
         path: Destination file.
 
     Raises:
@@ -230,10 +112,10 @@ def save(model: SavableModel, path: str | os.PathLike[str]) -> None:
         InputError: If `model` is of a class `save` does not handle, or `path` is a folder,
             lies under a regular file, or cannot be written.
     """
-    tag = _format_of(model)
+    codec = _codec_of(model)
     model.check_fitted()
     target = check_output_file("path", path)
-    dump = _CODECS[tag][0]
+    tag, dump = codec.format, codec.dump
     inner = io.BytesIO()
     torch.save({"format": tag, **dump(model)}, inner)
     payload = inner.getvalue()
@@ -361,8 +243,9 @@ def load(path: str | os.PathLike[str]) -> Any:
     if hashed:
         payload = _verified_payload(name, payload)
     tag = payload.get("format") if isinstance(payload, dict) else None
-    if not isinstance(tag, str) or tag not in _CODECS:
-        known = ", ".join(repr(t) for t in sorted(_CODECS))
+    codec = _codec_of_format(tag) if isinstance(tag, str) else None
+    if codec is None:
+        known = ", ".join(repr(t) for t in sorted(FORMATS.values()))
         raise InputError(
             f"{name!r} is not a saved mixture or model of a known format ({known}); give the "
             "path of a file written by probaff.models.save."
@@ -374,14 +257,13 @@ def load(path: str | os.PathLike[str]) -> Any:
             UserWarning,
             stacklevel=2,
         )
-    _, restore, required = _CODECS[tag]
-    missing = [k for k in required if k not in payload]
+    missing = [k for k in codec.required if k not in payload]
     if missing:
         raise InputError(
             f"{name!r} is an incomplete saved model ({tag}): it lacks {missing}; {_FIX}."
         )
     try:
-        return restore(payload)
+        return codec.restore(payload)
     except ProbaffError:
         raise
     except Exception as err:  # entries of the wrong type or shape fail in many ways

@@ -18,12 +18,15 @@ from pyro.infer import SVI, TraceEnum_ELBO
 from pyro.optim import PyroOptim
 from torch import Tensor
 
-from probaff._checks import check_count, check_positive, check_probability
+from probaff._checks import check_probability
 from probaff.errors import InputError
-from probaff.models._tensors import as_matrix
 from probaff.models.em import fit_em
+from probaff.models.gated import mixture_payload
 from probaff.models.initialization import check_initialization, initial_responsibilities
 from probaff.models.mixture import MixtureOfGPExperts, training_data
+from probaff.models.options import SVIOptions, resolve_options
+from probaff.models.registry import Codec, ModelKind, ModelSettings, register_model_kind
+from probaff.models.tensors import as_matrix
 from probaff.models.vi import VariationalMixtureOfGPExperts
 
 __all__ = ["SVIHistory", "fit_svi"]
@@ -32,12 +35,10 @@ __all__ = ["SVIHistory", "fit_svi"]
 @contextlib.contextmanager
 def _default_dtype(dtype: torch.dtype) -> Iterator[None]:
     """Pyro creates some tensors with the default dtype; match the model's within a block."""
-    previous = torch.get_default_dtype()
-    torch.set_default_dtype(dtype)
-    try:
+    with contextlib.ExitStack() as restore:
+        restore.callback(torch.set_default_dtype, torch.get_default_dtype())
+        torch.set_default_dtype(dtype)
         yield
-    finally:
-        torch.set_default_dtype(previous)
 
 
 @dataclass
@@ -95,14 +96,8 @@ def fit_svi(
     model: VariationalMixtureOfGPExperts,
     X: Any,
     Y: Any,
-    *,
-    n_steps: int = 1500,
-    batch_size: int = 64,
-    lr: float = 0.02,
-    n_init: int = 5,
-    seed: int = 0,
-    init: str | Tensor | MixtureOfGPExperts = "auto",
-    init_rows: int = 400,
+    options: SVIOptions | None = None,
+    **overrides: Any,
 ) -> SVIHistory:
     """Fit a variational mixture of GP experts by minibatch SVI.
 
@@ -123,29 +118,24 @@ def fit_svi(
         model: The mixture to fit (rebuilt for the data).
         X: Features, `(N, D)`.
         Y: Effects, `(N, E)`.
-        n_steps: SVI steps.
-        batch_size: Minibatch size (capped at `N`).
-        lr: Adam step size.
-        n_init: Restarts of the initial Gaussian mixture.
-        seed: Seed of the initialisation and the minibatches.
-        init: ``"auto"`` (default), ``"grow"``, ``"effects"``, ``"joint"``, a fitted
-            `MixtureOfGPExperts`, or responsibilities `(N, M)`.
-        init_rows: Rows of the exact EM fit behind ``"grow"`` and ``"auto"``.
+        options: The SVI settings (`SVIOptions`: `n_steps`, `batch_size`, `lr`, `n_init`,
+            `seed`, `init`, `init_rows`); None for `SVIOptions()`.
+        **overrides: Fields of `SVIOptions` that replace those of `options`, e.g.
+            ``fit_svi(model, X, Y, n_steps=500, init=fitted_mixture)``.
 
     Returns:
         The per-step losses.
 
     Raises:
         InputError: For NaN/inf, empty or mismatched inputs, more experts than samples, an
-            unknown `init`, or a non-integer count.
+            unknown `init` or option, or an option out of range.
     """
-    check_count("n_steps", n_steps)
-    check_count("batch_size", batch_size)
-    check_positive("lr", lr)
-    n_init = check_count("n_init", n_init)
-    init_rows = check_count("init_rows", init_rows)
+    opts = resolve_options(SVIOptions, options, overrides)
+    seed = opts.seed
     x, y = training_data(X, Y, model.n_experts)
-    resp, exact = _start(model, x, y, init, n_init=n_init, seed=seed, init_rows=init_rows)
+    resp, exact = _start(
+        model, x, y, opts.init, n_init=opts.n_init, seed=seed, init_rows=opts.init_rows
+    )
     model.fitted = False
     model.build(x, y, resp, exact)
     x_scaler, y_scaler = model.scalers()
@@ -153,7 +143,7 @@ def fit_svi(
     x_e = x_scaler(x[:, model.expert_columns])
     t = y_scaler(y)
     n = x.shape[0]
-    b = min(int(batch_size), n)
+    b = min(opts.batch_size, n)
     history = SVIHistory()
     generator = torch.Generator().manual_seed(seed)
     model.train()
@@ -162,12 +152,43 @@ def fit_svi(
         svi = SVI(
             model.model,
             model.guide,
-            PyroOptim(torch.optim.Adam, {"lr": float(lr)}),  # what pyro.optim.Adam builds
+            PyroOptim(torch.optim.Adam, {"lr": opts.lr}),  # what pyro.optim.Adam builds
             loss=TraceEnum_ELBO(max_plate_nesting=1),
         )
-        for _ in range(int(n_steps)):
+        for _ in range(opts.n_steps):
             idx = torch.randperm(n, generator=generator)[:b]
             history.loss.append(svi.step(x_g, x_e, t, idx) / n)
     model.eval()
     model.fitted = True
     return history
+
+
+# ----------------------------------------------------------- the "svi" kind
+def _dump(model: VariationalMixtureOfGPExperts) -> dict[str, Any]:
+    return mixture_payload(model, n_inducing=model.inducing_size)
+
+
+def _restore(payload: dict[str, Any]) -> VariationalMixtureOfGPExperts:
+    model = VariationalMixtureOfGPExperts(**payload["config"])
+    model.build_empty(payload["n_features"], payload["n_outputs"], payload["n_inducing"])
+    model.load_state_dict(payload["state_dict"])
+    model.fitted = True
+    model.eval()
+    return model
+
+
+def _build(settings: ModelSettings) -> VariationalMixtureOfGPExperts:
+    if settings.lengthscale_prior or settings.gp_max_iter is not None:
+        raise InputError(
+            "a VariationalMixtureOfGPExperts has sparse experts without a length-scale prior "
+            "or L-BFGS iterations; leave lengthscale_prior and gp_max_iter unset."
+        )
+    return VariationalMixtureOfGPExperts(settings.n_experts, **settings.columns())
+
+
+_FORMAT = "probaff.models.VariationalMixtureOfGPExperts/1"
+_REQUIRED = ("config", "n_features", "n_outputs", "n_inducing", "state_dict")
+_CODEC = Codec(_FORMAT, _dump, _restore, _REQUIRED)
+register_model_kind(
+    ModelKind("svi", VariationalMixtureOfGPExperts, fit_svi, SVIOptions, _CODEC, _build)
+)

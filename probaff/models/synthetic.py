@@ -17,6 +17,16 @@ __all__ = ["piecewise_1d", "regime_features", "softmax_regimes"]
 _NOISE_STD = (0.05, 0.1, 0.2)
 
 
+def _uniform_features(
+    n: int, d: int, half_width: float, seed: int
+) -> tuple[int, torch.Generator, Tensor]:
+    """The checked count, the seeded generator and features ``U(-w, w)^d`` `(n, d)`."""
+    n = check_count("n", n)
+    g = torch.Generator().manual_seed(seed)
+    x = torch.rand(n, d, generator=g, dtype=torch.float64) * (2 * half_width) - half_width
+    return n, g, x
+
+
 def piecewise_1d(n: int, *, seed: int = 0) -> tuple[Tensor, Tensor, Tensor]:
     """Three regimes on `x ~ U(-3, 3)` split at -1 and 1, with 2-D outputs.
 
@@ -25,14 +35,12 @@ def piecewise_1d(n: int, *, seed: int = 0) -> tuple[Tensor, Tensor, Tensor]:
 
     Args:
         n: Number of samples.
-        seed: Random seed.
+        seed: Seed of the inputs and of the noise.
 
     Returns:
-        Features `(n, 1)`, outputs `(n, 2)` and regime labels `(n,)` (long).
+        Inputs `(n, 1)`, 2-D outputs `(n, 2)` and the regime of every sample `(n,)` (long).
     """
-    n = check_count("n", n)
-    g = torch.Generator().manual_seed(seed)
-    x = torch.rand(n, 1, generator=g, dtype=torch.float64) * 6 - 3
+    n, g, x = _uniform_features(n, 1, 3.0, seed)
     labels = torch.bucketize(x[:, 0], torch.tensor([-1.0, 1.0], dtype=torch.float64))
     eps = torch.randn(n, 2, generator=g, dtype=torch.float64)
     t = x[:, 0]
@@ -103,9 +111,7 @@ def softmax_regimes(n: int, *, seed: int = 0) -> tuple[Tensor, Tensor, Tensor]:
     Returns:
         Features `(n, 4)`, outputs `(n, 2)` and regime labels `(n,)` (long).
     """
-    n = check_count("n", n)
-    g = torch.Generator().manual_seed(seed)
-    x = torch.rand(n, 4, generator=g, dtype=torch.float64) * 4 - 2
+    n, g, x = _uniform_features(n, 4, 2.0, seed)
     angles = torch.tensor([0.0, 2.0, 4.0], dtype=torch.float64) * torch.pi / 3
     directions = torch.stack([angles.cos(), angles.sin()], dim=1)
     probs = torch.softmax(40.0 * (x[:, :2] @ directions.T), dim=1)

@@ -27,18 +27,15 @@ from torch.distributions import Normal
 from probaff._checks import check_count
 from probaff.errors import NotFittedError
 from probaff.models._scaling import Standardizer
-from probaff.models.columns import FeatureGroups, FeatureSpec
 from probaff.models.gate import SoftmaxGate
 from probaff.models.gated import ExpertList, GatedMixture
 from probaff.models.kernels import ard_se_kernel
 from probaff.models.mixture import MixtureOfGPExperts
 
-# `SVIHistory` and `fit_svi` are re-exported lazily from `probaff.models.svi` (`__getattr__`).
-__all__ = ["SVGPExpert", "SVIHistory", "VariationalMixtureOfGPExperts", "fit_svi"]  # noqa: F822
+__all__ = ["SVGPExpert", "VariationalMixtureOfGPExperts"]
 
 _NOT_FITTED = (
-    "VariationalMixtureOfGPExperts is not fitted; call probaff.models.vi.fit_svi(model, X, Y) "
-    "first."
+    "VariationalMixtureOfGPExperts is not fitted; call probaff.models.fit_svi(model, X, Y) first."
 )
 
 
@@ -128,12 +125,11 @@ class VariationalMixtureOfGPExperts(GatedMixture[SVGPExpert]):
 
     Args:
         n_experts: Number of experts `M`.
-        groups: Named column groups.
-        gate_features: Gate columns: ``None`` (all), group name(s) or column indices.
-        expert_features: Expert columns, shared by every expert.
         n_inducing: Inducing points per expert (at most `N`).
         gate_l2: L2 penalty of the gate's weights (per sample, as in `SoftmaxGate`), or
             ``"cv"`` to choose it by cross-validation when the gate is initialised.
+        **columns: The column selection of `GatedMixture`: ``groups``, ``gate_features``
+            and ``expert_features``.
     """
 
     not_fitted_message = _NOT_FITTED
@@ -142,19 +138,11 @@ class VariationalMixtureOfGPExperts(GatedMixture[SVGPExpert]):
         self,
         n_experts: int,
         *,
-        groups: FeatureGroups | None = None,
-        gate_features: FeatureSpec = None,
-        expert_features: FeatureSpec = None,
         n_inducing: int = 32,
         gate_l2: float | str = 1e-3,
+        **columns: Any,
     ) -> None:
-        super().__init__(
-            n_experts,
-            groups=groups,
-            gate_features=gate_features,
-            expert_features=expert_features,
-            gate_l2=gate_l2,
-        )
+        super().__init__(n_experts, gate_l2=gate_l2, **columns)
         check_count("n_inducing", n_inducing)
         self.n_inducing = int(n_inducing)
         self.x_scaler: Standardizer | None = None
@@ -353,12 +341,3 @@ class VariationalMixtureOfGPExperts(GatedMixture[SVGPExpert]):
                 locs.append(post.mean.T * y_scaler.std + y_scaler.mean)
                 scales.append(var.sqrt() * y_scaler.std)
         return Normal(torch.stack(locs, dim=1), torch.stack(scales, dim=1))
-
-
-def __getattr__(name: str) -> Any:
-    """`fit_svi` and `SVIHistory` live in `probaff.models.svi`; import them lazily from there."""
-    if name in ("SVIHistory", "fit_svi"):
-        from probaff.models import svi
-
-        return getattr(svi, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

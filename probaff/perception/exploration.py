@@ -21,9 +21,9 @@ from probaff._checks import check_shape
 from probaff.errors import InputError
 from probaff.grid import DIRECTION_OFFSETS
 from probaff.perception.occupancy import FREE_SPACE, UNKNOWN, OccupancyGrid
-from probaff.sim.config import WarehouseSpec
 from probaff.sim.depth import DepthSensor
 from probaff.sim.warehouse import WarehouseMap
+from probaff.sim.warehouse_config import WarehouseSpec
 
 __all__ = ["Exploration", "explore", "grid_distances"]
 

@@ -73,6 +73,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -90,7 +91,8 @@ from probaff.sim.camera import (
     load_camera,
     scan_views,
 )
-from probaff.sim.office import OfficeScene, OfficeSpec, sample_office_scenes
+from probaff.sim.office import OfficeScene, sample_office_scenes
+from probaff.sim.office_config import OfficeSpec
 
 __all__ = [
     "LabelDataset",
@@ -278,6 +280,15 @@ class ViewSegments:
         return len(self.features)
 
 
+def _stacked(name: str, doc: str) -> Any:
+    """A read-only property: the views' arrays `name`, concatenated view by view."""
+
+    def get(self: ScanSegments) -> np.ndarray:
+        return np.concatenate([getattr(v, name) for v in self.views])
+
+    return property(get, doc=doc)
+
+
 @dataclass(frozen=True, eq=False)
 class ScanSegments:
     """The segments of every view of one scan.
@@ -290,30 +301,11 @@ class ScanSegments:
     views: tuple[ViewSegments, ...]
     camera_poses: np.ndarray
 
-    @property
-    def features(self) -> np.ndarray:
-        """(S, 25) features of all views' segments, view by view."""
-        return np.concatenate([v.features for v in self.views])
-
-    @property
-    def labels(self) -> np.ndarray:
-        """(S, 6) bool labels of all views' segments."""
-        return np.concatenate([v.labels for v in self.views])
-
-    @property
-    def object_ids(self) -> np.ndarray:
-        """(S,) int64 majority object ids of all views' segments."""
-        return np.concatenate([v.object_ids for v in self.views])
-
-    @property
-    def purity(self) -> np.ndarray:
-        """(S,) purity of all views' segments."""
-        return np.concatenate([v.purity for v in self.views])
-
-    @property
-    def point_counts(self) -> np.ndarray:
-        """(S,) int64 points of all views' segments."""
-        return np.concatenate([v.point_counts for v in self.views])
+    features = _stacked("features", "(S, 25) features of all views' segments, view by view.")
+    labels = _stacked("labels", "(S, 6) bool labels of all views' segments.")
+    object_ids = _stacked("object_ids", "(S,) int64 majority object ids of all views' segments.")
+    purity = _stacked("purity", "(S,) purity of all views' segments.")
+    point_counts = _stacked("point_counts", "(S,) int64 points of all views' segments.")
 
     @property
     def view_index(self) -> np.ndarray:

@@ -1,162 +1,84 @@
 """Acting on what was learned: affordance maps (chapter 3) and push planners (chapters 4, 5).
 
-The chapter 3 agent refines affordance maps by pushing; the planners of chapters 4 and 5 use
-the learned push models.
-
 `probaff.maps` is the factor-graph library (the MRF, its inference and entropies) and
-`probaff.models` the push models; this package is the robot built on them, with perception,
-learning and simulation:
+`probaff.models` the push models; this package is the robot built on them. What a planner
+scores is apart from how it searches:
+
+- what is scored: one transition protocol (`Transition`: where N candidate pushes leave K
+  objects), with learned, simulator and analytic implementations (`transitions`), over a
+  fitted push model joined to its features (`learned`);
+- how it is searched: A*, the greedy one step and sampling in two steps, whatever the task
+  (`search`);
+- the tasks, each in its own subpackage: `push_to_edge` (chapter 4: push a book over the
+  table edge; A* and greedy planners, closed-loop episodes), `tool_push` (chapter 5: push a
+  tool into a target to bring it within reach; two-step planner, trials) and `manipulation`
+  (chapter 3: the manipulation loop on an affordance map, change detection, information
+  gain, the affordance classifier);
+- the catalogue of planners and their models (`catalogue`).
 
 Modules:
-    classifier: per-cell affordance classifier from voxel features, and its evaluation.
-    info_gain: candidate pushes scored by expected entropy reduction against travel; it takes
-        travel distances as an array and needs no perception.
-    manipulation_loop: the manipulation loop (information gain or exhaustive) on one map,
-        change detection of pushes (`VerifiedPush`) and travel distances on the belief grid.
+    transitions: the transition protocol, its prediction and checks, and its learned,
+        simulator and quasi-static implementations.
     learned: a fitted push model with the features it reads (`FeaturePushModel`), and
         pushing-frame effects back to world poses (`apply_effects`).
-    edge_task: chapter 4's push-to-edge task: goal, fall and collision geometry, candidate
-        pushes, episode starts.
-    edge_transitions: the planner's models of a push (learned, simulator, quasi-static) and
-        the arm's push reachability.
-    edge_planner: A* over push transitions and the greedy one-step planner.
-    edge_episode: one closed-loop episode in the simulator, with replanning.
-    edge_models: the learned models the push-to-edge planners compare.
-    tool_push: chapter 5's two-step tool push: the receiving arm's reachable region,
-        candidate pushes of the tool, the two-step, single-push and random planners, trials.
+    search: A*, greedy and sampling searches over a task's states.
+    geometry: rectangular footprints (corners, overlaps, chords).
+    catalogue: the push-to-edge planners and models, and the tool push's model fit.
+    push_to_edge, tool_push, manipulation: the tasks.
 
-The planning study is `probaff.studies.planning` (`run`, `PlanningStudyConfig`), also reachable
-here as `probaff.planning.run`.
+The planning study is `probaff.experiments.planning`.
 """
 
-from typing import Any
-
-from probaff.maps.options import DEFAULT_ALPHA, MRFParams, check_alpha
-from probaff.planning.classifier import (
-    AffordanceClassifier,
-    AffordanceEvaluation,
-    VoxelDataset,
-    collect_voxels,
-    evaluate,
+from probaff.planning.catalogue import (
+    EDGE_MODELS,
+    EDGE_PLANNERS,
+    edge_transition,
+    fit_edge_model,
+    fit_tool_push_model,
 )
-from probaff.planning.edge_episode import EDGE_SEARCHES, EdgeEpisode, EdgeStep, run_edge_episode
-from probaff.planning.edge_models import EDGE_MODELS, EdgeModelSpec, fit_edge_model
-from probaff.planning.edge_planner import EdgePlan, plan_astar, plan_greedy
-from probaff.planning.edge_task import (
-    EdgeTask,
-    RiskBounds,
-    SearchOptions,
-    load_edge_task,
-    sample_episode,
-)
-from probaff.planning.edge_transitions import (
-    EdgeTransition,
+from probaff.planning.learned import FeaturePushModel
+from probaff.planning.manipulation.classifier import AffordanceClassifier, collect_voxels
+from probaff.planning.manipulation.info_gain import plan_pushes
+from probaff.planning.manipulation.loop import POLICIES, ManipulationLoop, plan_pushes_on_grid
+from probaff.planning.push_to_edge.episode import run_edge_episode
+from probaff.planning.push_to_edge.planners import PushReachability, plan_astar, plan_greedy
+from probaff.planning.push_to_edge.task import EdgeTask, load_edge_task, sample_episode
+from probaff.planning.search import astar, greedy, sample_two_steps
+from probaff.planning.tool_push.config import ToolPushConfig
+from probaff.planning.tool_push.planners import plan_random_push, plan_single_push, plan_tool_push
+from probaff.planning.tool_push.state import ToolPushState
+from probaff.planning.tool_push.trials import TOOL_PUSH_PLANNERS, run_tool_push_trial
+from probaff.planning.transitions import (
     LearnedTransition,
-    PushReachability,
     QuasiStaticTransition,
     SimulatorTransition,
+    Transition,
     TransitionPrediction,
-)
-from probaff.planning.info_gain import (
-    PushCandidate,
-    PushCandidates,
-    PushPlan,
-    candidate_pushes,
-    expected_entropies,
-    plan_pushes,
-)
-from probaff.planning.learned import FEATURE_FUNCTIONS, FeaturePushModel, apply_effects
-from probaff.planning.manipulation_loop import (
-    POLICIES,
-    UNKNOWN_PRIOR,
-    LoopResult,
-    LoopSnapshot,
-    LoopStep,
-    ManipulationLoop,
-    VerifiedPush,
-    cloud_distance,
-    detect_push,
-    plan_pushes_on_grid,
-    predict_unary,
-    travel_distances,
-)
-from probaff.planning.tool_push import (
-    TOOL_PUSH_PLANNERS,
-    ModelTransition,
-    ReachableRegion,
-    SimTransition,
-    ToolPushCandidates,
-    ToolPushConfig,
-    ToolPushPlan,
-    ToolPushState,
-    ToolPushTrial,
-    TransitionModel,
-    draw_tool_push_episode,
-    fit_tool_push_model,
-    plan_random_push,
-    plan_single_push,
-    plan_tool_push,
-    reachable_region,
-    run_tool_push_trial,
-    sample_tool_pushes,
-    tool_push_scores,
 )
 
 __all__ = [
-    "DEFAULT_ALPHA",
     "EDGE_MODELS",
-    "EDGE_SEARCHES",
-    "FEATURE_FUNCTIONS",
+    "EDGE_PLANNERS",
     "POLICIES",
     "TOOL_PUSH_PLANNERS",
-    "UNKNOWN_PRIOR",
     "AffordanceClassifier",
-    "AffordanceEvaluation",
-    "EdgeEpisode",
-    "EdgeModelSpec",
-    "EdgePlan",
-    "EdgeStep",
     "EdgeTask",
-    "EdgeTransition",
     "FeaturePushModel",
     "LearnedTransition",
-    "LoopResult",
-    "LoopSnapshot",
-    "LoopStep",
-    "MRFParams",
     "ManipulationLoop",
-    "ModelTransition",
-    "PlanningStudyConfig",
-    "PushCandidate",
-    "PushCandidates",
-    "PushPlan",
     "PushReachability",
     "QuasiStaticTransition",
-    "ReachableRegion",
-    "RiskBounds",
-    "SearchOptions",
-    "SimTransition",
     "SimulatorTransition",
-    "ToolPushCandidates",
     "ToolPushConfig",
-    "ToolPushPlan",
     "ToolPushState",
-    "ToolPushTrial",
-    "TransitionModel",
+    "Transition",
     "TransitionPrediction",
-    "VerifiedPush",
-    "VoxelDataset",
-    "apply_effects",
-    "candidate_pushes",
-    "check_alpha",
-    "cloud_distance",
+    "astar",
     "collect_voxels",
-    "detect_push",
-    "draw_tool_push_episode",
-    "evaluate",
-    "expected_entropies",
+    "edge_transition",
     "fit_edge_model",
     "fit_tool_push_model",
+    "greedy",
     "load_edge_task",
     "plan_astar",
     "plan_greedy",
@@ -165,22 +87,8 @@ __all__ = [
     "plan_random_push",
     "plan_single_push",
     "plan_tool_push",
-    "predict_unary",
-    "reachable_region",
-    "run",
     "run_edge_episode",
     "run_tool_push_trial",
     "sample_episode",
-    "sample_tool_pushes",
-    "tool_push_scores",
-    "travel_distances",
+    "sample_two_steps",
 ]
-
-
-def __getattr__(name: str) -> Any:
-    """The planning study's `run` and `PlanningStudyConfig`, imported when first used."""
-    if name in ("run", "PlanningStudyConfig"):
-        from probaff.studies import planning as study
-
-        return getattr(study, name)
-    raise AttributeError(f"module 'probaff.planning' has no attribute {name!r}")

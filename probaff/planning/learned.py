@@ -6,6 +6,8 @@ column groups the model was fitted on, checks them against the model (the groups
 order and widths where the model records its feature groups, the number of columns
 otherwise), and returns the model's predictive distribution of every candidate in one batched
 call. `apply_effects` turns predicted pushing-frame effects back into world poses.
+
+Covered by tests/planning/test_planning_learned.py.
 """
 
 from __future__ import annotations

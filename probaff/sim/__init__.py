@@ -1,98 +1,52 @@
-"""Simulated robot: the URDF arm (pytorch-kinematics), pymunk worlds, skills and sensors."""
+"""Simulated robot: registered world kinds, the URDF arm, pymunk worlds, skills and sensors.
 
-from probaff.sim.arm import (
-    Arm,
-    IKResult,
-    PathIK,
-    PushPathIK,
-    load_arm,
-    sideview_pose,
-    topdown_pose,
+Each world kind (tabletop, side view, warehouse, office) is registered in
+`probaff.sim.registry` with its loaders, its simulation and the dataset kind its scenes make;
+its world file is read by its own ``<world>_config`` module over the shared YAML helpers of
+`probaff.sim.world_files`. The depth camera (`probaff.sim.camera`) images any of them through
+`probaff.sim.primitives.PrimitiveScene`. Everything not named here stays importable from its
+module.
+"""
+
+from probaff.sim.arm import Arm, load_arm
+from probaff.sim.camera import CameraSpec, DepthCamera, head_views, load_camera, scan_views
+from probaff.sim.office import OfficeScene, sample_office_scenes
+from probaff.sim.office_config import OfficeSpec, load_office
+from probaff.sim.registry import (
+    WorldKind,
+    kind_of_scene,
+    register_world,
+    world_kind,
+    world_kinds,
 )
-from probaff.sim.camera import (
-    CameraSpec,
-    DepthCamera,
-    DepthImage,
-    head_views,
-    load_camera,
-    scan_views,
-)
-from probaff.sim.config import (
-    ObjectSpec,
-    SceneSpec,
-    TabletopSpec,
-    list_scenes,
-    load_catalogue,
-    load_scene,
-    load_tabletop,
-    worlds_dir,
-)
-from probaff.sim.geometry import push_frame_effect, to_push_frame
-from probaff.sim.office import (
-    OfficeObject,
-    OfficeScene,
-    OfficeSpec,
-    assemble_office_scene,
-    load_office,
-    office_labels,
-    sample_office_scene,
-    sample_office_scenes,
-)
-from probaff.sim.primitives import PrimitiveScene
-from probaff.sim.runner import PushSample, PushSimulator, straight_path, trapezoid_progress
-from probaff.sim.sampling import sample_scene
-from probaff.sim.sensing import Scan, object_cloud, scan_scene, table_cloud
-from probaff.sim.sideview import SideViewRun, SideViewScene, simulate_rest, simulate_sideview
-from probaff.sim.sideview_config import (
-    SideViewSceneSpec,
-    SideViewSpec,
-    list_sideview_scenes,
-    load_sideview,
-    load_sideview_scene,
-)
-from probaff.sim.skills import (
-    SkillOutcome,
-    SkillPlan,
-    pick,
-    place,
-    plan_skills,
-    run_sampled,
-    run_skills,
-    sample_sideview_scenes,
-    simulate_skill,
-)
-from probaff.sim.tabletop import PushOutcome, SceneInstance, simulate_push
+from probaff.sim.runner import PushSimulator
+from probaff.sim.sideview import SideViewScene, simulate_sideview
+from probaff.sim.sideview_config import SideViewSpec, load_sideview, load_sideview_scene
+from probaff.sim.skills import run_skills
+from probaff.sim.specs import ObjectSpec, load_catalogue
+from probaff.sim.tabletop import SceneInstance, simulate_push
+from probaff.sim.tabletop_config import TabletopSpec, load_scene, load_tabletop
+from probaff.sim.warehouse import WarehouseMap, generate_map, push_box
+from probaff.sim.warehouse_config import WarehouseSpec, load_warehouse
 
 __all__ = [
     "Arm",
     "CameraSpec",
     "DepthCamera",
-    "DepthImage",
-    "IKResult",
     "ObjectSpec",
-    "OfficeObject",
     "OfficeScene",
     "OfficeSpec",
-    "PathIK",
-    "PrimitiveScene",
-    "PushOutcome",
-    "PushPathIK",
-    "PushSample",
     "PushSimulator",
-    "Scan",
     "SceneInstance",
-    "SceneSpec",
-    "SideViewRun",
     "SideViewScene",
-    "SideViewSceneSpec",
     "SideViewSpec",
-    "SkillOutcome",
-    "SkillPlan",
     "TabletopSpec",
-    "assemble_office_scene",
+    "WarehouseMap",
+    "WarehouseSpec",
+    "WorldKind",
+    "generate_map",
     "head_views",
-    "list_scenes",
-    "list_sideview_scenes",
+    "kind_of_scene",
     "load_arm",
     "load_camera",
     "load_catalogue",
@@ -101,29 +55,14 @@ __all__ = [
     "load_sideview",
     "load_sideview_scene",
     "load_tabletop",
-    "object_cloud",
-    "office_labels",
-    "pick",
-    "place",
-    "plan_skills",
-    "push_frame_effect",
-    "run_sampled",
+    "load_warehouse",
+    "push_box",
+    "register_world",
     "run_skills",
-    "sample_office_scene",
     "sample_office_scenes",
-    "sample_scene",
-    "sample_sideview_scenes",
-    "scan_scene",
     "scan_views",
-    "sideview_pose",
     "simulate_push",
-    "simulate_rest",
     "simulate_sideview",
-    "simulate_skill",
-    "straight_path",
-    "table_cloud",
-    "to_push_frame",
-    "topdown_pose",
-    "trapezoid_progress",
-    "worlds_dir",
+    "world_kind",
+    "world_kinds",
 ]

@@ -21,7 +21,7 @@ import torch
 
 from probaff._checks import check_count, check_finite, check_shape
 from probaff.errors import ConfigError, InputError, UnreachablePoseError
-from probaff.sim.config import ArmSpec
+from probaff.sim.specs import ArmSpec
 
 __all__ = [
     "Arm",

@@ -62,18 +62,11 @@ from numpy.typing import ArrayLike
 
 from probaff._checks import check_count, check_finite, check_shape
 from probaff.errors import ConfigError, InputError
-from probaff.sim.config import (
-    _check_spec,
-    _count_field,
-    _field,
-    _load_root,
-    _mapping,
-    _no_extra,
-    _pair,
-    _range,
-    _take,
-)
+from probaff.sim import world_files as wf
+from probaff.sim.inputs import check_rng, check_type, floats
 from probaff.sim.primitives import PrimitiveScene
+from probaff.sim.raycast import cast_rays, rot_y, rot_z, rotvec
+from probaff.sim.world_files import CheckedSpec
 
 __all__ = [
     "CameraSpec",
@@ -91,7 +84,7 @@ _R_HEAD_OPTICAL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]
 
 
 @dataclass(frozen=True)
-class CameraSpec:
+class CameraSpec(CheckedSpec):
     """The depth camera's intrinsics and noise model (``worlds/camera.yaml``).
 
     Attributes:
@@ -116,6 +109,25 @@ class CameraSpec:
         ConfigError: Naming the first field out of range.
     """
 
+    POSITIVE = (
+        "hfov_deg",
+        "vfov_deg",
+        "min_range",
+        "max_range",
+        "baseline",
+        "max_incidence_deg",
+        "edge_threshold",
+    )
+    NONNEG = (
+        "sigma_a",
+        "sigma_b",
+        "disparity_step",
+        "edge_probability",
+        "translation_std",
+        "rotation_std_deg",
+    )
+    COUNTS = ("width", "height")
+
     width: int = 320
     height: int = 240
     hfov_deg: float = 57.0
@@ -133,27 +145,7 @@ class CameraSpec:
     rotation_std_deg: float = 0.5
 
     def __post_init__(self) -> None:
-        _check_spec(
-            self,
-            positive=(
-                "hfov_deg",
-                "vfov_deg",
-                "min_range",
-                "max_range",
-                "baseline",
-                "max_incidence_deg",
-                "edge_threshold",
-            ),
-            nonneg=(
-                "sigma_a",
-                "sigma_b",
-                "disparity_step",
-                "edge_probability",
-                "translation_std",
-                "rotation_std_deg",
-            ),
-            counts=("width", "height"),
-        )
+        super().__post_init__()
         for name in ("hfov_deg", "vfov_deg"):
             if getattr(self, name) >= 180.0:
                 raise ConfigError(f"CameraSpec.{name} must be < 180, got {getattr(self, name)}.")
@@ -272,7 +264,7 @@ class CameraSpec:
             never images the floor (a tilt up by more than half the vertical field of view).
         """
         t = math.radians(float(tilt_deg))
-        R = _rot_y(t) @ _R_HEAD_OPTICAL
+        R = rot_y(t) @ _R_HEAD_OPTICAL
         s_min, s_max = self.floor_band(R)
         if s_max <= 0.0:
             return None
@@ -289,45 +281,41 @@ class CameraSpec:
         return self.sigma_a + self.sigma_b * z * z
 
 
+_CAMERA_FILE: dict[str, dict[str, str]] = {
+    "noise": {"a": "sigma_a", "b": "sigma_b"},
+    "quantisation": {k: k for k in ("baseline", "disparity_step")},
+    "dropout": {k: k for k in ("max_incidence_deg", "edge_threshold", "edge_probability")},
+    "registration": {k: k for k in ("translation_std", "rotation_std_deg")},
+}
+"""The sections of ``worlds/camera.yaml`` besides ``image`` and ``range``: key -> field."""
+
+
 def load_camera(path: Path | None = None) -> CameraSpec:
     """Load and validate the depth camera (``worlds/camera.yaml``).
 
     Args:
-        path: Another camera file; defaults to the one in `probaff.sim.config.worlds_dir()`.
+        path: Another camera file; defaults to the one in `probaff.sim.world_files.worlds_dir()`.
 
     Raises:
         ConfigError: Naming the file and field of a missing, unknown or malformed entry.
     """
-    raw, w, _ = _load_root(path, "camera.yaml")
-    _no_extra(w, raw, {"image", "range", "noise", "quantisation", "dropout", "registration"})
-    img = _mapping(f"{w}:image", _take(w, raw, "image"))
-    _no_extra(f"{w}:image", img, {"width", "height", "fov_deg"})
-    noise = _mapping(f"{w}:noise", _take(w, raw, "noise"))
-    _no_extra(f"{w}:noise", noise, {"a", "b"})
-    quant = _mapping(f"{w}:quantisation", _take(w, raw, "quantisation"))
-    _no_extra(f"{w}:quantisation", quant, {"baseline", "disparity_step"})
-    drop = _mapping(f"{w}:dropout", _take(w, raw, "dropout"))
-    _no_extra(f"{w}:dropout", drop, {"max_incidence_deg", "edge_threshold", "edge_probability"})
-    reg = _mapping(f"{w}:registration", _take(w, raw, "registration"))
-    _no_extra(f"{w}:registration", reg, {"translation_std", "rotation_std_deg"})
-    hfov, vfov = _pair(f"{w}:image.fov_deg", _take(f"{w}:image", img, "fov_deg"))
-    lo, hi = _range(f"{w}:range", _take(w, raw, "range"), positive=True)
+    raw, w, _ = wf.load_root(path, "camera.yaml")
+    wf.no_extra(w, raw, {"image", "range", "noise", "quantisation", "dropout", "registration"})
+    img = wf.section(w, raw, "image", {"width", "height", "fov_deg"})
+    hfov, vfov = wf.pair_field(f"{w}:image", img, "fov_deg")
+    lo, hi = wf.range_field(w, raw, "range", positive=True)
+    values: dict[str, float] = {}
+    for key, names in _CAMERA_FILE.items():
+        table = wf.section(w, raw, key, set(names))
+        values.update(CameraSpec.read_fields(f"{w}:{key}", table, names))
     return CameraSpec(
-        width=_count_field(w, "image", img, "width"),
-        height=_count_field(w, "image", img, "height"),
+        width=wf.count_field(f"{w}:image", img, "width"),
+        height=wf.count_field(f"{w}:image", img, "height"),
         hfov_deg=hfov,
         vfov_deg=vfov,
         min_range=lo,
         max_range=hi,
-        sigma_a=_field(w, "noise", noise, "a", nonneg=True),
-        sigma_b=_field(w, "noise", noise, "b", nonneg=True),
-        baseline=_field(w, "quantisation", quant, "baseline", positive=True),
-        disparity_step=_field(w, "quantisation", quant, "disparity_step", nonneg=True),
-        max_incidence_deg=_field(w, "dropout", drop, "max_incidence_deg", positive=True),
-        edge_threshold=_field(w, "dropout", drop, "edge_threshold", positive=True),
-        edge_probability=_field(w, "dropout", drop, "edge_probability", nonneg=True),
-        translation_std=_field(w, "registration", reg, "translation_std", nonneg=True),
-        rotation_std_deg=_field(w, "registration", reg, "rotation_std_deg", nonneg=True),
+        **values,
     )
 
 
@@ -353,8 +341,7 @@ class DepthImage:
     spec: CameraSpec = field(default_factory=CameraSpec)
 
     def __post_init__(self) -> None:
-        if not isinstance(self.spec, CameraSpec):
-            raise InputError(f"spec must be a CameraSpec, got {type(self.spec).__name__}.")
+        check_type("spec", self.spec, CameraSpec)
         h, w = self.spec.height, self.spec.width
         check_shape("depth", self.depth, (h, w))
         check_shape("object_id", self.object_id, (h, w))
@@ -385,17 +372,9 @@ class DepthImage:
         return self.object_id[self.valid]
 
 
-def _floats(name: str, value: object) -> np.ndarray:
-    """`value` as a float64 array, or an `InputError` naming `name` if it holds no numbers."""
-    try:
-        return np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must hold numbers, got {value!r}.") from None
-
-
 def _check_pose(name: str, T: object) -> np.ndarray:
     """`T` as a (4, 4) float64 rigid transform, or an `InputError` naming `name`."""
-    arr = _floats(name, T)
+    arr = floats(name, T)
     check_shape(name, arr, (4, 4))
     check_finite(name, arr)
     R = arr[:3, :3]
@@ -413,14 +392,7 @@ def _check_pose(name: str, T: object) -> np.ndarray:
 
 
 def _check_rng(rng: object) -> np.random.Generator:
-    if rng is None:
-        return np.random.default_rng(0)
-    if not isinstance(rng, np.random.Generator):
-        raise InputError(
-            f"rng must be a numpy.random.Generator (np.random.default_rng(seed)), got "
-            f"{type(rng).__name__}."
-        )
-    return rng
+    return np.random.default_rng(0) if rng is None else check_rng(rng)
 
 
 def _check_scene(scene: object) -> PrimitiveScene:
@@ -429,148 +401,6 @@ def _check_scene(scene: object) -> PrimitiveScene:
             f"scene must be a probaff.sim.primitives.PrimitiveScene, got {type(scene).__name__}."
         )
     return scene
-
-
-def _rot_z(angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def _rot_y(angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def _rotvec(w: np.ndarray) -> np.ndarray:
-    """(3, 3) rotation of the rotation vector `w` (3,) (rad), by Rodrigues' formula."""
-    theta = float(np.linalg.norm(w))
-    if theta < 1e-15:
-        return np.eye(3)
-    k = w / theta
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(theta) * K + (1.0 - math.cos(theta)) * (K @ K)
-
-
-def _box_hits(box: np.ndarray, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Entry of rays into one box, by the slab method in the box's own frame.
-
-    Args:
-        box: (7,) ``(cx, cy, cz, sx, sy, sz, yaw)``.
-        o: (3,) world-frame ray origin, outside the box.
-        d: (N, 3) world-frame ray directions; the ray parameter t is depth.
-
-    Returns:
-        ``(t (N,), normal (N, 3))``: the entry parameter (inf for a miss) and the world-frame
-        outward normal of the face entered (rows of misses are arbitrary).
-    """
-    R = _rot_z(float(box[6]))  # box -> world
-    p = R.T @ (o - box[:3])
-    db = d @ R  # (N, 3) directions in the box frame
-    half = box[3:6] / 2.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / db
-        t1 = (-half - p) * inv
-        t2 = (half - p) * inv
-    near = np.fmin(t1, t2)  # NaN (0 * inf, a ray in a face's plane) is ignored
-    axis = near.argmax(axis=1)
-    rows = np.arange(len(d))
-    t_in = near[rows, axis]
-    t_out = np.fmax(t1, t2).min(axis=1)
-    hit = np.isfinite(t_in) & (t_in > 0.0) & (t_in <= t_out)
-    n_box = np.zeros((len(d), 3))
-    n_box[rows, axis] = -np.sign(db[rows, axis])
-    return np.where(hit, t_in, np.inf), n_box @ R.T
-
-
-def _cylinder_hits(cyl: np.ndarray, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Entry of rays into one vertical cylinder: its side (a quadratic) or a cap (a plane).
-
-    Args:
-        cyl: (5,) ``(cx, cy, cz, radius, height)``.
-        o: (3,) world-frame ray origin, outside the cylinder.
-        d: (N, 3) world-frame ray directions; the ray parameter t is depth.
-
-    Returns:
-        ``(t (N,), normal (N, 3))`` as `_box_hits`.
-    """
-    r, h = float(cyl[3]), float(cyl[4])
-    q = o - cyl[:3]
-    a = d[:, 0] ** 2 + d[:, 1] ** 2
-    b = 2.0 * (q[0] * d[:, 0] + q[1] * d[:, 1])
-    c = q[0] ** 2 + q[1] ** 2 - r * r
-    disc = b * b - 4.0 * a * c
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t_side = (-b - np.sqrt(disc)) / (2.0 * a)  # the nearer root: the camera is outside
-    z_side = q[2] + t_side * d[:, 2]
-    side = (disc >= 0.0) & (a > 0.0) & (t_side > 0.0) & (np.abs(z_side) <= h / 2.0)
-    t = np.where(side, t_side, np.inf)
-    normal_z = np.zeros(len(d))
-    for zc in (h / 2.0, -h / 2.0):
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t_cap = (zc - q[2]) / d[:, 2]
-        xc, yc = q[0] + t_cap * d[:, 0], q[1] + t_cap * d[:, 1]
-        cap = (t_cap > 0.0) & (xc * xc + yc * yc <= r * r) & (t_cap < t)
-        t = np.where(cap, t_cap, t)
-        normal_z = np.where(cap, math.copysign(1.0, zc), normal_z)
-    n = np.zeros((len(d), 3))
-    n[:, 2] = normal_z
-    on_side = normal_z == 0.0
-    with np.errstate(invalid="ignore"):
-        n[on_side, 0] = (q[0] + t[on_side] * d[on_side, 0]) / r
-        n[on_side, 1] = (q[1] + t[on_side] * d[on_side, 1]) / r
-    return t, n
-
-
-def _cast_all(
-    scene: PrimitiveScene, o: np.ndarray, d: np.ndarray, unit: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The nearest hit of every ray over all primitives.
-
-    Each primitive is tested only on the rays inside the cone of its bounding sphere that are
-    not already stopped nearer; primitives go nearest first, so occluded ones cost little.
-
-    Args:
-        scene: The primitives.
-        o: (3,) world-frame ray origin, outside every primitive.
-        d: (N, 3) world-frame ray directions with unit depth.
-        unit: (N, 3) the same directions, normalised.
-
-    Returns:
-        ``(t (N,), object_id (N,), normal (N, 3))``: depth (inf for none), id (-1 for none)
-        and world-frame normal (NaN for none).
-    """
-    n = len(d)
-    best = np.full(n, np.inf)
-    best_range = np.full(n, np.inf)  # best t times the ray's length
-    best_id = np.full(n, -1, dtype=np.int64)
-    best_n = np.full((n, 3), np.nan)
-    length = np.linalg.norm(d, axis=1)
-    prims = [
-        (b, i, _box_hits, 0.5 * float(np.linalg.norm(b[3:6])))
-        for b, i in zip(scene.boxes, scene.box_ids, strict=True)
-    ] + [
-        (c, i, _cylinder_hits, math.hypot(c[3], c[4] / 2.0))
-        for c, i in zip(scene.cylinders, scene.cylinder_ids, strict=True)
-    ]
-    near = [float(np.linalg.norm(p[0][:3] - o)) - p[3] for p in prims]
-    for k in np.argsort(near, kind="stable"):
-        prim, oid, hits, radius = prims[k]
-        v = prim[:3] - o
-        dist = float(np.linalg.norm(v))
-        cand = best_range > dist - radius
-        if dist > radius:
-            cand &= unit @ v >= math.sqrt(dist * dist - radius * radius) - 1e-9
-        idx = np.flatnonzero(cand)
-        if len(idx) == 0:
-            continue
-        t, normal = hits(prim, o, d[idx])
-        better = t < best[idx]
-        sel = idx[better]
-        best[sel] = t[better]
-        best_range[sel] = t[better] * length[sel]
-        best_id[sel] = oid
-        best_n[sel] = normal[better]
-    return best, best_id, best_n
 
 
 def _edges(depth: np.ndarray, threshold: float) -> np.ndarray:
@@ -601,11 +431,7 @@ class DepthCamera:
     def __init__(self, spec: CameraSpec | None = None) -> None:
         if spec is None:
             spec = load_camera()
-        if not isinstance(spec, CameraSpec):
-            raise InputError(
-                f"spec must be a CameraSpec (see load_camera), got {type(spec).__name__}."
-            )
-        self.spec = spec
+        self.spec = check_type("spec", spec, CameraSpec, "see load_camera")
         self._rays = spec.pixel_rays().reshape(-1, 3)  # (H W, 3) camera frame, unit depth
         self._ray_norm = np.linalg.norm(self._rays, axis=1)  # (H W,)
 
@@ -637,7 +463,7 @@ class DepthCamera:
             )
         d = self._rays @ T[:3, :3].T
         unit = d / self._ray_norm[:, None]
-        t, ids, normal = _cast_all(scene, o, d, unit)
+        t, ids, normal = cast_rays(scene, o, d, unit)
         h, w = self.spec.height, self.spec.width
         return t.reshape(h, w), ids.reshape(h, w), normal.reshape(h, w, 3)
 
@@ -725,7 +551,7 @@ def head_views(
     T = _check_pose("T_world_head", T_world_head)
     angles = []
     for name, value in (("pans_deg", pans_deg), ("tilts_deg", tilts_deg)):
-        arr = np.atleast_1d(_floats(name, value))
+        arr = np.atleast_1d(floats(name, value))
         check_shape(name, arr, (None,))
         check_finite(name, arr)
         if arr.size == 0:
@@ -735,7 +561,7 @@ def head_views(
     for pan in angles[0]:
         for tilt in angles[1]:
             pose = np.eye(4)
-            pose[:3, :3] = _rot_z(pan) @ _rot_y(tilt) @ _R_HEAD_OPTICAL
+            pose[:3, :3] = rot_z(pan) @ rot_y(tilt) @ _R_HEAD_OPTICAL
             poses.append(T @ pose)
     return np.stack(poses)
 
@@ -767,10 +593,9 @@ def scan_views(
     Raises:
         InputError: For a bad camera, pose array or rng, or a camera inside a primitive.
     """
-    if not isinstance(camera, DepthCamera):
-        raise InputError(f"camera must be a DepthCamera, got {type(camera).__name__}.")
+    check_type("camera", camera, DepthCamera)
     gen = _check_rng(rng)
-    arr = _floats("poses", poses)
+    arr = floats("poses", poses)
     check_shape("poses", arr, (None, 4, 4))
     if len(arr) == 0:
         raise InputError("poses is empty; give at least one (4, 4) camera pose.")
@@ -781,7 +606,7 @@ def scan_views(
         delta = np.eye(4)
         if registration:
             w = np.radians(spec.rotation_std_deg) * gen.standard_normal(3)
-            delta[:3, :3] = _rotvec(w)
+            delta[:3, :3] = rotvec(w)
             delta[:3, 3] = spec.translation_std * gen.standard_normal(3)
         image = camera.render(scene, T, rng=gen, noise=noise)
         views.append(

@@ -43,9 +43,10 @@ import numpy as np
 from probaff._checks import check_finite, check_shape
 from probaff.errors import InputError
 from probaff.sim.camera import DepthCamera, DepthImage, head_views, scan_views
-from probaff.sim.config import WarehouseSpec
+from probaff.sim.inputs import check_rng
 from probaff.sim.primitives import PrimitiveScene
 from probaff.sim.warehouse import WarehouseMap, _check_world
+from probaff.sim.warehouse_config import WarehouseSpec
 
 _SURFACE_DEPTH = 0.15  # m: a column's returns this close behind its nearest are one surface
 
@@ -245,11 +246,7 @@ class DepthSensor:
                 or an `rng` that is not a `numpy.random.Generator`.
         """
         xy = self.check_position(position)
-        if not isinstance(rng, np.random.Generator):
-            raise InputError(
-                f"rng must be a numpy.random.Generator (np.random.default_rng(seed)), got "
-                f"{type(rng).__name__}."
-            )
+        check_rng(rng)
         spec = self.spec
         origin = np.array([xy[0], xy[1], spec.sensor_height])
         if spec.sensor_kind == "camera":

@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from probaff._checks import check_count, check_finite, check_shape
-from probaff.sim.config import ObjectSpec
+from probaff.sim.specs import ObjectSpec
 
 __all__ = [
     "convex_penetration",

@@ -21,13 +21,18 @@ from probaff.errors import InputError
 __all__ = ["PrimitiveScene"]
 
 
-def _array(name: str, value: object, columns: int) -> np.ndarray:
+def _numbers(name: str, value: object, columns: int) -> np.ndarray:
+    """`value` as a float64 array, or an `InputError` asking for an (N, `columns`) array."""
     try:
-        arr = np.asarray(value, dtype=np.float64)
+        return np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
         raise InputError(
             f"{name} must be an (N, {columns}) array of numbers, got {value!r}."
         ) from None
+
+
+def _array(name: str, value: object, columns: int) -> np.ndarray:
+    arr = _numbers(name, value, columns)
     if arr.size == 0:
         arr = arr.reshape(0, columns)
     check_shape(name, arr, (None, columns))
@@ -95,12 +100,7 @@ class PrimitiveScene:
         Returns:
             (N,) bool.
         """
-        try:
-            p = np.asarray(points, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise InputError(
-                f"points must be an (N, 3) array of numbers, got {points!r}."
-            ) from None
+        p = _numbers("points", points, 3)
         check_shape("points", p, (None, 3))
         inside = np.zeros(len(p), dtype=bool)
         for cx, cy, cz, sx, sy, sz, yaw in self.boxes:

@@ -12,16 +12,17 @@ import torch
 from probaff._checks import check_count, check_finite, check_positive, check_shape
 from probaff.errors import ConfigError, InputError, UnreachablePoseError
 from probaff.sim.arm import Arm, load_arm
-from probaff.sim.config import (
+from probaff.sim.inputs import check_items, check_rng, check_type, floats
+from probaff.sim.sampling import sample_scene
+from probaff.sim.specs import load_catalogue
+from probaff.sim.tabletop import PushOutcome, SceneInstance, simulate_push
+from probaff.sim.tabletop_config import (
     SceneSpec,
     TabletopSpec,
     list_scenes,
-    load_catalogue,
     load_scene,
     load_tabletop,
 )
-from probaff.sim.sampling import sample_scene
-from probaff.sim.tabletop import PushOutcome, SceneInstance, simulate_push
 
 __all__ = ["PushSample", "PushSimulator", "straight_path", "trapezoid_progress"]
 
@@ -33,13 +34,6 @@ def _check_number(name: str, value: object) -> None:
     if isinstance(value, (bool, str, bytes)):
         raise InputError(f"{name} must be a finite number > 0, got {value!r}.")
     check_positive(name, value)  # type: ignore[arg-type]
-
-
-def _floats(name: str, value: object) -> np.ndarray:
-    try:
-        return np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must hold numbers, got {value!r}.") from None
 
 
 def trapezoid_progress(
@@ -115,14 +109,11 @@ def straight_path(
         InputError: For a world that is not a `TabletopSpec`, a start that is not a finite
             (2,) point, a yaw that is not finite or a distance that is not > 0.
     """
-    if not isinstance(world, TabletopSpec):
-        raise InputError(
-            f"world must be a TabletopSpec (load_tabletop()), got {type(world).__name__}."
-        )
-    start_xy = _floats("start_xy", start_xy)
+    check_type("world", world, TabletopSpec, "load_tabletop()")
+    start_xy = floats("start_xy", start_xy)
     check_shape("start_xy", start_xy, (2,))
     check_finite("start_xy", start_xy)
-    yaw_arr = _floats("yaw", yaw)
+    yaw_arr = floats("yaw", yaw)
     check_shape("yaw", yaw_arr, ())
     check_finite("yaw", yaw_arr)
     yaw = float(yaw_arr)
@@ -214,17 +205,8 @@ class PushSimulator:
                 an invalid push start, yaw or physical parameter (named by its index).
             UnreachablePoseError: Naming the first push the arm cannot execute.
         """
-        if not isinstance(scenes, (list, tuple)) or not scenes:
-            raise InputError(
-                f"scenes must be a non-empty list of SceneInstance, got {scenes!r}; wrap a "
-                "single scene in a list."
-            )
-        for i, s in enumerate(scenes):
-            if not isinstance(s, SceneInstance):
-                raise InputError(
-                    f"scenes[{i}] must be a SceneInstance (see sample_scene or "
-                    f"SceneInstance.nominal), got {type(s).__name__}."
-                )
+        how = "see sample_scene or SceneInstance.nominal"
+        for i, s in enumerate(check_items("scenes", scenes, SceneInstance, how)):
             check_shape(f"scenes[{i}].push_origin", s.push_origin, (2,))
             check_finite(f"scenes[{i}].push_origin (the push start)", s.push_origin)
             check_finite(f"scenes[{i}].push_yaw", s.push_yaw)
@@ -266,12 +248,7 @@ class PushSimulator:
             ConfigError: If valid, reachable pushes are too rare to draw.
         """
         n = check_count("n", n, minimum=0)  # here, not when the first sample is asked for
-        if not isinstance(rng, np.random.Generator):
-            raise InputError(
-                f"rng must be a numpy.random.Generator (np.random.default_rng(seed)), got "
-                f"{type(rng).__name__}."
-            )
-        return self._run(n, rng)
+        return self._run(n, check_rng(rng))
 
     def _run(self, n: int, rng: np.random.Generator) -> Iterator[PushSample]:
         """The generator behind `run`, for a validated `n`."""

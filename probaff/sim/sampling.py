@@ -7,11 +7,12 @@ import math
 import numpy as np
 import pymunk
 
-from probaff.sim.config import ObjectSpec, SceneSpec, TabletopSpec
 from probaff.sim.geometry import footprint_support, friction_points
+from probaff.sim.specs import ObjectSpec
 from probaff.sim.tabletop import SceneInstance
+from probaff.sim.tabletop_config import SceneSpec, TabletopSpec
 
-__all__ = ["sample_scene"]
+__all__ = ["object_shape", "sample_scene"]
 
 _CLEARANCE = 0.003  # minimum gap (m) between bodies in a sampled start configuration
 
@@ -20,15 +21,31 @@ def _uniform(rng: np.random.Generator, r: tuple[float, float]) -> float:
     return float(r[0]) if r[0] == r[1] else float(rng.uniform(r[0], r[1]))
 
 
-def _shape_at(
-    space: pymunk.Space, obj: ObjectSpec, x: float, y: float, theta: float
+def object_shape(
+    space: pymunk.Space,
+    obj: ObjectSpec,
+    pose: tuple[float, float, float] | np.ndarray,
+    margin: float,
 ) -> pymunk.Shape:
+    """Add a kinematic footprint of `obj` at world pose (3,) to `space`, grown by `margin` (m).
+
+    A shape query against it finds what lies within `margin` of the object.
+
+    Args:
+        space: The space.
+        obj: The catalogue object.
+        pose: (3,) world ``(x, y, theta)``.
+        margin: How much the footprint is grown (m).
+
+    Returns:
+        The added shape.
+    """
     body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
-    body.position, body.angle = (x, y), theta
+    body.position, body.angle = (float(pose[0]), float(pose[1])), float(pose[2])
     if obj.shape == "circle":
-        shape: pymunk.Shape = pymunk.Circle(body, obj.radius + _CLEARANCE)
+        shape: pymunk.Shape = pymunk.Circle(body, obj.radius + margin)
     else:
-        shape = pymunk.Poly.create_box(body, obj.size, radius=_CLEARANCE)
+        shape = pymunk.Poly.create_box(body, obj.size, radius=margin)
     space.add(body, shape)
     return shape
 
@@ -105,7 +122,7 @@ def sample_scene(
     if any(abs(p[0]) > hx or abs(p[1]) > hy for p in poses):
         return None
     space = pymunk.Space()
-    shapes = [_shape_at(space, o, *p) for o, p in zip(objs, poses, strict=True)]
+    shapes = [object_shape(space, o, p, _CLEARANCE) for o, p in zip(objs, poses, strict=True)]
     g = world.gripper
     hand_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
     hand_body.position, hand_body.angle = (float(start[0]), float(start[1])), phi

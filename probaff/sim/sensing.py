@@ -14,16 +14,10 @@ import numpy as np
 
 from probaff._checks import check_count, check_finite, check_positive, check_shape
 from probaff.errors import InputError
-from probaff.sim.config import ObjectSpec
+from probaff.sim.inputs import check_rng, floats
+from probaff.sim.specs import ObjectSpec
 
 __all__ = ["Scan", "object_cloud", "scan_scene", "table_cloud"]
-
-
-def _floats(name: str, value: object) -> np.ndarray:
-    try:
-        return np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must hold numbers, got {value!r}.") from None
 
 
 def _check_object(name: str, obj: object) -> ObjectSpec:
@@ -35,17 +29,8 @@ def _check_object(name: str, obj: object) -> ObjectSpec:
     return obj
 
 
-def _check_rng(rng: object) -> np.random.Generator:
-    if not isinstance(rng, np.random.Generator):
-        raise InputError(
-            f"rng must be a numpy.random.Generator (np.random.default_rng(seed)), got "
-            f"{type(rng).__name__}."
-        )
-    return rng
-
-
 def _check_table(table_size: object) -> tuple[float, float]:
-    size = _floats("table_size", table_size)
+    size = floats("table_size", table_size)
     check_shape("table_size", size, (2,))
     for i in range(2):
         check_positive(f"table_size[{i}]", float(size[i]))
@@ -135,12 +120,12 @@ def object_cloud(
             a positive integer, `noise` negative or `rng` not a `numpy.random.Generator`.
     """
     obj = _check_object("obj", obj)
-    pose = _floats("pose", pose)
+    pose = floats("pose", pose)
     check_shape("pose", pose, (3,))
     check_finite("pose", pose)
     n_points = check_count("n_points", n_points)
     noise = _check_noise(noise)
-    rng = _check_rng(rng)
+    rng = check_rng(rng)
     sampler = _circle_surface if obj.shape == "circle" else _box_surface
     pts, nrm = sampler(obj, n_points, rng)
     c, s = math.cos(pose[2]), math.sin(pose[2])
@@ -188,12 +173,12 @@ def table_cloud(
         raise InputError(f"spacing must be a finite number > 0, got {spacing!r}.")
     check_positive("spacing", spacing)
     noise = _check_noise(noise)
-    rng = _check_rng(rng)
+    rng = check_rng(rng)
     checked = []
     for i, item in enumerate(occluders):
         if not isinstance(item, (tuple, list)) or len(item) != 2:
             raise InputError(f"occluders[{i}] must be an (ObjectSpec, pose) pair, got {item!r}.")
-        pose = _floats(f"occluders[{i}] pose", item[1])
+        pose = floats(f"occluders[{i}] pose", item[1])
         check_shape(f"occluders[{i}] pose", pose, (3,))
         check_finite(f"occluders[{i}] pose", pose)
         checked.append((_check_object(f"occluders[{i}] object", item[0]), pose))
@@ -241,7 +226,7 @@ def scan_scene(
             f"objects must be a non-empty list of catalogue ObjectSpec, got {objects!r}."
         )
     objects = tuple(_check_object(f"objects[{k}]", o) for k, o in enumerate(objects))
-    poses = _floats("poses", poses)
+    poses = floats("poses", poses)
     check_shape("poses", poses, (len(objects), 3))
     check_finite("poses", poses)
     table_size = _check_table(table_size)

@@ -28,10 +28,11 @@ import pymunk
 
 from probaff._checks import check_count, check_finite, check_positive, check_shape
 from probaff.errors import ConfigError, InputError
-from probaff.sim.config import ObjectSpec, load_catalogue
 from probaff.sim.geometry import convex_penetration
+from probaff.sim.inputs import check_objects, check_type, floats, numeric_fields
 from probaff.sim.pusher import TrackedPusher
 from probaff.sim.sideview_config import SKILLS, SideViewSpec, load_sideview
+from probaff.sim.specs import ObjectSpec, load_catalogue
 
 __all__ = ["SideViewRun", "SideViewScene", "simulate_rest", "simulate_sideview"]
 
@@ -44,13 +45,6 @@ _HAND_GROUP = 1
 # offset of the two, which centres the pair without changing their squeeze.
 _CENTRING_STIFFNESS = 400.0  # N/m
 _CENTRING_DAMPING = 10.0  # N s/m
-
-
-def _floats(name: str, value: object) -> np.ndarray:
-    try:
-        return np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must hold numbers, got {value!r}.") from None
 
 
 def _corners(obj: ObjectSpec, pose: np.ndarray) -> np.ndarray:
@@ -88,21 +82,11 @@ class SideViewScene:
     release_height: float = 0.0
 
     def __post_init__(self) -> None:
-        objects = tuple(self.objects) if isinstance(self.objects, (tuple, list)) else ()
-        if not objects or not all(isinstance(o, ObjectSpec) for o in objects):
-            raise InputError(
-                "SideViewScene.objects must be a non-empty tuple of ObjectSpec (from "
-                f"load_catalogue(load_sideview().catalogue)), got {self.objects!r}."
-            )
+        objects = check_objects(
+            "SideViewScene", self.objects, "load_catalogue(load_sideview().catalogue)"
+        )
         object.__setattr__(self, "objects", objects)
-        for name in ("poses", "mass", "friction"):
-            try:
-                value = np.asarray(getattr(self, name), dtype=float)
-            except (TypeError, ValueError):
-                raise InputError(
-                    f"SideViewScene.{name} must be a numeric array, got {getattr(self, name)!r}."
-                ) from None
-            object.__setattr__(self, name, value)
+        numeric_fields(self, ("poses", "mass", "friction"))
         object.__setattr__(
             self, "target", check_count("SideViewScene.target", self.target, minimum=0)
         )
@@ -421,15 +405,8 @@ def _build(world: SideViewSpec, scene: SideViewScene) -> tuple[pymunk.Space, lis
 
 
 def _check_on_table(world: SideViewSpec, scene: SideViewScene) -> None:
-    if not isinstance(world, SideViewSpec):
-        raise InputError(
-            f"world must be a SideViewSpec (load_sideview()), got {type(world).__name__}."
-        )
-    if not isinstance(scene, SideViewScene):
-        raise InputError(
-            f"scene must be a SideViewScene (SideViewScene.nominal or sample_sideview_scenes), "
-            f"got {type(scene).__name__}."
-        )
+    check_type("world", world, SideViewSpec, "load_sideview()")
+    check_type("scene", scene, SideViewScene, "SideViewScene.nominal or sample_sideview_scenes")
     scene.validate()
     half = 0.5 * world.table_length
     for k, p in enumerate(scene.poses):
@@ -478,6 +455,45 @@ def simulate_rest(
     return np.array(times), np.array(objs)
 
 
+def _check_paths(
+    world: SideViewSpec,
+    hand_path: object,
+    opening_path: object,
+    initial_opening: object,
+    snapshots: Sequence[int],
+) -> tuple[np.ndarray, np.ndarray, float, list[int]]:
+    """The checked ``(hand_path, opening_path, initial opening, snapshot ticks)``.
+
+    Raises:
+        InputError: As `simulate_sideview` documents.
+    """
+    hand = floats("hand_path", hand_path)
+    check_shape("hand_path", hand, (None, 3))
+    if len(hand) == 0:
+        raise InputError("hand_path is empty; give at least one (x, z, phi) control tick.")
+    check_finite("hand_path", hand)
+    T = len(hand)
+    opening = floats("opening_path", opening_path)
+    check_shape("opening_path", opening, (T,))
+    check_finite("opening_path", opening)
+    span = world.gripper.span
+    if initial_opening is None:
+        start = float(opening[0])
+    else:
+        start_arr = floats("initial_opening", initial_opening)
+        check_shape("initial_opening", start_arr, ())
+        check_finite("initial_opening", start_arr)
+        start = float(start_arr)
+    if opening.min() < 0 or opening.max() > span + 1e-9 or not 0 <= start <= span + 1e-9:
+        raise InputError(
+            f"opening_path and initial_opening must lie in [0, {span}] m (the gripper's span)."
+        )
+    snaps = [check_count("snapshots[i]", s, minimum=0) for s in snapshots]
+    if any(s >= T for s in snaps):
+        raise InputError(f"snapshots must be control ticks in 0..{T - 1}, got {list(snapshots)}.")
+    return hand, opening, start, snaps
+
+
 def simulate_sideview(
     world: SideViewSpec,
     scene: SideViewScene,
@@ -508,49 +524,23 @@ def simulate_sideview(
             [0, span], or a snapshot out of range.
     """
     _check_on_table(world, scene)
-    hand_path = _floats("hand_path", hand_path)
-    opening_path = _floats("opening_path", opening_path)
-    check_shape("hand_path", hand_path, (None, 3))
+    hand_path, opening_path, start, snaps = _check_paths(
+        world, hand_path, opening_path, initial_opening, snapshots
+    )
     T = len(hand_path)
-    if T == 0:
-        raise InputError("hand_path is empty; give at least one (x, z, phi) control tick.")
-    check_finite("hand_path", hand_path)
-    check_shape("opening_path", opening_path, (T,))
-    check_finite("opening_path", opening_path)
-    span = world.gripper.span
-    if initial_opening is None:
-        start = float(opening_path[0])
-    else:
-        start_arr = _floats("initial_opening", initial_opening)
-        check_shape("initial_opening", start_arr, ())
-        check_finite("initial_opening", start_arr)
-        start = float(start_arr)
-    if opening_path.min() < 0 or opening_path.max() > span + 1e-9 or not 0 <= start <= span + 1e-9:
-        raise InputError(
-            f"opening_path and initial_opening must lie in [0, {span}] m (the gripper's span)."
-        )
-    snaps = [check_count("snapshots[i]", s, minimum=0) for s in snapshots]
-    if any(s >= T for s in snaps):
-        raise InputError(f"snapshots must be control ticks in 0..{T - 1}, got {list(snapshots)}.")
-
     phys = world.physics
     space, bodies = _build(world, scene)
     grip = _Gripper(space, world, hand_path[0], start)
     rate = phys.control_rate
     dt = 1.0 / rate / phys.substeps
     K = len(bodies)
-    fallen: list[tuple[float, float, float] | None] = [None] * K
+    objects = _Objects(space, bodies)
+    poses = objects.poses
 
     def step_tick() -> None:
         for _ in range(phys.substeps):
             space.step(dt)
-        for k, b in enumerate(bodies):
-            if fallen[k] is None and b.position.y < _FALLEN_Z:
-                fallen[k] = _pose(b)
-                space.remove(b, *b.shapes)
-
-    def poses() -> list[tuple[float, float, float]]:
-        return [fallen[k] or _pose(b) for k, b in enumerate(bodies)]
+        objects.drop_fallen()
 
     for _ in range(round(phys.settle_time * rate)):
         grip.command(hand_path[0], hand_path[0], rate, float(opening_path[0]))
@@ -590,7 +580,6 @@ def simulate_sideview(
             record(i + 1)
         if i + 1 in snap_set:
             snapshot(i + 1)
-    S = [snap_at[s] for s in snaps]
     return SideViewRun(
         times=np.array(t_rec),
         hand_commanded=np.array(cmd_rec),
@@ -600,9 +589,40 @@ def simulate_sideview(
         objects=np.array(obj_rec).reshape(-1, K, 3),
         state_before=before,
         state_after=np.array(poses()),
-        snap_hand=np.array([s[0] for s in S]).reshape(-1, 3),
-        snap_objects=np.array([s[1] for s in S]).reshape(-1, K, 3),
-        snap_opening=np.array([s[2] for s in S], dtype=float),
-        snap_fingers=np.array([s[3] for s in S], dtype=int).reshape(-1, K),
-        snap_supported=np.array([s[4] for s in S], dtype=bool).reshape(-1, K),
+        **_snapshot_arrays([snap_at[s] for s in snaps], K),
     )
+
+
+class _Objects:
+    """The scene's bodies in a space; one whose centre drops below the table leaves it."""
+
+    def __init__(self, space: pymunk.Space, bodies: list[pymunk.Body]) -> None:
+        self.space, self.bodies = space, bodies
+        self.fallen: list[tuple[float, float, float] | None] = [None] * len(bodies)
+
+    def drop_fallen(self) -> None:
+        """Freeze the pose of each body that fell off the table and remove it from the space."""
+        for k, b in enumerate(self.bodies):
+            if self.fallen[k] is None and b.position.y < _FALLEN_Z:
+                self.fallen[k] = _pose(b)
+                self.space.remove(b, *b.shapes)
+
+    def poses(self) -> list[tuple[float, float, float]]:
+        """World ``(x, z, phi)`` of every object, a fallen one where it fell."""
+        return [self.fallen[k] or _pose(b) for k, b in enumerate(self.bodies)]
+
+
+def _snapshot_arrays(snaps: list[tuple], k: int) -> dict[str, np.ndarray]:
+    """The ``snap_*`` arrays of `SideViewRun` of `k` objects.
+
+    Args:
+        snaps: Per snapshot, ``(tcp, poses, opening, fingers, supported)``.
+        k: Number of objects.
+    """
+    return {
+        "snap_hand": np.array([s[0] for s in snaps]).reshape(-1, 3),
+        "snap_objects": np.array([s[1] for s in snaps]).reshape(-1, k, 3),
+        "snap_opening": np.array([s[2] for s in snaps], dtype=float),
+        "snap_fingers": np.array([s[3] for s in snaps], dtype=int).reshape(-1, k),
+        "snap_supported": np.array([s[4] for s in snaps], dtype=bool).reshape(-1, k),
+    }

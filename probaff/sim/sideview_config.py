@@ -2,7 +2,7 @@
 
 The side view is the world x-z plane: x horizontal, z up, the table surface at z = 0. Its
 objects are cuboids from their own catalogue (``worlds/cuboids.yaml``, the format of
-``worlds/objects.yaml``), read with `probaff.sim.config.load_catalogue`.
+``worlds/objects.yaml``), read with `probaff.sim.specs.load_catalogue`.
 """
 
 from __future__ import annotations
@@ -10,26 +10,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 from probaff.errors import ConfigError
-from probaff.sim.config import (
-    ArmSpec,
-    ObjectSpec,
-    _check_spec,
-    _count_field,
-    _field,
-    _load_root,
-    _mapping,
-    _no_extra,
-    _number,
-    _pair,
-    _range,
-    _read_yaml,
-    _take,
-    load_catalogue,
-    worlds_dir,
-)
+from probaff.sim import world_files as wf
+from probaff.sim.specs import ArmSpec, ObjectSpec, load_arm_spec, load_catalogue
+from probaff.sim.world_files import CheckedSpec, Range
 
 __all__ = [
     "PickSkillSpec",
@@ -44,12 +30,13 @@ __all__ = [
     "load_sideview_scene",
 ]
 
-Range = tuple[float, float]
 SKILLS = ("pick", "place")
+SCENES = "sideview_scenes"
+"""Folder of the side view's scene templates, under `worlds_dir()`."""
 
 
 @dataclass(frozen=True)
-class SideGripperSpec:
+class SideGripperSpec(CheckedSpec):
     """The two-finger hand of the side view.
 
     Attributes:
@@ -66,6 +53,20 @@ class SideGripperSpec:
         pad_friction: Surface coefficient of the finger pads.
     """
 
+    POSITIVE = (
+        "span",
+        "finger_size",
+        "finger_mass",
+        "hand_mass",
+        "squeeze_force",
+        "finger_speed",
+        "max_force",
+        "max_torque",
+        "max_speed",
+    )
+    NONNEG = ("tip_below_tcp", "pad_friction")
+    PAIRS: ClassVar[dict[str, str]] = {"finger_size": "(thickness, length)"}
+
     span: float
     finger_size: tuple[float, float]
     tip_below_tcp: float
@@ -79,26 +80,7 @@ class SideGripperSpec:
     pad_friction: float
 
     def __post_init__(self) -> None:
-        if not isinstance(self.finger_size, (tuple, list)) or len(self.finger_size) != 2:
-            raise ConfigError(
-                "SideGripperSpec.finger_size must be a (thickness, length) pair, got "
-                f"{self.finger_size!r}."
-            )
-        _check_spec(
-            self,
-            positive=(
-                "span",
-                "finger_size",
-                "finger_mass",
-                "hand_mass",
-                "squeeze_force",
-                "finger_speed",
-                "max_force",
-                "max_torque",
-                "max_speed",
-            ),
-            nonneg=("tip_below_tcp", "pad_friction"),
-        )
+        super().__post_init__()
         if self.tip_below_tcp >= self.finger_size[1]:
             raise ConfigError(
                 f"SideGripperSpec.tip_below_tcp {self.tip_below_tcp} must be shorter than the "
@@ -107,8 +89,22 @@ class SideGripperSpec:
 
 
 @dataclass(frozen=True)
-class SidePhysicsSpec:
-    """Fixed-step integration settings of the side-view pymunk space."""
+class SidePhysicsSpec(CheckedSpec):
+    """Fixed-step integration settings of the side-view pymunk space.
+
+    Attributes:
+        gravity: Gravitational acceleration along -z (m/s^2).
+        control_rate: Control ticks per second (Hz).
+        substeps: Physics steps per control tick.
+        iterations: pymunk solver iterations per step.
+        collision_slop: Overlap pymunk allows between shapes (m).
+        settle_time: Time the objects settle before the hand moves (s).
+        record_rate: Samples per second of the recorded trajectories (Hz).
+    """
+
+    POSITIVE = ("gravity", "control_rate", "record_rate")
+    NONNEG = ("collision_slop", "settle_time")
+    COUNTS = ("substeps", "iterations")
 
     gravity: float
     control_rate: float
@@ -118,17 +114,9 @@ class SidePhysicsSpec:
     settle_time: float
     record_rate: float
 
-    def __post_init__(self) -> None:
-        _check_spec(
-            self,
-            positive=("gravity", "control_rate", "record_rate"),
-            nonneg=("collision_slop", "settle_time"),
-            counts=("substeps", "iterations"),
-        )
-
 
 @dataclass(frozen=True)
-class PickSkillSpec:
+class PickSkillSpec(CheckedSpec):
     """Parameters of the pick skill (thesis chapter 6).
 
     Attributes:
@@ -139,6 +127,9 @@ class PickSkillSpec:
         hold_time: How long the object is held still after the lift (s).
     """
 
+    POSITIVE = ("approach_height", "grasp_fraction", "close_time", "lift")
+    NONNEG = ("hold_time",)
+
     approach_height: float
     grasp_fraction: float
     close_time: float
@@ -146,11 +137,7 @@ class PickSkillSpec:
     hold_time: float
 
     def __post_init__(self) -> None:
-        _check_spec(
-            self,
-            positive=("approach_height", "grasp_fraction", "close_time", "lift"),
-            nonneg=("hold_time",),
-        )
+        super().__post_init__()
         if self.grasp_fraction > 1.0:
             raise ConfigError(
                 f"PickSkillSpec.grasp_fraction must lie in (0, 1], got {self.grasp_fraction}."
@@ -158,7 +145,7 @@ class PickSkillSpec:
 
 
 @dataclass(frozen=True)
-class PlaceSkillSpec:
+class PlaceSkillSpec(CheckedSpec):
     """Parameters of the place skill (thesis chapter 6).
 
     Attributes:
@@ -169,17 +156,16 @@ class PlaceSkillSpec:
         settle_time: How long is simulated after the fingers open (s).
     """
 
+    POSITIVE = ("hold_height", "open_time")
+    NONNEG = ("release_height", "settle_time")
+
     hold_height: float
     release_height: Range
     open_time: float
     settle_time: float
 
     def __post_init__(self) -> None:
-        _check_spec(
-            self,
-            positive=("hold_height", "open_time"),
-            nonneg=("release_height", "settle_time"),
-        )
+        super().__post_init__()
         if self.release_height[1] > self.hold_height:
             raise ConfigError(
                 f"PlaceSkillSpec.release_height {self.release_height} must not exceed "
@@ -188,7 +174,7 @@ class PlaceSkillSpec:
 
 
 @dataclass(frozen=True)
-class SideViewSpec:
+class SideViewSpec(CheckedSpec):
     """The whole side-view world (``worlds/sideview.yaml``).
 
     Attributes:
@@ -207,6 +193,9 @@ class SideViewSpec:
         place: Place parameters.
     """
 
+    POSITIVE = ("table_length", "speed", "acceleration", "slip_tolerance", "place_tolerance")
+    NONNEG = ("table_friction",)
+
     catalogue: Path
     table_length: float
     table_friction: float
@@ -222,17 +211,7 @@ class SideViewSpec:
     place: PlaceSkillSpec
 
     def __post_init__(self) -> None:
-        _check_spec(
-            self,
-            positive=(
-                "table_length",
-                "speed",
-                "acceleration",
-                "slip_tolerance",
-                "place_tolerance",
-            ),
-            nonneg=("table_friction",),
-        )
+        super().__post_init__()
         if not math.isfinite(self.plane_y):
             raise ConfigError(f"SideViewSpec.plane_y must be finite, got {self.plane_y!r}.")
 
@@ -283,6 +262,12 @@ class SideViewSceneSpec:
     table_x: Range = (0.0, 0.0)
 
 
+_TABLE_KEYS = {"length": "table_length", "friction": "table_friction"}
+"""The ``table`` section of ``worlds/sideview.yaml``: key -> `SideViewSpec` field."""
+_SKILL_KEYS = ("speed", "acceleration", "slip_tolerance", "place_tolerance")
+"""The `SideViewSpec` fields in the ``skills`` section of ``worlds/sideview.yaml``."""
+
+
 def load_sideview(path: Path | None = None) -> SideViewSpec:
     """Load and validate the side-view world (``worlds/sideview.yaml``).
 
@@ -292,114 +277,35 @@ def load_sideview(path: Path | None = None) -> SideViewSpec:
     Raises:
         ConfigError: Naming the file and field of a missing, unknown or malformed entry.
     """
-    raw, w, p = _load_root(path, "sideview.yaml")
-    _no_extra(w, raw, {"catalogue", "table", "physics", "arm", "gripper", "skills"})
-    table = _mapping(f"{w}:table", _take(w, raw, "table"))
-    _no_extra(f"{w}:table", table, {"length", "friction"})
-    phys = _mapping(f"{w}:physics", _take(w, raw, "physics"))
-    _no_extra(
-        f"{w}:physics",
-        phys,
-        {
-            "gravity",
-            "control_rate",
-            "substeps",
-            "iterations",
-            "collision_slop",
-            "settle_time",
-            "record_rate",
-        },
-    )
-    arm = _mapping(f"{w}:arm", _take(w, raw, "arm"))
-    _no_extra(f"{w}:arm", arm, {"urdf", "tcp_link", "base_xyz", "base_yaw", "plane_y", "ik"})
-    ik = _mapping(f"{w}:arm.ik", _take(f"{w}:arm", arm, "ik"))
-    grip = _mapping(f"{w}:gripper", _take(w, raw, "gripper"))
-    grip_keys = {f.name for f in SideGripperSpec.__dataclass_fields__.values()}
-    _no_extra(f"{w}:gripper", grip, grip_keys)
-    skills = _mapping(f"{w}:skills", _take(w, raw, "skills"))
-    _no_extra(
-        f"{w}:skills",
-        skills,
-        {"speed", "acceleration", "slip_tolerance", "place_tolerance", "pick", "place"},
-    )
-    pick = _mapping(f"{w}:skills.pick", _take(f"{w}:skills", skills, "pick"))
-    _no_extra(f"{w}:skills.pick", pick, set(PickSkillSpec.__dataclass_fields__))
-    place = _mapping(f"{w}:skills.place", _take(f"{w}:skills", skills, "place"))
-    _no_extra(f"{w}:skills.place", place, set(PlaceSkillSpec.__dataclass_fields__))
-    base = _take(f"{w}:arm", arm, "base_xyz")
-    if not isinstance(base, list) or len(base) != 3:
-        raise ConfigError(f"{w}:arm.base_xyz must be [x, y, z], got {base!r}.")
-    catalogue = p.parent / str(_take(w, raw, "catalogue"))
+    raw, w, p = wf.load_root(path, "sideview.yaml")
+    wf.no_extra(w, raw, {"catalogue", "table", "physics", "arm", "gripper", "skills"})
+    table = wf.section(w, raw, "table", set(_TABLE_KEYS))
+    phys = wf.section(w, raw, "physics", set(SidePhysicsSpec.__dataclass_fields__))
+    arm = wf.section(w, raw, "arm", {"urdf", "tcp_link", "base_xyz", "base_yaw", "plane_y", "ik"})
+    grip = wf.section(w, raw, "gripper", set(SideGripperSpec.__dataclass_fields__))
+    skills = wf.section(w, raw, "skills", {*_SKILL_KEYS, "pick", "place"})
+    s = f"{w}:skills"
+    pick = wf.section(s, skills, "pick", set(PickSkillSpec.__dataclass_fields__))
+    place = wf.section(s, skills, "place", set(PlaceSkillSpec.__dataclass_fields__))
+    catalogue = p.parent / str(wf.take(w, raw, "catalogue"))
     if not catalogue.is_file():
         raise ConfigError(f"{w}:catalogue names {catalogue}, which does not exist.")
-    span = _field(w, "gripper", grip, "span", positive=True)
     return SideViewSpec(
         catalogue=catalogue,
-        table_length=_field(w, "table", table, "length", positive=True),
-        table_friction=_field(w, "table", table, "friction", nonneg=True),
-        physics=SidePhysicsSpec(
-            gravity=_field(w, "physics", phys, "gravity", positive=True),
-            control_rate=_field(w, "physics", phys, "control_rate", positive=True),
-            substeps=_count_field(w, "physics", phys, "substeps"),
-            iterations=_count_field(w, "physics", phys, "iterations"),
-            collision_slop=_field(w, "physics", phys, "collision_slop", nonneg=True),
-            settle_time=_field(w, "physics", phys, "settle_time", nonneg=True),
-            record_rate=_field(w, "physics", phys, "record_rate", positive=True),
-        ),
-        arm=ArmSpec(
-            urdf=p.parent / str(_take(f"{w}:arm", arm, "urdf")),
-            tcp_link=str(_take(f"{w}:arm", arm, "tcp_link")),
-            base_xyz=tuple(_number(f"{w}:arm.base_xyz", b) for b in base),  # type: ignore[arg-type]
-            base_yaw=_field(w, "arm", arm, "base_yaw"),
-            push_height=0.0,
-            pos_tolerance=_field(w, "arm.ik", ik, "pos_tolerance", positive=True),
-            rot_tolerance=_field(w, "arm.ik", ik, "rot_tolerance", positive=True),
-            max_iterations=_count_field(w, "arm.ik", ik, "max_iterations"),
-            waypoint_spacing=_field(w, "arm.ik", ik, "waypoint_spacing", positive=True),
-        ),
-        plane_y=_field(w, "arm", arm, "plane_y"),
-        gripper=SideGripperSpec(
-            span=span,
-            finger_size=_pair(
-                f"{w}:gripper.finger_size", _take(f"{w}:gripper", grip, "finger_size")
-            ),
-            tip_below_tcp=_field(w, "gripper", grip, "tip_below_tcp", nonneg=True),
-            finger_mass=_field(w, "gripper", grip, "finger_mass", positive=True),
-            hand_mass=_field(w, "gripper", grip, "hand_mass", positive=True),
-            squeeze_force=_field(w, "gripper", grip, "squeeze_force", positive=True),
-            finger_speed=_field(w, "gripper", grip, "finger_speed", positive=True),
-            max_force=_field(w, "gripper", grip, "max_force", positive=True),
-            max_torque=_field(w, "gripper", grip, "max_torque", positive=True),
-            max_speed=_field(w, "gripper", grip, "max_speed", positive=True),
-            pad_friction=_field(w, "gripper", grip, "pad_friction", nonneg=True),
-        ),
-        speed=_field(w, "skills", skills, "speed", positive=True),
-        acceleration=_field(w, "skills", skills, "acceleration", positive=True),
-        slip_tolerance=_field(w, "skills", skills, "slip_tolerance", positive=True),
-        place_tolerance=_field(w, "skills", skills, "place_tolerance", positive=True),
-        pick=PickSkillSpec(
-            approach_height=_field(w, "skills.pick", pick, "approach_height", positive=True),
-            grasp_fraction=_field(w, "skills.pick", pick, "grasp_fraction", positive=True),
-            close_time=_field(w, "skills.pick", pick, "close_time", positive=True),
-            lift=_field(w, "skills.pick", pick, "lift", positive=True),
-            hold_time=_field(w, "skills.pick", pick, "hold_time", nonneg=True),
-        ),
-        place=PlaceSkillSpec(
-            hold_height=_field(w, "skills.place", place, "hold_height", positive=True),
-            release_height=_range(
-                f"{w}:skills.place.release_height",
-                _take(f"{w}:skills.place", place, "release_height"),
-                nonneg=True,
-            ),
-            open_time=_field(w, "skills.place", place, "open_time", positive=True),
-            settle_time=_field(w, "skills.place", place, "settle_time", nonneg=True),
-        ),
+        **SideViewSpec.read_fields(f"{w}:table", table, _TABLE_KEYS),
+        physics=SidePhysicsSpec.read(f"{w}:physics", phys),
+        arm=load_arm_spec(f"{w}:arm", arm, p.parent, push_height=0.0),
+        plane_y=wf.number_field(f"{w}:arm", arm, "plane_y"),
+        gripper=SideGripperSpec.read(f"{w}:gripper", grip),
+        **SideViewSpec.read_fields(s, skills, {k: k for k in _SKILL_KEYS}),
+        pick=PickSkillSpec.read(f"{s}.pick", pick),
+        place=PlaceSkillSpec.read(f"{s}.place", place),
     )
 
 
 def list_sideview_scenes() -> list[str]:
     """Names of the side-view scene templates in ``worlds/sideview_scenes/``."""
-    return sorted(p.stem for p in (worlds_dir() / "sideview_scenes").glob("*.yaml"))
+    return wf.scene_names(SCENES)
 
 
 def _object(where: str, name: Any, catalogue: dict[str, ObjectSpec]) -> ObjectSpec:
@@ -416,9 +322,9 @@ def _object(where: str, name: Any, catalogue: dict[str, ObjectSpec]) -> ObjectSp
 def _side_placement(
     where: str, raw: Any, catalogue: dict[str, ObjectSpec], index: int
 ) -> SideObjectPlacement:
-    e = _mapping(where, raw)
-    _no_extra(where, e, {"choices", "x", "stacked_on", "probability"})
-    choices = _take(where, e, "choices")
+    e = wf.mapping(where, raw)
+    wf.no_extra(where, e, {"choices", "x", "stacked_on", "probability"})
+    choices = wf.take(where, e, "choices")
     if not isinstance(choices, list) or not choices:
         raise ConfigError(f"{where}.choices must be a non-empty list of catalogue names.")
     objs = tuple(_object(f"{where}.choices[{i}]", c, catalogue) for i, c in enumerate(choices))
@@ -431,10 +337,10 @@ def _side_placement(
                 f"{on_raw!r}."
             )
         on = on_raw
-    probability = _number(f"{where}.probability", e.get("probability", 1.0), positive=True)
+    probability = wf.number(f"{where}.probability", e.get("probability", 1.0), positive=True)
     if probability > 1.0:
         raise ConfigError(f"{where}.probability must lie in (0, 1], got {probability}.")
-    return SideObjectPlacement(objs, _range(f"{where}.x", _take(where, e, "x")), on, probability)
+    return SideObjectPlacement(objs, wf.range_field(where, e, "x"), on, probability)
 
 
 def load_sideview_scene(
@@ -451,16 +357,16 @@ def load_sideview_scene(
     """
     if not isinstance(name, str):
         raise ConfigError(f"scene name must be a string, got {name!r}.")
-    path = worlds_dir() / "sideview_scenes" / f"{name}.yaml"
+    path = wf.worlds_dir() / SCENES / f"{name}.yaml"
     if not path.is_file():
         raise ConfigError(
             f"unknown side-view scene {name!r}; available scenes: {list_sideview_scenes()}."
         )
     cat = catalogue if catalogue is not None else load_catalogue(load_sideview().catalogue)
     w = path.name
-    raw = _mapping(w, _read_yaml(path))
-    _no_extra(w, raw, {"name", "description", "skill", "objects", "gap", "held", "target"})
-    skill = _take(w, raw, "skill")
+    raw = wf.mapping(w, wf.read_yaml(path))
+    wf.no_extra(w, raw, {"name", "description", "skill", "objects", "gap", "held", "target"})
+    skill = wf.take(w, raw, "skill")
     if skill not in SKILLS:
         raise ConfigError(f"{w}:skill must be one of {list(SKILLS)}, got {skill!r}.")
     objs_raw = raw.get("objects") or []
@@ -469,7 +375,7 @@ def load_sideview_scene(
     placements = tuple(
         _side_placement(f"{w}:objects[{i}]", o, cat, i) for i, o in enumerate(objs_raw)
     )
-    gap = _number(f"{w}:gap", raw.get("gap", 0.0), nonneg=True)
+    gap = wf.number(f"{w}:gap", raw.get("gap", 0.0), nonneg=True)
     if skill == "pick":
         if not placements or placements[0].probability < 1.0 or placements[0].on is not None:
             raise ConfigError(
@@ -480,20 +386,18 @@ def load_sideview_scene(
             if key in raw:
                 raise ConfigError(f"{w}:{key} belongs to place scenes only; remove it.")
         return SideViewSceneSpec(
-            str(raw.get("name", name)), str(raw.get("description", "")), skill, placements, gap
+            **wf.scene_header(raw, name), skill=skill, objects=placements, gap=gap
         )
     if placements and placements[0].on is not None:
         raise ConfigError(f"{w}:objects[0] must rest on the table (no 'stacked_on').")
-    held = _object(f"{w}:held", _take(w, raw, "held"), cat)
-    target = _mapping(f"{w}:target", _take(w, raw, "target"))
-    _no_extra(f"{w}:target", target, {"offset", "table_x"})
+    held = _object(f"{w}:held", wf.take(w, raw, "held"), cat)
+    target = wf.section(w, raw, "target", {"offset", "table_x"})
     return SideViewSceneSpec(
-        name=str(raw.get("name", name)),
-        description=str(raw.get("description", "")),
+        **wf.scene_header(raw, name),
         skill=skill,
         objects=placements,
         gap=gap,
         held=held,
-        target_offset=_range(f"{w}:target.offset", target.get("offset", [0.0, 0.0])),
-        table_x=_range(f"{w}:target.table_x", _take(f"{w}:target", target, "table_x")),
+        target_offset=wf.range_field(f"{w}:target", target, "offset", (0.0, 0.0)),
+        table_x=wf.range_field(f"{w}:target", target, "table_x"),
     )

@@ -23,10 +23,11 @@ import torch
 from probaff._checks import check_count
 from probaff.errors import ConfigError, InputError, UnreachablePoseError
 from probaff.sim.arm import Arm, load_arm
-from probaff.sim.config import ObjectSpec
+from probaff.sim.inputs import check_items, check_rng, check_type
 from probaff.sim.runner import trapezoid_progress
 from probaff.sim.sideview import SideViewRun, SideViewScene, simulate_sideview
 from probaff.sim.sideview_config import SideViewSceneSpec, SideViewSpec, load_sideview
+from probaff.sim.specs import ObjectSpec
 
 __all__ = [
     "SkillOutcome",
@@ -237,19 +238,11 @@ def _unreachable(
 
 
 def _check_scenes(scenes: Sequence[SideViewScene]) -> list[SideViewScene]:
-    if not isinstance(scenes, (list, tuple)) or not scenes:
-        raise InputError(
-            f"scenes must be a non-empty list of SideViewScene, got {scenes!r}; wrap a single "
-            "scene in a list."
-        )
-    for i, s in enumerate(scenes):
-        if not isinstance(s, SideViewScene):
-            raise InputError(
-                f"scenes[{i}] must be a SideViewScene (see sample_sideview_scenes or "
-                f"SideViewScene.nominal), got {type(s).__name__}."
-            )
+    how = "see sample_sideview_scenes or SideViewScene.nominal"
+    out = check_items("scenes", scenes, SideViewScene, how)
+    for s in out:
         s.validate()
-    return list(scenes)
+    return out
 
 
 def _plan(
@@ -468,8 +461,7 @@ def run_skills(
 
 
 def _single(scene: SideViewScene, skill: str, world: SideViewSpec | None) -> SkillOutcome:
-    if not isinstance(scene, SideViewScene):
-        raise InputError(f"scene must be a SideViewScene, got {type(scene).__name__}.")
+    check_type("scene", scene, SideViewScene)
     if scene.skill != skill:
         raise InputError(f"scene is a {scene.skill} scene; {skill} needs a {skill} scene.")
     return run_skills([scene], world)[0]
@@ -580,17 +572,9 @@ def sample_sideview_scenes(
             a `numpy.random.Generator`.
         ConfigError: If valid draws are too rare.
     """
-    if not isinstance(scene_spec, SideViewSceneSpec):
-        raise InputError(
-            "scene_spec must be a SideViewSceneSpec (load_sideview_scene(name)), got "
-            f"{type(scene_spec).__name__}."
-        )
+    check_type("scene_spec", scene_spec, SideViewSceneSpec, "load_sideview_scene(name)")
     n = check_count("n", n, minimum=0)
-    if not isinstance(rng, np.random.Generator):
-        raise InputError(
-            "rng must be a numpy.random.Generator (np.random.default_rng(seed)), got "
-            f"{type(rng).__name__}."
-        )
+    check_rng(rng)
     world = _world(world)
     out: list[SideViewScene] = []
     draws = 0

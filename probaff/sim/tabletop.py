@@ -18,17 +18,20 @@ import pymunk
 
 from probaff._checks import check_count, check_finite, check_positive, check_shape
 from probaff.errors import InputError
-from probaff.sim.config import ObjectSpec, TabletopSpec
 from probaff.sim.friction import Part, add_sliding_body
 from probaff.sim.geometry import footprint_penetration, friction_points, push_frame_effect
+from probaff.sim.inputs import check_objects, check_type, numeric_fields
 from probaff.sim.pusher import TrackedPusher
+from probaff.sim.specs import ObjectSpec
+from probaff.sim.tabletop_config import TabletopSpec
 
 __all__ = ["PushOutcome", "SceneInstance", "simulate_push"]
 
 _HAND, _WALL, _OBJECT0 = 1, 2, 10
 _WALL_RADIUS = 0.01
 _WALL_FRICTION = 0.5
-_OVERLAP = 0.002  # deeper interpenetration (m) of two footprints at the start is an overlap
+_OVERLAP = 0.01  # deeper interpenetration (m) of two footprints at the start is a wrong pose;
+# the physics itself leaves an object pushed against another a few millimetres into it
 
 
 @dataclass(frozen=True)
@@ -62,28 +65,12 @@ class SceneInstance:
     push_distance: float
 
     def __post_init__(self) -> None:
-        objects = tuple(self.objects) if isinstance(self.objects, (tuple, list)) else ()
-        if not objects or not all(isinstance(o, ObjectSpec) for o in objects):
-            raise InputError(
-                "SceneInstance.objects must be a non-empty tuple of ObjectSpec (from "
-                f"load_catalogue()), got {self.objects!r}."
-            )
+        objects = check_objects("SceneInstance", self.objects, "load_catalogue()")
         object.__setattr__(self, "objects", objects)
-        for name in (
-            "poses",
-            "mass",
-            "ground_friction",
-            "contact_friction",
-            "walls",
-            "push_origin",
-        ):
-            try:
-                value = np.asarray(getattr(self, name), dtype=float)
-            except (TypeError, ValueError):
-                raise InputError(
-                    f"SceneInstance.{name} must be a numeric array, got {getattr(self, name)!r}."
-                ) from None
-            object.__setattr__(self, name, value)
+        numeric_fields(
+            self,
+            ("poses", "mass", "ground_friction", "contact_friction", "walls", "push_origin"),
+        )
         if not isinstance(self.support_weights, (tuple, list)):
             raise InputError(
                 "SceneInstance.support_weights must be a tuple of one (P_k,) array per object, "
@@ -102,7 +89,7 @@ class SceneInstance:
         Raises:
             InputError: Naming the field, for a wrong shape, a NaN or infinite value, a mass
                 or push distance <= 0, a negative friction or support load, or two objects
-                whose footprints overlap by more than 2 mm (objects at rest against each
+                whose footprints overlap by more than 1 cm (objects pushed against each
                 other interpenetrate slightly in the physics).
         """
         K = len(self.objects)
@@ -308,46 +295,34 @@ def _pose(body: pymunk.Body) -> tuple[float, float, float]:
     return (body.position.x, body.position.y, body.angle)
 
 
-def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarray) -> PushOutcome:
-    """Run one push in a fresh pymunk space.
-
-    Args:
-        world: The tabletop world.
-        scene: Objects, walls and the push.
-        hand_path: (T_c, 3) commanded world ``(x, y, yaw)`` of the hand at each control tick,
-            from the arm's joint trajectory (`Arm.trace`). After the last tick the hand holds
-            its pose for ``world.settle_time``.
-
-    Returns:
-        The push's outcome.
-
-    Raises:
-        InputError: If `world` or `scene` is of the wrong type, `scene` holds an invalid
-            physical parameter or overlapping objects (see `SceneInstance.validate`) or an
-            object whose centre is off the table, or `hand_path` is not a finite (T_c, 3)
-            array with T_c >= 1.
-    """
-    if not isinstance(world, TabletopSpec):
-        raise InputError(
-            f"world must be a TabletopSpec (load_tabletop()), got {type(world).__name__}."
-        )
-    if not isinstance(scene, SceneInstance):
-        raise InputError(
-            f"scene must be a SceneInstance (see sample_scene or SceneInstance.nominal), got "
-            f"{type(scene).__name__}."
-        )
+def _check_push(world: object, scene: object, hand_path: object) -> np.ndarray:
+    """`hand_path` as a finite (T_c, 3) array, after checking the world and the scene."""
+    world = check_type("world", world, TabletopSpec, "load_tabletop()")
+    scene = check_type("scene", scene, SceneInstance, "see sample_scene or SceneInstance.nominal")
     scene.validate()
     scene.check_on_table(world)
     try:
-        hand_path = np.asarray(hand_path, dtype=float)
+        path = np.asarray(hand_path, dtype=float)
     except (TypeError, ValueError):
         raise InputError(
             f"hand_path must be a (T_c, 3) numeric array, got {hand_path!r}."
         ) from None
-    check_shape("hand_path", hand_path, (None, 3))
-    if len(hand_path) == 0:
+    check_shape("hand_path", path, (None, 3))
+    if len(path) == 0:
         raise InputError("hand_path is empty; give at least one (x, y, yaw) control tick.")
-    check_finite("hand_path", hand_path)
+    check_finite("hand_path", path)
+    return path
+
+
+def _build(
+    world: TabletopSpec, scene: SceneInstance, start: np.ndarray
+) -> tuple[pymunk.Space, _Contacts, list[pymunk.Body], list[list[Part]], TrackedPusher]:
+    """A fresh space holding the objects, the walls and the hand at pose `start` (3,).
+
+    Returns:
+        ``(space, contacts, bodies, parts, pusher)``: `parts` holds, per object, everything to
+        remove when it falls off the table.
+    """
     phys, grip = world.physics, world.gripper
     space = pymunk.Space()
     space.gravity = (0.0, 0.0)
@@ -357,7 +332,7 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
     space.on_collision(None, None, begin=contacts.begin)
 
     bodies: list[pymunk.Body] = []
-    parts: list[list[Part]] = []  # everything to remove when an object falls off the table
+    parts: list[list[Part]] = []
     for k, obj in enumerate(scene.objects):
         body, extra = _add_object(space, obj, scene, k, phys.friction_grid, phys.gravity)
         bodies.append(body)
@@ -384,7 +359,7 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
 
     pusher = TrackedPusher(
         space,
-        hand_path[0],
+        start,
         grip.mass,
         pymunk.moment_for_box(grip.mass, (2 * grip.finger_radius, grip.push_opening)),
         make_fingers,
@@ -392,6 +367,31 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
         grip.max_torque,
         grip.max_speed,
     )
+    return space, contacts, bodies, parts, pusher
+
+
+def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarray) -> PushOutcome:
+    """Run one push in a fresh pymunk space.
+
+    Args:
+        world: The tabletop world.
+        scene: Objects, walls and the push.
+        hand_path: (T_c, 3) commanded world ``(x, y, yaw)`` of the hand at each control tick,
+            from the arm's joint trajectory (`Arm.trace`). After the last tick the hand holds
+            its pose for ``world.settle_time``.
+
+    Returns:
+        The push's outcome.
+
+    Raises:
+        InputError: If `world` or `scene` is of the wrong type, `scene` holds an invalid
+            physical parameter or overlapping objects (see `SceneInstance.validate`) or an
+            object whose centre is off the table, or `hand_path` is not a finite (T_c, 3)
+            array with T_c >= 1.
+    """
+    hand_path = _check_push(world, scene, hand_path)
+    phys = world.physics
+    space, contacts, bodies, parts, pusher = _build(world, scene, hand_path[0])
     hand = pusher.body
 
     rate = phys.control_rate

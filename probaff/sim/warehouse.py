@@ -21,10 +21,11 @@ import pymunk
 from probaff._checks import check_count, check_positive
 from probaff.errors import ConfigError, InputError
 from probaff.grid import DIRECTION_NAMES, DIRECTION_OFFSETS
-from probaff.sim.config import WarehouseSpec
 from probaff.sim.friction import add_sliding_body
+from probaff.sim.inputs import check_rng, check_type
 from probaff.sim.pusher import TrackedPusher
 from probaff.sim.runner import trapezoid_progress
+from probaff.sim.warehouse_config import WarehouseSpec
 
 
 def __getattr__(name: str) -> object:
@@ -94,15 +95,8 @@ def _direction(direction: object) -> int:
 
 def _check_world(spec: object, m: object) -> None:
     """Raise `InputError` unless `spec` is a `WarehouseSpec` and `m` a `WarehouseMap`."""
-    if not isinstance(spec, WarehouseSpec):
-        raise InputError(
-            f"spec must be a WarehouseSpec (load_warehouse()), got {type(spec).__name__}."
-        )
-    if not isinstance(m, WarehouseMap):
-        raise InputError(
-            f"m must be a WarehouseMap (generate_map or WarehouseMap.from_boxes), got "
-            f"{type(m).__name__}."
-        )
+    check_type("spec", spec, WarehouseSpec, "load_warehouse()")
+    check_type("m", m, WarehouseMap, "generate_map or WarehouseMap.from_boxes")
 
 
 @dataclass(frozen=True)
@@ -239,15 +233,8 @@ def generate_map(
             or a size or box count is not such an integer.
         ConfigError: If the boxes cannot fit with one cell left free.
     """
-    if not isinstance(spec, WarehouseSpec):
-        raise InputError(
-            f"spec must be a WarehouseSpec (load_warehouse()), got {type(spec).__name__}."
-        )
-    if not isinstance(rng, np.random.Generator):
-        raise InputError(
-            f"rng must be a numpy.random.Generator (np.random.default_rng(seed)), got "
-            f"{type(rng).__name__}."
-        )
+    check_type("spec", spec, WarehouseSpec, "load_warehouse()")
+    check_rng(rng)
     rows, cols = _pair("shape", shape, minimum=2) if shape is not None else (spec.rows, spec.cols)
     if n_boxes is None:
         scale = rows * cols / (spec.rows * spec.cols)
@@ -355,50 +342,9 @@ def push_box(
     space = pymunk.Space()
     space.iterations = spec.iterations
     space.collision_slop = spec.collision_slop
-    support = _box_support(spec)
-    ones = np.ones(len(support))
-    access = (r - dr, c - dc)
-    pushed, others = None, []
-    for rr, cc in m.boxes:
-        if max(abs(rr - r), abs(cc - c)) > neighbourhood or (rr, cc) == access:
-            continue
-        centre = m.cell_centre(np.array([rr, cc]))
-
-        def make_shape(body: pymunk.Body) -> pymunk.Shape:
-            shape = pymunk.Poly.create_box(body, (spec.box_size, spec.box_size))
-            shape.friction = math.sqrt(spec.box_contact_friction)
-            return shape
-
-        body, _ = add_sliding_body(
-            space,
-            spec.box_mass,
-            make_shape,
-            (*centre, 0.0),
-            support,
-            ones,
-            spec.box_ground_friction,
-            9.81,
-        )
-        if (rr, cc) == (r, c):
-            pushed = body
-        else:
-            others.append((body, centre))
+    pushed, others = _add_boxes(space, spec, m, (r, c), (r - dr, c - dc), neighbourhood)
     start = m.cell_centre(np.array(cell)) - d * (0.5 * spec.box_size + spec.robot_radius + 0.005)
-    rows, cols = m.shape
-    t = 0.5 * spec.wall_thickness
-    W, H = cols * s, rows * s
-    for a, b in (
-        ((-t, -t), (W + t, -t)),
-        ((W + t, -t), (W + t, H + t)),
-        ((W + t, H + t), (-t, H + t)),
-        ((-t, H + t), (-t, -t)),
-    ):
-        if _segment_distance(start, np.array(a), np.array(b)) < spec.robot_radius + t:
-            continue  # the robot stands where this wall is: it measures the box, not access
-        seg = pymunk.Segment(space.static_body, a, b, t)
-        seg.friction = 0.5
-        space.add(seg)
-    assert pushed is not None
+    _add_walls(space, spec, m, start)
     yaw = math.atan2(d[1], d[0])
 
     def make_robot(body: pymunk.Body) -> list[pymunk.Shape]:
@@ -432,6 +378,72 @@ def push_box(
     moved = float(disp @ d) > _PUSHED_FRACTION * s
     other = max((float(np.hypot(*(np.array(b.position) - c0))) for b, c0 in others), default=0.0)
     return BoxPush(displacement=disp, moved=moved, robot_lag=lag, others_moved=other)
+
+
+def _add_boxes(
+    space: pymunk.Space,
+    spec: WarehouseSpec,
+    m: WarehouseMap,
+    cell: tuple[int, int],
+    access: tuple[int, int],
+    neighbourhood: int,
+) -> tuple[pymunk.Body, list[tuple[pymunk.Body, np.ndarray]]]:
+    """Add the boxes within `neighbourhood` of `cell`, but the one at `access`, as sliding bodies.
+
+    Returns:
+        ``(pushed, others)``: the body at `cell`, and each other body with its start centre.
+    """
+    support = _box_support(spec)
+    ones = np.ones(len(support))
+    r, c = cell
+    pushed, others = None, []
+    for rr, cc in m.boxes:
+        if max(abs(rr - r), abs(cc - c)) > neighbourhood or (rr, cc) == access:
+            continue
+        centre = m.cell_centre(np.array([rr, cc]))
+
+        def make_shape(body: pymunk.Body) -> pymunk.Shape:
+            shape = pymunk.Poly.create_box(body, (spec.box_size, spec.box_size))
+            shape.friction = math.sqrt(spec.box_contact_friction)
+            return shape
+
+        body, _ = add_sliding_body(
+            space,
+            spec.box_mass,
+            make_shape,
+            (*centre, 0.0),
+            support,
+            ones,
+            spec.box_ground_friction,
+            9.81,
+        )
+        if (rr, cc) == (r, c):
+            pushed = body
+        else:
+            others.append((body, centre))
+    assert pushed is not None
+    return pushed, others
+
+
+def _add_walls(
+    space: pymunk.Space, spec: WarehouseSpec, m: WarehouseMap, start: np.ndarray
+) -> None:
+    """Add the outer walls as static segments, but one the robot at `start` would stand in."""
+    rows, cols = m.shape
+    s = spec.cell_size
+    t = 0.5 * spec.wall_thickness
+    W, H = cols * s, rows * s
+    for a, b in (
+        ((-t, -t), (W + t, -t)),
+        ((W + t, -t), (W + t, H + t)),
+        ((W + t, H + t), (-t, H + t)),
+        ((-t, H + t), (-t, -t)),
+    ):
+        if _segment_distance(start, np.array(a), np.array(b)) < spec.robot_radius + t:
+            continue  # the robot stands where this wall is: it measures the box, not access
+        seg = pymunk.Segment(space.static_body, a, b, t)
+        seg.friction = 0.5
+        space.add(seg)
 
 
 def physics_affordances(spec: WarehouseSpec, m: WarehouseMap) -> np.ndarray:

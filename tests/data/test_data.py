@@ -1,4 +1,8 @@
-"""Push datasets: schema, byte-determinism, serial vs Dask, resumption, corruption."""
+"""Push datasets: schema, byte-determinism, serial vs Dask, resumption, corruption.
+
+Covers probaff.data.generation, probaff.data.push_generation, probaff.data.config,
+probaff.data.store and probaff.data.schema.
+"""
 
 import json
 from pathlib import Path

@@ -8,7 +8,8 @@ from probaff.data.queries import QUERY_ARRAYS, PushQueries, world_meta
 from probaff.data.schema import PushDataset
 from probaff.errors import InputError
 from probaff.features import chapter4_features, chapter5_features
-from probaff.sim.config import load_catalogue, load_tabletop
+from probaff.sim.specs import load_catalogue
+from probaff.sim.tabletop_config import load_tabletop
 
 
 @pytest.fixture(scope="module")

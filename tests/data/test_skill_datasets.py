@@ -1,4 +1,7 @@
-"""Side-view skill datasets: schema, determinism, Dask, resumption, versions and the CLI."""
+"""Side-view skill datasets: schema, determinism, Dask, resumption, versions and the CLI.
+
+Covers probaff.data.skill_generation, probaff.data.skill_schema and probaff.data.summary.
+"""
 
 import json
 import math
@@ -27,7 +30,8 @@ from probaff.data import (
 from probaff.data.skill_generation import resample_times
 from probaff.data.store import read_shard
 from probaff.errors import ConfigError, DatasetError, InputError
-from probaff.sim import load_sideview
+from probaff.sim import load_sideview, registry
+from probaff.sim.registry import world_kind
 
 PICK = GenerateConfig(scene="pick", n=24, seed=3, shard_size=8)
 TINY = GenerateConfig(scene="pick", n=4, seed=8, shard_size=2)
@@ -283,8 +287,6 @@ def test_unknown_and_misused_scenes(tmp_path, monkeypatch):
         "skill",
         "push",
     )
-    with pytest.raises(InputError, match="generate_skills"):
-        generate(TINY, tmp_path / "x", progress=False)
     with pytest.raises(InputError, match=r"probaff\.data\.generate "):
         generate_skills(PUSH, tmp_path / "x", progress=False)
     with pytest.raises(InputError, match="pose_noise"):
@@ -292,9 +294,20 @@ def test_unknown_and_misused_scenes(tmp_path, monkeypatch):
     with pytest.raises(InputError, match="record_rate"):
         generate(replace(PUSH, record_rate=10.0), tmp_path / "x", progress=False)
     assert not (tmp_path / "x").exists()
-    monkeypatch.setattr(gen_mod, "list_scenes", lambda: ["pick", "two_objects"])
-    with pytest.raises(ConfigError, match=r"scenes/pick\.yaml.*sideview_scenes/pick\.yaml"):
+    twice = tmp_path / "twice"
+    twice.mkdir()
+    (twice / "pick.yaml").write_text("name: pick\n")
+    monkeypatch.setitem(
+        registry._WORLDS.entries, "tabletop", replace(world_kind("tabletop"), scenes=twice)
+    )
+    with pytest.raises(ConfigError, match=r"twice/pick\.yaml.*sideview_scenes/pick\.yaml"):
         generate_skills(TINY, tmp_path / "x", progress=False)
+
+
+def test_generate_makes_the_dataset_of_the_scenes_kind(tiny, tmp_path):
+    ds = generate(TINY, tmp_path / "one", workers=0, progress=False)
+    assert isinstance(ds, SkillDataset) and ds.rows_label == "picks"
+    assert _files(tmp_path / "one") == _files(tiny)
 
 
 def test_place_dataset_without_trajectories(tmp_path):

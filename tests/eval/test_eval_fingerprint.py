@@ -43,3 +43,10 @@ def test_version_changes_it_and_length_is_kept():
 def test_not_a_dataclass():
     with pytest.raises(TypeError, match="dataclass instance"):
         config_fingerprint({"seed": 0})
+
+
+def test_settings_by_name_hash_like_the_dataclass():
+    from probaff.eval.fingerprint import settings_fingerprint
+
+    fields = {f.name: getattr(_Config(), f.name) for f in dataclasses.fields(_Config())}
+    assert settings_fingerprint(fields) == config_fingerprint(_Config())

@@ -8,8 +8,8 @@ import pytest
 from probaff.errors import InputError
 from probaff.features.cells import HMP_SCALES, cell_features, feature_names
 from probaff.perception import OccupancyGrid, explore
-from probaff.sim.config import load_warehouse
 from probaff.sim.warehouse import WarehouseMap, generate_map
+from probaff.sim.warehouse_config import load_warehouse
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,8 @@
-"""Chapter 4 and 5 push features: shapes, groups, invariances and no-contact values."""
+"""Chapter 4 and 5 push features: shapes, groups, invariances and no-contact values.
+
+Covers probaff.features.ch4, probaff.features.ch5 and what they are built from:
+probaff.features.featureset, probaff.features.frames and probaff.features._common.
+"""
 
 import dataclasses
 

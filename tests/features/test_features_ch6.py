@@ -1,4 +1,8 @@
-"""Chapter 6 interaction features and action-frame geometry."""
+"""Chapter 6 interaction features and action-frame geometry.
+
+Covers probaff.features.ch6, probaff.features.action_frame and the pair search of
+probaff.features.contact_pairs (exact against brute force).
+"""
 
 import itertools
 
@@ -21,7 +25,7 @@ from probaff.features import (
     sideview_transform,
     tabletop_transform,
 )
-from probaff.features import ch6 as ch6_module
+from probaff.features import contact_pairs as pairs_module
 
 BINARY = ("shape", "contact")
 CONTINUOUS = ("pose", "action")
@@ -597,8 +601,8 @@ def test_touch_searches_by_dense_and_sparse_tables_agree(monkeypatch):
     rng = np.random.default_rng(13)
     scenes = [_box_scene(rng, 24), _tabletop_scene(rng, 24)]
     dense = [interaction_features(*s, chunk=8) for s in scenes]
-    monkeypatch.setattr(ch6_module, "_DENSE_CELLS", 0)
-    monkeypatch.setattr(ch6_module, "_DENSE_CELLS_PER_POINT", 0)
+    monkeypatch.setattr(pairs_module, "_DENSE_CELLS", 0)
+    monkeypatch.setattr(pairs_module, "_DENSE_CELLS_PER_POINT", 0)
     for s, d in zip(scenes, dense, strict=True):
         sparse = interaction_features(*s, chunk=8)
         np.testing.assert_array_equal(sparse.features.values, d.features.values)

@@ -1,4 +1,7 @@
-"""Chapter 6 interaction rows of side-view place datasets."""
+"""Chapter 6 interaction rows of side-view place datasets.
+
+Also covers the shared geometry of the rows, probaff.features.chain_geometry (Ch6Geometry).
+"""
 
 import dataclasses
 

@@ -6,11 +6,11 @@ from maps_helpers import reference_loopy_bp, reference_marginals, shelf_map, spa
 from probaff.errors import InputError
 from probaff.maps import (
     AffordanceGraph,
-    ising_form,
     loopy_belief_propagation,
     make_evidence,
     single_variable_evidence,
 )
+from probaff.maps.bp import ising_form
 
 
 def _bp(graph, evidence=None, **kw):

@@ -4,13 +4,8 @@ import torch
 from maps_helpers import reference_marginals, shelf_map, sparse_map
 
 from probaff.errors import InputError
-from probaff.maps import (
-    MAX_ENUMERATION_VARIABLES,
-    AffordanceGraph,
-    affordance_marginals,
-    enumerate_marginals,
-    single_variable_evidence,
-)
+from probaff.maps import AffordanceGraph, affordance_marginals, single_variable_evidence
+from probaff.maps.enumeration import MAX_ENUMERATION_VARIABLES, enumerate_marginals
 from probaff.maps.evidence import as_evidence
 
 

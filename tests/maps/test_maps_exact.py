@@ -3,13 +3,8 @@ import pytest
 from maps_helpers import reference_marginals, shelf_map, sparse_map
 
 from probaff.errors import InputError
-from probaff.maps import (
-    AffordanceGraph,
-    component_widths,
-    elimination_width,
-    exact_marginals,
-    make_evidence,
-)
+from probaff.maps import AffordanceGraph, exact_marginals, make_evidence
+from probaff.maps.exact import component_widths, elimination_width
 
 
 def test_elimination_width_of_known_graphs():

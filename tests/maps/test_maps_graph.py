@@ -6,14 +6,9 @@ import pytest
 import torch
 
 from probaff.errors import InputError
-from probaff.maps import (
-    DIRECTIONS,
-    EDGE_ISING,
-    EDGE_SYMMETRY,
-    AffordanceGraph,
-    component_labels,
-    group_components,
-)
+from probaff.maps import DIRECTIONS, AffordanceGraph
+from probaff.maps.components import component_labels, group_components
+from probaff.maps.graph import EDGE_ISING, EDGE_SYMMETRY
 
 
 def _graph(occ, seed=0, **kw):

@@ -9,10 +9,10 @@ from probaff.maps import (
     BPOptions,
     affordance_marginals,
     exact_marginals,
-    is_full_grid,
     loopy_belief_propagation,
     single_variable_evidence,
 )
+from probaff.maps.inference import is_full_grid
 
 
 def _mixed_map():

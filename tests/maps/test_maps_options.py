@@ -9,17 +9,19 @@ import torch
 
 from probaff.errors import InputError
 from probaff.maps import (
-    DEFAULT_ALPHA,
-    DEFAULT_COUPLING,
-    DEFAULT_DAMPING,
-    DEFAULT_MAX_ITERATIONS,
-    DEFAULT_TOL,
     AffordanceGraph,
     BPOptions,
     MRFParams,
     affordance_marginals,
     grid_belief_propagation,
     loopy_belief_propagation,
+)
+from probaff.maps.options import (
+    DEFAULT_ALPHA,
+    DEFAULT_COUPLING,
+    DEFAULT_DAMPING,
+    DEFAULT_MAX_ITERATIONS,
+    DEFAULT_TOL,
     resolve_bp_options,
 )
 

@@ -1,7 +1,7 @@
-"""`probaff.maps` is a pure factor-graph library, and the agent's old names there are deprecated.
+"""`probaff.maps` is a pure factor-graph library.
 
-Importing it must not load learning, physics, kinematics or plotting code; the names that moved
-to `probaff.planning` resolve lazily with a `DeprecationWarning`.
+Importing it must not load learning, physics, kinematics or plotting code, and the agent built
+on it (`probaff.planning`) is not reachable from it.
 """
 
 import json
@@ -35,42 +35,9 @@ def test_importing_maps_loads_no_heavy_or_agent_module():
     assert not agent, f"import probaff.maps loaded {agent[:10]}"
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        "ManipulationLoop",
-        "LoopResult",
-        "POLICIES",
-        "detect_push",
-        "AffordanceClassifier",
-        "AffordanceEvaluation",
-        "collect_voxels",
-        "evaluate",
-        "PushPlan",
-    ],
-)
-def test_moved_names_warn_and_resolve_to_planning(name):
-    with pytest.warns(DeprecationWarning, match=rf"probaff\.maps\.{name} is deprecated"):
-        obj = getattr(probaff.maps, name)
-    assert obj is getattr(probaff.planning, name)
-
-
-def test_old_plan_pushes_keeps_its_grid_signature():
-    with pytest.warns(DeprecationWarning, match="plan_pushes"):
-        old = probaff.maps.plan_pushes
-    assert old is probaff.planning.plan_pushes_on_grid
-
-
-def _isort_key(name):
-    """Constants, then classes, then functions, each alphabetical (ruff's RUF022 order)."""
-    return (0 if name.isupper() else 1 if name[0].isupper() else 2, name)
-
-
-def test_unknown_names_still_raise_and_public_names_are_sorted():
+def test_unknown_names_still_raise_and_public_names_exist():
     with pytest.raises(AttributeError, match="no_such_name"):
         probaff.maps.no_such_name  # noqa: B018
-    for module in (probaff.maps, probaff.planning):
-        assert list(module.__all__) == sorted(module.__all__, key=_isort_key)
-        assert all(hasattr(module, n) for n in module.__all__)
+    assert all(hasattr(probaff.maps, n) for n in probaff.maps.__all__)
     assert "ManipulationLoop" not in probaff.maps.__all__
-    assert "ManipulationLoop" in dir(probaff.maps)
+    assert not hasattr(probaff.maps, "ManipulationLoop")

@@ -1,4 +1,8 @@
-"""EM that cannot lose to a smaller model: initialisations, restarts, split/merge, annealing."""
+"""EM that cannot lose to a smaller model: initialisations, restarts, split/merge, annealing.
+
+Covers probaff.models.em (the fits), probaff.models.em_run (one run) and
+probaff.models.em_starts (the starts of one mixture size).
+"""
 
 import copy
 import itertools
@@ -13,7 +17,7 @@ from probaff.data.generation import GenerateConfig, generate
 from probaff.errors import InputError
 from probaff.features import chapter5_features
 from probaff.models import MixtureOfGPExperts, fit_em, fit_em_path
-from probaff.models.em import _copy_state, _objective
+from probaff.models.em_starts import _copy_state, _objective
 from probaff.models.initialization import initial_responsibilities, split_responsibilities
 from probaff.models.synthetic import piecewise_1d, softmax_regimes
 

@@ -3,7 +3,7 @@ import pytest
 import torch
 from torch.distributions import Distribution
 
-import probaff.models.fitting as fitting
+import probaff.models.registry as registry
 from probaff._threads import torch_threads
 from probaff.errors import InputError
 from probaff.models import (
@@ -121,7 +121,10 @@ def test_fitter_registry(data):
         ),
         SVIHistory,
     )
-    with pytest.raises(InputError, match=r"unknown fitter 'vb'.*'clustered', 'em', 'svi'"):
+    with pytest.raises(
+        InputError,
+        match=r"unknown fitter 'vb'.*'clustered', 'em', 'monolithic', 'svi', 'transition'",
+    ):
         get_fitter("vb")
     with pytest.raises(InputError, match="ClusteredGPModel"):
         get_fitter("clustered")(MixtureOfGPExperts(2), x, y)
@@ -137,4 +140,4 @@ def test_fitter_registry(data):
         with pytest.raises(InputError, match="'mine'"):
             get_fitter("nope")
     finally:
-        del fitting.FITTERS["mine"]
+        del registry.FITTERS["mine"]

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 import torch
 
+import probaff.models.chain as chain_module
 import probaff.models.modular as modular
 from probaff._threads import torch_threads
 from probaff.errors import InputError, NotFittedError
@@ -38,6 +39,7 @@ from probaff.models import (
     SkillTransitionModel,
     fit_transition,
 )
+from probaff.models.transition_base import sample_effects
 
 N_TRAIN = 160
 RADIUS = 0.005  # m, the hand cylinder's radius (1 cm across)
@@ -365,8 +367,9 @@ def test_missing_or_unfitted_models():
         pick_only.predict_chain(scene)
 
 
-def test_models_layer_does_not_import_the_feature_layer():
-    tree = ast.parse(Path(modular.__file__).read_text())
+@pytest.mark.parametrize("module", [modular, chain_module])
+def test_models_layer_does_not_import_the_feature_layer(module):
+    tree = ast.parse(Path(module.__file__).read_text())
     imported = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
     imported |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
     assert not {
@@ -416,11 +419,11 @@ def test_mixture_predictions_are_sampled_per_expert():
         torch.distributions.Categorical(probs=probs),
         torch.distributions.Independent(torch.distributions.Normal(loc, scale), 1),
     )
-    draws = modular._draw(dist, 4000, torch.Generator().manual_seed(0))
+    draws = sample_effects(dist, 4000, torch.Generator().manual_seed(0))
     assert draws.shape == (4000, 1, 2)
     second = draws[:, 0, 0] > 5.0
     assert abs(second.double().mean().item() - 0.75) < 0.03
     np.testing.assert_allclose(draws[second, 0].mean(0).numpy(), [10.0, 20.0], atol=1e-3)
     np.testing.assert_allclose(draws[~second, 0].mean(0).numpy(), [0.0, 0.0], atol=1e-3)
     with pytest.raises(InputError, match="independent normals"):
-        modular._draw(torch.distributions.Normal(loc, scale), 1, torch.Generator())
+        sample_effects(torch.distributions.Normal(loc, scale), 1, torch.Generator())

@@ -1,3 +1,9 @@
+"""Chapter 6's transition models and `fit_transition`.
+
+Covers probaff.models.transition, probaff.models.transition_base,
+probaff.models.skill_transition and probaff.models.monolithic.
+"""
+
 import math
 
 import pytest

@@ -8,8 +8,8 @@ import pytest
 from probaff.errors import InputError
 from probaff.grid import DIRECTION_OFFSETS
 from probaff.perception import FREE_SPACE, OCCUPIED, UNKNOWN, explore, grid_distances
-from probaff.sim.config import load_warehouse
 from probaff.sim.warehouse import WarehouseMap, generate_map
+from probaff.sim.warehouse_config import load_warehouse
 
 
 @pytest.fixture(scope="module")

@@ -7,9 +7,9 @@ import pytest
 
 from probaff.errors import InputError
 from probaff.perception import FREE_SPACE, OCCUPIED, UNKNOWN, OccupancyGrid
-from probaff.sim.config import load_warehouse
 from probaff.sim.depth import DepthScan, DepthSensor
 from probaff.sim.warehouse import WarehouseMap
+from probaff.sim.warehouse_config import load_warehouse
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,8 @@ from probaff.perception.scan_labels import (
     scenes_dataset,
 )
 from probaff.sim.camera import CameraSpec, DepthCamera, head_views, scan_views
-from probaff.sim.office import OfficeLabelRules, OfficeObject, assemble_office_scene, load_office
+from probaff.sim.office import OfficeLabelRules, OfficeObject, assemble_office_scene
+from probaff.sim.office_config import load_office
 
 # A small camera keeps the tests fast; the pipeline does not depend on the resolution.
 CAMERA = DepthCamera(CameraSpec(width=160, height=120))

@@ -5,17 +5,16 @@ import pytest
 import torch
 from torch.distributions import Independent, Normal
 
-from probaff.data.generation import GenerateConfig, make_shard
-from probaff.data.queries import world_meta
-from probaff.data.schema import PushDataset
 from probaff.errors import InputError
-from probaff.planning.edge_episode import run_edge_episode
-from probaff.planning.edge_models import fit_edge_model
-from probaff.planning.edge_task import load_edge_task
-from probaff.planning.edge_transitions import LearnedTransition, PushReachability
+from probaff.planning.catalogue import fit_edge_model
 from probaff.planning.learned import FeaturePushModel, apply_effects
-from probaff.sim.config import load_catalogue, load_tabletop
+from probaff.planning.push_to_edge.episode import run_edge_episode
+from probaff.planning.push_to_edge.planners import PushReachability, predict_books
+from probaff.planning.push_to_edge.task import load_edge_task
+from probaff.planning.transitions import LearnedTransition
 from probaff.sim.geometry import push_frame_effect
+
+FAR = np.array([-0.4, 0.35, 0.0])  # a battery pose out of the way
 
 
 def test_apply_effects_inverts_the_pushing_frame_effect():
@@ -25,13 +24,6 @@ def test_apply_effects_inverts_the_pushing_frame_effect():
         yaw = float(rng.uniform(-3, 3))
         eff = push_frame_effect(before, after, yaw)
         assert np.allclose(apply_effects(before, eff, np.array(yaw)), after)
-
-
-@pytest.fixture(scope="module")
-def edge_data():
-    arrays = make_shard(GenerateConfig("push_to_edge", 48, shard_size=48, trajectories=False), 0)
-    meta = {**world_meta(load_tabletop()), "cloud_points": 256, "cloud_noise": 0.002}
-    return PushDataset(arrays, sorted(load_catalogue()), meta)
 
 
 @pytest.fixture(scope="module")
@@ -88,8 +80,8 @@ def test_learned_planner_runs_closed_loop_with_batched_predictions(gp, edge_data
     # the predictive draws of the risk-aware planner are seeded
     book = np.array([[0.0, 0.0, 0.0], [0.05, 0.1, 1.0]])
     origins, yaws = task.candidate_pushes(book)
-    a = LearnedTransition(gp, task, seed=4).predict(book, origins[:, 0], yaws[:2], np.ones(3), 8)
-    b = LearnedTransition(gp, task, seed=4).predict(book, origins[:, 0], yaws[:2], np.ones(3), 8)
+    a = predict_books(task, LearnedTransition(gp, task, 4), book, origins[:, 0], yaws[:2], FAR, 8)
+    b = predict_books(task, LearnedTransition(gp, task, 4), book, origins[:, 0], yaws[:2], FAR, 8)
     assert a.samples is not None and a.samples.shape == (8, 2, 3)
     assert np.array_equal(a.samples, b.samples)
 
@@ -128,7 +120,7 @@ def test_a_model_predicting_nan_names_itself(edge_data):
     book = np.zeros((1, 3))
     origins, yaws = task.candidate_pushes(book)
     with pytest.raises(InputError, match="push model _FakeModel predicted"):
-        LearnedTransition(nan, task).predict(book, origins[:, 0], yaws[:1], np.ones(3))
+        predict_books(task, LearnedTransition(nan, task), book, origins[:, 0], yaws[:1], FAR)
 
 
 def test_learned_transition_and_fit_refuse_bad_arguments(gp, edge_data):
@@ -137,8 +129,8 @@ def test_learned_transition_and_fit_refuse_bad_arguments(gp, edge_data):
         LearnedTransition(gp.model, task)  # type: ignore[arg-type]
     with pytest.raises(InputError, match="seed must be an integer >= 0, got -1"):
         LearnedTransition(gp, task, seed=-1)
-    with pytest.raises(InputError, match="task must be an EdgeTask"):
-        LearnedTransition(gp, "push_to_edge")  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="LearnedTransition needs the tabletop world"):
+        LearnedTransition(gp, "push_to_edge")
     with pytest.raises(InputError, match="em_iterations must be a positive integer, got 0"):
         fit_edge_model("gp", edge_data, em_iterations=0)
     with pytest.raises(InputError, match="ds must be a PushDataset"):

@@ -1,4 +1,7 @@
-"""The pinhole depth camera: analytic depths, silhouettes, occlusion, noise, dropouts, errors."""
+"""The pinhole depth camera: analytic depths, silhouettes, occlusion, noise, dropouts, errors.
+
+Covers probaff.sim.camera and its ray casting, probaff.sim.raycast.
+"""
 
 from __future__ import annotations
 

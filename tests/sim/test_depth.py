@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from probaff.errors import InputError
-from probaff.sim.config import load_warehouse
 from probaff.sim.depth import DepthSensor, first_entry, obstacle_bounds, warehouse_scene
 from probaff.sim.warehouse import WarehouseMap
+from probaff.sim.warehouse_config import load_warehouse
 
 
 @pytest.fixture(scope="module")

@@ -6,21 +6,19 @@ import numpy as np
 import pytest
 import yaml
 
+from probaff.affordance_labels import LABELS, label_index
 from probaff.errors import ConfigError, InputError
-from probaff.sim.config import worlds_dir
 from probaff.sim.office import (
-    LABELS,
-    OfficeLabelRules,
-    OfficeObject,
     OfficeScene,
     assemble_office_scene,
-    label_index,
-    load_office,
-    office_labels,
     sample_office_scene,
     sample_office_scenes,
 )
+from probaff.sim.office_config import OfficeLabelRules, load_office
+from probaff.sim.office_labels import office_labels
+from probaff.sim.office_objects import OfficeObject
 from probaff.sim.primitives import PrimitiveScene
+from probaff.sim.world_files import worlds_dir
 
 RULES = OfficeLabelRules()
 FWD, BWD, LEFT, RIGHT, LIFT, GRASP = range(6)

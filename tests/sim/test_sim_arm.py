@@ -7,7 +7,8 @@ import pytest
 import torch
 
 from probaff.errors import ConfigError, UnreachablePoseError
-from probaff.sim import Arm, load_arm, load_tabletop, topdown_pose
+from probaff.sim import Arm, load_arm, load_tabletop
+from probaff.sim.arm import topdown_pose
 
 
 @pytest.fixture(scope="module")

@@ -1,12 +1,16 @@
-"""World descriptions: loading, and clear errors for anything malformed or unknown."""
+"""World descriptions: loading, and clear errors for anything malformed or unknown.
+
+Covers probaff.sim.world_files, probaff.sim.specs and probaff.sim.tabletop_config.
+"""
 
 import shutil
 
 import pytest
 
 from probaff.errors import ConfigError
-from probaff.sim import list_scenes, load_catalogue, load_scene, load_tabletop
-from probaff.sim.config import worlds_dir
+from probaff.sim import load_catalogue, load_scene, load_tabletop
+from probaff.sim.tabletop_config import list_scenes
+from probaff.sim.world_files import worlds_dir
 
 
 def test_catalogue_has_the_thesis_objects():

@@ -15,8 +15,8 @@ from probaff.sim import (
     load_catalogue,
     load_tabletop,
     simulate_push,
-    straight_path,
 )
+from probaff.sim.runner import straight_path
 
 BOX = ObjectSpec("test_box", "box", (0.20, 0.12), 0.0, 0.05, 0.5, 0.4, 1.0)
 

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from probaff.errors import InputError
-from probaff.sim import load_catalogue, object_cloud, scan_scene, table_cloud
+from probaff.sim import load_catalogue
+from probaff.sim.sensing import object_cloud, scan_scene, table_cloud
 
 
 @pytest.mark.parametrize("name", ["cracker_box", "nut_container"])

@@ -11,19 +11,15 @@ import pytest
 from probaff.errors import ConfigError, InputError, UnreachablePoseError
 from probaff.sim import (
     SideViewScene,
-    list_sideview_scenes,
     load_catalogue,
     load_sideview,
     load_sideview_scene,
-    pick,
-    place,
-    plan_skills,
     run_skills,
-    sample_sideview_scenes,
-    simulate_rest,
-    simulate_skill,
 )
-from probaff.sim.config import worlds_dir
+from probaff.sim.sideview import simulate_rest
+from probaff.sim.sideview_config import list_sideview_scenes
+from probaff.sim.skills import pick, place, plan_skills, sample_sideview_scenes, simulate_skill
+from probaff.sim.world_files import worlds_dir
 
 
 @pytest.fixture(scope="module")

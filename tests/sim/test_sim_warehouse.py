@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 
 from probaff.errors import ConfigError, InputError
-from probaff.sim.config import load_warehouse
 from probaff.sim.warehouse import (
     WarehouseMap,
     generate_map,
@@ -12,6 +11,7 @@ from probaff.sim.warehouse import (
     push_box,
     rule_affordances,
 )
+from probaff.sim.warehouse_config import load_warehouse
 
 
 @pytest.fixture(scope="module")

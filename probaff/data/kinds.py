@@ -1,0 +1,265 @@
+"""The registry of dataset kinds: how each kind of scene becomes shards, a manifest and a dataset.
+
+A dataset kind belongs to one world kind (`probaff.sim.registry`), whose scene templates name
+it. `probaff.data.generate` looks a scene's kind up here and needs nothing else of it: the
+kind makes a shard's arrays from the shard's seeds, records its plan and manifest entries,
+names its dataset class (a `probaff.data.dataset.ArrayDataset`) and summarises a dataset. The
+built-in kinds:
+
+=========  ============  ============================  ====================  ===============
+kind       world kind    dataset                       schema versions       progress unit
+=========  ============  ============================  ====================  ===============
+``push``   ``tabletop``  `probaff.data.PushDataset`    1 (no pose noise), 2  push
+``skill``  ``sideview``  `probaff.data.SkillDataset`   3                     skill
+=========  ============  ============================  ====================  ===============
+
+A manifest without a ``kind`` entry is a push dataset (`DEFAULT_KIND`), so push datasets are
+written exactly as before other kinds existed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import partial
+from typing import Any
+
+import numpy as np
+
+from probaff.data.config import GenerateConfig, base_plan
+from probaff.data.dataset import ArrayDataset
+from probaff.data.push_generation import (
+    make_push_shard,
+    push_manifest,
+    push_plan,
+    push_resume_problem,
+)
+from probaff.data.schema import READABLE_SCHEMA_VERSIONS, PushDataset
+from probaff.data.skill_generation import skill_manifest, skill_plan, skill_shard
+from probaff.data.skill_schema import SKILL_SCHEMA_VERSION, SkillDataset
+from probaff.data.summary import summarize_pushes, summarize_skills
+from probaff.errors import InputError
+from probaff.sim.registry import Registry, SceneRows, WorldKind, world_kind, world_kinds
+
+__all__ = [
+    "DEFAULT_KIND",
+    "DatasetKind",
+    "dataset_kind",
+    "dataset_kinds",
+    "readable_versions",
+    "register_dataset_kind",
+    "unregister_dataset_kind",
+]
+
+DEFAULT_KIND = "push"
+"""The kind of a manifest without a ``kind`` entry; manifests of this kind omit it."""
+
+ShardMaker = Callable[[GenerateConfig, int, np.random.SeedSequence], dict[str, np.ndarray]]
+"""``make_shard(config, rows, seeds)``: the arrays of a shard of `rows` rows."""
+
+
+def _summarize_rows(ds: ArrayDataset) -> dict[str, Any]:
+    """The summary of a kind without its own: scene, seed and row count."""
+    return {"scene": ds.meta.get("scene"), "seed": ds.meta.get("seed"), "n_rows": len(ds)}
+
+
+@dataclass(frozen=True)
+class DatasetKind:
+    """One kind of dataset.
+
+    Attributes:
+        name: Registry key and manifest ``kind``, e.g. ``"push"``.
+        world_kind: The world kind whose scenes make it (`probaff.sim.registry`).
+        dataset_type: Its dataset class.
+        schema_versions: The schema versions this probaff reads; a new dataset's is the
+            ``schema_version`` entry of `manifest`.
+        make_shard: ``make_shard(config, rows, seeds)``: simulate a shard of `rows` rows from
+            the shard's ``numpy.random.SeedSequence`` alone (so a serial run, a local Dask
+            cluster and a remote scheduler all give the same bytes).
+        manifest: ``manifest(config)``: the ``schema_version``, ``object_names`` and ``meta``
+            of a new dataset; it loads (and so validates) the scene before any work starts.
+        plan: ``plan(config)``: the manifest's record of the config, which a resumed run must
+            match; by default `base_plan`.
+        summarize: A JSON-ready summary of a dataset (what ``probaff describe`` prints).
+        unit: One row in words, for progress bars (``"push"``).
+        loader: The `probaff.data` function that loads it, named in errors.
+        resume_problem: ``resume_problem(started, plan)``: why a dataset started with plan
+            `started` cannot be resumed with `plan`, in words, or ``None``; the plans are
+            compared in full afterwards.
+
+    Raises:
+        InputError: For an empty name, a dataset type that is not an `ArrayDataset`, no
+            schema version, or a hook that is not callable.
+    """
+
+    name: str
+    world_kind: str
+    dataset_type: type[ArrayDataset]
+    schema_versions: tuple[int, ...]
+    make_shard: ShardMaker
+    manifest: Callable[[GenerateConfig], dict[str, Any]]
+    plan: Callable[[GenerateConfig], dict[str, Any]] = base_plan
+    summarize: Callable[[Any], dict[str, Any]] = _summarize_rows
+    unit: str = "row"
+    loader: str = "load_any_dataset"
+    resume_problem: Callable[[dict[str, Any], dict[str, Any]], str | None] | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("name", "world_kind", "unit", "loader"):
+            value = getattr(self, name)
+            if not isinstance(value, str) or not value:
+                raise InputError(f"DatasetKind.{name} must be a non-empty string, got {value!r}.")
+        if not (
+            isinstance(self.dataset_type, type) and issubclass(self.dataset_type, ArrayDataset)
+        ):
+            raise InputError(
+                f"DatasetKind.dataset_type of {self.name!r} must be a subclass of "
+                f"probaff.data.dataset.ArrayDataset, got {self.dataset_type!r}."
+            )
+        if not self.schema_versions or not all(
+            isinstance(v, int) and not isinstance(v, bool) for v in self.schema_versions
+        ):
+            raise InputError(
+                f"DatasetKind.schema_versions of {self.name!r} must be a non-empty tuple of "
+                f"integers, got {self.schema_versions!r}."
+            )
+        for name in ("make_shard", "manifest", "plan", "summarize"):
+            if not callable(getattr(self, name)):
+                raise InputError(f"DatasetKind.{name} of {self.name!r} must be callable.")
+
+
+_KINDS: Registry[DatasetKind] = Registry("dataset kind", DatasetKind, "unregister_dataset_kind")
+
+
+def _rows_shard(
+    rows: SceneRows, config: GenerateConfig, n: int, seeds: np.random.SeedSequence
+) -> dict[str, np.ndarray]:
+    return rows.make(config.scene, n, seeds)
+
+
+def _rows_manifest(rows: SceneRows, config: GenerateConfig) -> dict[str, Any]:
+    return {
+        "schema_version": rows.schema_version,
+        "object_names": list(rows.object_names(config.scene)),
+        "meta": {"scene": config.scene},
+    }
+
+
+_DERIVED: dict[str, tuple[WorldKind, DatasetKind]] = {}
+
+
+def _from_rows(world: WorldKind, rows: SceneRows, name: str) -> DatasetKind:
+    """The dataset kind of a world kind's `SceneRows` (made once per `WorldKind` object)."""
+    cached = _DERIVED.get(world.name)
+    if cached is not None and cached[0] is world:
+        return cached[1]
+    dataset_type = type(
+        f"{world.name.title().replace('_', '')}Dataset",
+        (ArrayDataset,),
+        {
+            "__doc__": f"Rows of {world.label} scenes, as its `SceneRows` declare them.",
+            "__module__": __name__,
+            "KIND": name,
+            "REQUIRED": dict(rows.arrays),
+        },
+    )
+    kind = DatasetKind(
+        name=name,
+        world_kind=world.name,
+        dataset_type=dataset_type,
+        schema_versions=(rows.schema_version,),
+        make_shard=partial(_rows_shard, rows),
+        manifest=partial(_rows_manifest, rows),
+        unit=rows.unit,
+    )
+    _DERIVED[world.name] = (world, kind)
+    return kind
+
+
+def _all_kinds() -> dict[str, DatasetKind]:
+    """The registered dataset kinds, then those of world kinds that declare their rows."""
+    out = dict(_KINDS.entries)
+    for world in world_kinds():
+        name = world.dataset_kind
+        if world.rows is not None and name is not None and name not in out:
+            out[name] = _from_rows(world, world.rows, name)
+    return out
+
+
+def register_dataset_kind(kind: DatasetKind) -> DatasetKind:
+    """Register a dataset kind under its name.
+
+    Returns:
+        `kind`.
+
+    Raises:
+        InputError: If `kind` is not a `DatasetKind`, its name is taken, its world kind is not
+            registered, or that world kind's scenes make another dataset kind.
+    """
+    world = world_kind(kind.world_kind) if isinstance(kind, DatasetKind) else None
+    if world is not None and world.dataset_kind != kind.name:
+        raise InputError(
+            f"world kind {world.name!r} makes {world.dataset_kind!r} datasets, not "
+            f"{kind.name!r}; give its WorldKind dataset_kind={kind.name!r}."
+        )
+    return _KINDS.add(kind)
+
+
+unregister_dataset_kind = _KINDS.remove
+"""Remove a registered dataset kind by name and return it (see `probaff.sim.registry.Registry`)."""
+
+
+def dataset_kind(name: str) -> DatasetKind:
+    """The registered dataset kind `name`.
+
+    Raises:
+        InputError: If no kind has that name (the message lists the registered ones).
+    """
+    kinds = _all_kinds()
+    if not isinstance(name, str) or name not in kinds:
+        raise InputError(f"unknown dataset kind {name!r}; registered kinds: {list(kinds)}.")
+    return kinds[name]
+
+
+def dataset_kinds() -> list[DatasetKind]:
+    """Every dataset kind: the registered ones, then those of world kinds with `SceneRows`.
+
+    The registered ones come in registration order, the built-in ones first.
+    """
+    return list(_all_kinds().values())
+
+
+def readable_versions() -> dict[str, tuple[int, ...]]:
+    """Each dataset kind (`dataset_kinds`) and the schema versions of it this probaff reads."""
+    return {k.name: k.schema_versions for k in _all_kinds().values()}
+
+
+register_dataset_kind(
+    DatasetKind(
+        name="push",
+        dataset_type=PushDataset,
+        world_kind="tabletop",
+        make_shard=make_push_shard,
+        unit="push",
+        manifest=push_manifest,
+        loader="load_dataset",
+        plan=push_plan,
+        schema_versions=READABLE_SCHEMA_VERSIONS,
+        summarize=summarize_pushes,
+        resume_problem=push_resume_problem,
+    )
+)
+register_dataset_kind(
+    DatasetKind(
+        name="skill",
+        dataset_type=SkillDataset,
+        world_kind="sideview",
+        make_shard=skill_shard,
+        unit="skill",
+        manifest=skill_manifest,
+        loader="load_skill_dataset",
+        plan=skill_plan,
+        schema_versions=(SKILL_SCHEMA_VERSION,),
+        summarize=summarize_skills,
+    )
+)

@@ -1,0 +1,36 @@
+"""The inference studies: one folder each, over a shared config and run skeleton.
+
+Studies (each a subpackage with ``Config``, ``SMOKE`` and ``run(config)``; `STUDIES` finds
+them by folder, ``probaff study NAME`` and ``inference/NAME.py`` run them):
+    point_cloud_labels: chapter 2, affordance labels of scanned office segments, Algorithm 1
+        and the multi-view merge.
+    affordance_map: chapter 3, the manipulation loop's information gain against exhaustive
+        pushing over generated warehouse maps (Figs. 3.5-3.7).
+    planning: chapters 4 and 5, push-to-edge planners and two-step tool pushes, closed loop.
+    push_models: chapters 5 and 4, mixtures of GP experts fitted by EM and VI,
+        cross-validated.
+    modular: chapter 6, modular push, pick and place transition models against a monolith.
+
+Modules:
+    base: `StudyConfig` (out, seed, workers, scheduler, progress, the smoke sizes, and their
+        checks) and `StudyRun` (the run skeleton: tasks on Dask, tables, figures, summary).
+    config_cli: command-line flags from a config's fields, ``--smoke``.
+    registry: `STUDIES`, `discover_studies` and `study_main` (``probaff study``).
+
+A new study is one folder here (its ``config``, ``run``, ``report`` and ``figures``), its
+test and its notebook.
+"""
+
+from probaff.experiments.base import StudyConfig, StudyRun
+from probaff.experiments.config_cli import parse_study_args
+from probaff.experiments.registry import STUDIES, StudyRegistry, discover_studies, study_main
+
+__all__ = [
+    "STUDIES",
+    "StudyConfig",
+    "StudyRegistry",
+    "StudyRun",
+    "discover_studies",
+    "parse_study_args",
+    "study_main",
+]

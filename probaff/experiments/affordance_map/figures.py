@@ -1,0 +1,261 @@
+"""Figures of affordance maps (chapter 3): pushability heatmaps, loop steps and step curves.
+
+Maps are drawn as seen from above with row 0 at the top, one unit square per cell: cell
+``(r, c)`` spans ``x in [c, c + 1]``, ``y in [r, r + 1]`` on an inverted y-axis, so "up" points
+up the page. Pushability is coloured from blue (0, not pushable) to red (1, pushable).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.cm import ScalarMappable
+from matplotlib.collections import PolyCollection
+from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
+
+from probaff._io import atomic_save_figure
+from probaff.grid import DIRECTION_NAMES, DIRECTION_OFFSETS
+from probaff.planning import POLICIES
+from probaff.planning.manipulation.loop import LoopSnapshot
+
+__all__ = [
+    "plot_loop_steps",
+    "plot_mrf_smoothing",
+    "plot_step_curves",
+    "study_figures",
+]
+
+_CMAP = "coolwarm"
+_COLOURS = {"information_gain": "tab:red", "exhaustive": "tab:blue"}
+_LABELS = {
+    "information_gain": "maximum information gain (MRF)",
+    "exhaustive": "exhaustive (nearest box, no MRF)",
+}
+
+
+def plot_step_curves(
+    curves: Mapping[str, np.ndarray], ylabel: str, title: str, path: str | os.PathLike[str]
+) -> None:
+    """Mean of a per-step quantity over maps, with a band of one standard deviation.
+
+    Args:
+        curves: Policy name -> (n_maps, S) values at steps 0..S-1 (NaN entries are skipped).
+        ylabel: Label of the quantity.
+        title: Figure title.
+        path: Image file to write (format from the suffix), atomically.
+    """
+    fig = Figure(figsize=(6.0, 4.0), layout="constrained")
+    ax = fig.subplots()
+    for policy, values in curves.items():
+        v = np.asarray(values, dtype=float)
+        steps = np.arange(v.shape[1])
+        with np.errstate(invalid="ignore"):
+            mean = np.nanmean(v, 0)
+            std = np.nanstd(v, 0)
+        colour = _COLOURS.get(policy)
+        ax.plot(steps, mean, marker="o", ms=3, color=colour, label=_LABELS.get(policy, policy))
+        ax.fill_between(steps, mean - std, mean + std, color=colour, alpha=0.2, lw=0)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_xlabel("manipulation step")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    atomic_save_figure(fig, path, dpi=120)
+
+
+def _draw_cells(ax: Axes, occupancy: np.ndarray) -> None:
+    """Outline the map and its believed boxes; free cells stay white."""
+    rows, cols = occupancy.shape
+    ax.set_xlim(0, cols)
+    ax.set_ylim(rows, 0)
+    ax.set_aspect("equal")
+    ax.set_xticks(np.arange(cols) + 0.5, [str(c) for c in range(cols)], fontsize=6)
+    ax.set_yticks(np.arange(rows) + 0.5, [str(r) for r in range(rows)], fontsize=6)
+    ax.tick_params(length=0)
+    squares = [
+        [(c, r), (c + 1, r), (c + 1, r + 1), (c, r + 1)] for r, c in np.argwhere(occupancy).tolist()
+    ]
+    ax.add_collection(PolyCollection(squares, facecolors="none", edgecolors="k", linewidths=0.8))
+    ax.plot([0, cols, cols, 0, 0], [0, 0, rows, rows, 0], color="k", lw=2.5)
+
+
+def _heatmap(ax: Axes, occupancy: np.ndarray, values: np.ndarray) -> None:
+    """Colour each believed box by `values` (rows, cols); free cells stay white."""
+    img = np.where(occupancy, values, np.nan)
+    rows, cols = occupancy.shape
+    ax.imshow(
+        img, cmap=_CMAP, vmin=0.0, vmax=1.0, extent=(0, cols, rows, 0), interpolation="nearest"
+    )
+    _draw_cells(ax, occupancy)
+
+
+def plot_mrf_smoothing(
+    occupancy: np.ndarray,
+    unary: np.ndarray,
+    smoothed: np.ndarray,
+    direction: int,
+    path: str | os.PathLike[str],
+) -> None:
+    """Predicted pushability of one direction before and after MRF smoothing (Fig. 3.5).
+
+    Args:
+        occupancy: (rows, cols) bool, the believed boxes.
+        unary: (rows, cols, 4) classifier probabilities.
+        smoothed: (rows, cols, 4) MRF marginals ``P(pushable)``.
+        direction: Index into `DIRECTION_NAMES` of the direction shown.
+        path: Image file to write, atomically.
+    """
+    occ = np.asarray(occupancy, dtype=bool)
+    fig = Figure(figsize=(9.0, 4.2), layout="constrained")
+    axes = fig.subplots(1, 2)
+    name = DIRECTION_NAMES[direction]
+    for ax, values, title in (
+        (axes[0], unary, "classifier"),
+        (axes[1], smoothed, "after MRF smoothing"),
+    ):
+        _heatmap(ax, occ, np.asarray(values, dtype=float)[..., direction])
+        ax.set_title(f"pushable {name}: {title}", fontsize=9)
+    bar = fig.colorbar(ScalarMappable(Normalize(0.0, 1.0), _CMAP), ax=list(axes), shrink=0.8)
+    bar.set_label("P(pushable)")
+    atomic_save_figure(fig, path, dpi=120)
+
+
+def _triangles(r: int, c: int) -> list[list[tuple[float, float]]]:
+    """The four triangles of cell (r, c), in `DIRECTION_NAMES` order (up, down, left, right)."""
+    m = (c + 0.5, r + 0.5)
+    return [
+        [(c, r), (c + 1, r), m],
+        [(c, r + 1), (c + 1, r + 1), m],
+        [(c, r), (c, r + 1), m],
+        [(c + 1, r), (c + 1, r + 1), m],
+    ]
+
+
+def _draw_snapshot(ax: Axes, shot: LoopSnapshot) -> None:
+    occ = np.asarray(shot.occupancy, dtype=bool)
+    cells = np.argwhere(occ)
+    polys, values = [], []
+    for r, c in cells:
+        polys.extend(_triangles(int(r), int(c)))
+        values.extend(np.asarray(shot.pushability, dtype=float)[r, c])
+    if polys:
+        coll = PolyCollection(
+            polys,
+            array=np.asarray(values),
+            cmap=_CMAP,
+            norm=Normalize(0.0, 1.0),
+            edgecolors="0.6",
+            linewidths=0.3,
+        )
+        ax.add_collection(coll)
+    _draw_cells(ax, occ)
+    ax.plot(shot.robot[1] + 0.5, shot.robot[0] + 0.5, "o", color="k", ms=6)
+    if shot.push is not None:
+        r, c, d = shot.push
+        dr, dc = (int(v) for v in DIRECTION_OFFSETS[d])
+        start = (c - dc + 0.5, r - dr + 0.5)  # the access cell's centre
+        end = (c + 0.5 * dc + 0.5, r + 0.5 * dr + 0.5)  # the box's far edge
+        ax.annotate(
+            "",
+            xy=end,
+            xytext=start,
+            annotation_clip=False,
+            arrowprops={"arrowstyle": "-|>", "color": "limegreen", "lw": 2.5},
+        )
+
+
+def plot_loop_steps(
+    snapshots: Sequence[LoopSnapshot], path: str | os.PathLike[str], title: str = ""
+) -> None:
+    """A few steps of the manipulation loop (Fig. 3.6).
+
+    Each panel shows the belief before one push: every believed box split into four triangles
+    (up, down, left, right) coloured by the marginal pushability of that direction, the robot
+    (black dot) and the chosen push (green arrow from the access cell across the box).
+
+    Args:
+        snapshots: The states to draw, in order.
+        path: Image file to write, atomically.
+        title: Figure title.
+    """
+    n = max(1, len(snapshots))
+    cols = min(n, 4)
+    rows = -(-n // cols)
+    fig = Figure(figsize=(3.4 * cols + 0.8, 3.6 * rows + 0.3), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
+    for k, (ax, shot) in enumerate(zip(axes, snapshots, strict=False)):
+        _draw_snapshot(ax, shot)
+        what = (
+            "stop"
+            if shot.push is None
+            else (f"push ({shot.push[0]}, {shot.push[1]}) {DIRECTION_NAMES[shot.push[2]]}")
+        )
+        ax.set_title(f"step {k}: H = {shot.entropy:.2f} nats, {what}", fontsize=8)
+    for ax in axes[len(snapshots) :]:
+        ax.axis("off")
+    bar = fig.colorbar(ScalarMappable(Normalize(0.0, 1.0), _CMAP), ax=list(axes), shrink=0.7)
+    bar.set_label("P(pushable)")
+    if title:
+        fig.suptitle(title, fontsize=10)
+    atomic_save_figure(fig, path, dpi=120)
+
+
+def _figure_map(results: list[dict[str, Any]]) -> dict[str, Any]:
+    """The map drawn in Figs. 3.5 and 3.6: the first with the most information-gain pushes."""
+    pushes = [len(r["policies"]["information_gain"]["steps"]) for r in results]
+    return results[int(np.argmax(pushes))]
+
+
+def study_figures(
+    results: list[dict[str, Any]], curves: dict[str, dict[str, np.ndarray]], out: Path
+) -> dict[str, str]:
+    """Every figure of a study run: the curves over steps, Figs. 3.5 and 3.6.
+
+    Args:
+        results: The maps' results (`map_task`).
+        curves: Policy -> quantity -> `(n_maps, steps + 1)` curves.
+        out: Output folder.
+
+    Returns:
+        Figure name -> written path.
+    """
+    files = {}
+    for key, ylabel, name in (
+        ("entropy", "average map entropy (nats)", "entropy_vs_step.png"),
+        ("accuracy", "map accuracy (MAP estimate)", "accuracy_vs_step.png"),
+        ("distance", "distance travelled (cells)", "distance_vs_step.png"),
+    ):
+        title = f"{ylabel} over {len(results)} maps (mean, band: 1 std)"
+        plot_step_curves({p: curves[p][key] for p in POLICIES}, ylabel, title, out / name)
+        files[key] = os.fspath(out / name)
+    chosen = _figure_map(results)
+    fig = chosen["figure"]
+    occ = np.array(fig["occupancy"], dtype=bool)
+    unary = np.array(fig["unary"], dtype=float)
+    mrf = np.array(fig["mrf"], dtype=float)
+    direction = int(np.nanargmax(np.nansum(np.abs(mrf - unary), (0, 1))))  # most smoothed
+    plot_mrf_smoothing(occ, unary, mrf, direction, out / "mrf_smoothing.png")
+    files["mrf_smoothing"] = os.fspath(out / "mrf_smoothing.png")
+    shots = [
+        LoopSnapshot(
+            occupancy=np.array(s["occupancy"], dtype=bool),
+            pushability=np.array(s["pushability"], dtype=float),
+            robot=(int(s["robot"][0]), int(s["robot"][1])),
+            push=None if s["push"] is None else tuple(s["push"]),
+            entropy=float(s["entropy"]),
+        )
+        for s in fig["snapshots"]
+    ]
+    plot_loop_steps(
+        shots, out / "loop_steps.png", title=f"information-gain loop on test map {chosen['index']}"
+    )
+    files["loop_steps"] = os.fspath(out / "loop_steps.png")
+    return files

@@ -1,0 +1,477 @@
+"""One trial of the chapter 6 study: fit per-skill models on a training draw, predict tests.
+
+A trial is a study task (`probaff.eval.tasks.run_tasks`): its arguments are dataset paths and
+row indices, so Dask workers load the datasets themselves (once per process) and a record is
+plain JSON. Two kinds:
+
+* `push_trial`: on tabletop pushes (the `modular_push` scene), fit the push model without
+  and with its backward component and as a mixture of experts, and the monolithic
+  two-object GP (`MonolithicTransitionModel` on `scene_features`). Predict the hand's effect
+  on o1 of every test push, both objects of every test scene (modular chains against the
+  monolithic GP) and every test chain of 3, 4, 5 objects.
+* `skill_trial`: on side-view picks or places, fit the skill's model (GP, GP with the
+  backward component, mixture) and predict each test case's effect, with the simulator's
+  verdict (lifted, placed) to split the cases.
+
+Effects are in the action frame: ``(dx, dy, rz)`` for pushes (off the push, along it, the
+turn), ``(up, x, turn)`` for picks and places (`SIDEVIEW_EFFECT_COLUMNS`). Whole-scene
+displacements are ``(off, along, turn)`` in the hand's action frame (`scene_effects`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from functools import cache
+from typing import Any
+
+import numpy as np
+import torch
+from torch.distributions import Distribution
+
+from probaff._checks import check_count
+from probaff._threads import torch_threads
+from probaff.data.schema import PushDataset
+from probaff.data.skill_schema import SkillDataset
+from probaff.data.store import load_dataset, load_skill_dataset
+from probaff.errors import InputError
+from probaff.eval.metrics import interval_coverage, nlpd
+from probaff.experiments.config_cli import option_flags
+from probaff.features import INTERACTION_GROUPS
+from probaff.features.ch6_pick import SIDEVIEW_EFFECT_COLUMNS, pick_interactions
+from probaff.features.ch6_push import PLANAR_EFFECT_COLUMNS, PushInteractions, push_interactions
+from probaff.features.ch6_scenes import push_scenes, scene_effects, scene_features
+from probaff.features.chain_geometry import Ch6Geometry
+from probaff.models import (
+    ChainScene,
+    EMOptions,
+    ModularTransitionModel,
+    MonolithicTransitionModel,
+    SkillTransitionModel,
+    fit_transition,
+)
+
+__all__ = [
+    "LEVEL",
+    "PUSH_MODELS",
+    "SKILL_MODELS",
+    "TrialData",
+    "TrialSettings",
+    "chain_trained_trial",
+    "geometry_for",
+    "push_trial",
+    "skill_rows",
+    "skill_trial",
+]
+
+LEVEL = 0.9
+"""Probability of the central intervals whose coverage the study reports."""
+
+PUSH_MODELS = ("forward", "backward", "mixture")
+"""Push models fitted on the interaction rows: GP, GP with the backward component, mixture."""
+
+SKILL_MODELS = ("forward", "backward", "mixture")
+"""Pick and place models: the same three."""
+
+_Z90 = 1.6448536269514722  # standard normal quantile of 0.95
+
+
+@dataclass(frozen=True)
+class TrialSettings:
+    """What shapes a trial besides its data.
+
+    Attributes:
+        push_groups: Interaction feature groups (`INTERACTION_GROUPS` names) the push
+            models read; the geometry's motion columns are always added.
+        skill_groups: The groups the pick and place models read. A pick's outcome hangs
+            on the object's width against the gripper's span, which only the shape and
+            contact groups see.
+        chain_samples: Samples of every chained prediction.
+        n_experts: Experts of the mixture option.
+        em: The EM fit of the mixture option (`probaff.models.EMOptions`; flag
+            ``--em-max-iter``, also ``--em-iterations``); its seed is the trial's.
+        gp_max_iter: L-BFGS iterations of every GP fit.
+        chain_backward: Chain with the push model with the backward component (else
+            without).
+    """
+
+    push_groups: tuple[str, ...] = ("pose", "action")
+    skill_groups: tuple[str, ...] = ("shape", "pose", "contact", "action")
+    chain_samples: int = 256
+    n_experts: int = 2
+    em: EMOptions = field(
+        default=EMOptions(max_iter=10),
+        metadata=option_flags(("max_iter",), {"em_iterations": "max_iter"}),
+    )
+    gp_max_iter: int = 50
+    chain_backward: bool = True
+
+    def __post_init__(self) -> None:
+        """Raise `InputError` for a count that is not a positive integer or a bad group list."""
+        check_count("chain_samples", self.chain_samples, minimum=2)
+        check_count("n_experts", self.n_experts)
+        if not isinstance(self.em, EMOptions):
+            raise InputError(f"em must be an EMOptions, got {type(self.em).__name__}.")
+        check_count("gp_max_iter", self.gp_max_iter)
+        geometry_for(self.push_groups, "push_groups")
+        geometry_for(self.skill_groups, "skill_groups")
+
+
+def geometry_for(groups: tuple[str, ...], name: str = "groups") -> Ch6Geometry:
+    """The chapter 6 geometry keeping the feature columns of `groups`, plus the motion columns.
+
+    Args:
+        groups: `INTERACTION_GROUPS` names, each at most once.
+        name: The argument's name for error messages (``"push_groups"``).
+
+    Raises:
+        InputError: For no group, an unknown group name or a group named twice.
+    """
+    if isinstance(groups, str) or not groups:
+        raise InputError(
+            f"{name} must be a non-empty list of feature groups from "
+            f"{list(INTERACTION_GROUPS)}, got {groups!r}."
+        )
+    unknown = [g for g in groups if g not in INTERACTION_GROUPS]
+    if unknown:
+        raise InputError(
+            f"{name}: unknown feature groups {unknown}; choose from {list(INTERACTION_GROUPS)}."
+        )
+    twice = sorted({g for g in groups if groups.count(g) > 1})
+    if twice:
+        raise InputError(f"{name} names {twice} more than once; give each feature group once.")
+    columns = [c for g in groups for c in range(*INTERACTION_GROUPS[g].indices(10**6))]
+    return Ch6Geometry(columns=columns)
+
+
+@dataclass(frozen=True)
+class TrialData:
+    """The data of one trial: its datasets, the rows it fits and predicts, its seed.
+
+    Attributes:
+        train: Path of the training dataset (the pool of the trial's part).
+        test: Path of the test dataset of the same scene; for `chain_trained_trial`, the
+            added training pushes.
+        train_rows: Rows of `train` to fit on (pushes, for push datasets).
+        test_rows: Rows of `test` (and of every chain dataset) to predict.
+        seed: Seed of the mixture's EM and of the chains' samples.
+        chains: ``(K, path)`` of test datasets of K-object chains (push trials).
+    """
+
+    train: str
+    test: str
+    train_rows: list[int]
+    test_rows: list[int]
+    seed: int
+    chains: tuple[tuple[int, str], ...] = ()
+
+
+@cache
+def _push_dataset(path: str) -> PushDataset:
+    return load_dataset(path)
+
+
+@cache
+def _skill_dataset(path: str) -> SkillDataset:
+    return load_skill_dataset(path)
+
+
+@cache
+def _push_rows(path: str, groups: tuple[str, ...]) -> tuple[PushInteractions, PushInteractions]:
+    ds, geo = _push_dataset(path), geometry_for(groups)
+    return push_interactions(ds, "hand", geometry=geo), push_interactions(
+        ds, "objects", geometry=geo
+    )
+
+
+@cache
+def skill_rows(path: str, skill: str, groups: tuple[str, ...]) -> Any:
+    """The interaction rows of the skill dataset at `path` with the feature `groups`."""
+    ds, geo = _skill_dataset(path), geometry_for(groups)
+    if skill == "pick":
+        return pick_interactions(ds, geometry=geo)
+    from probaff.features.ch6_place import place_interactions
+
+    return place_interactions(ds, geometry=geo)
+
+
+def _moments(dist: Distribution) -> tuple[np.ndarray, np.ndarray]:
+    return dist.mean.detach().numpy(), dist.variance.detach().sqrt().numpy()
+
+
+def _scores(dist: Distribution, y: np.ndarray) -> dict[str, Any]:
+    """Mean, sd, NLPD and interval coverage of a predictive distribution over `y (N, E)`."""
+    mean, sd = _moments(dist)
+    target = torch.as_tensor(y, dtype=torch.float64)
+    return {
+        "mean": mean.tolist(),
+        "sd": sd.tolist(),
+        "nlpd": nlpd(dist, target).tolist(),
+        "coverage": interval_coverage(dist, target, LEVEL).tolist(),
+    }
+
+
+def _fit_skill_models(
+    skill: str, X: np.ndarray, Y: np.ndarray, R: np.ndarray, settings: TrialSettings, seed: int
+) -> tuple[dict[str, SkillTransitionModel], dict[str, float]]:
+    """The three models of `SKILL_MODELS` fitted on one training draw, and their fit times."""
+    models: dict[str, SkillTransitionModel] = {}
+    seconds: dict[str, float] = {}
+    for name in SKILL_MODELS:
+        t0 = time.perf_counter()
+        if name == "mixture":
+            model = SkillTransitionModel(
+                skill,
+                kind="mixture",
+                backward=False,
+                n_experts=settings.n_experts,
+                gp_max_iter=settings.gp_max_iter,
+                lengthscale_prior=True,
+            )
+            fit_transition(model, X, Y, options=settings.em, seed=seed)
+        else:
+            backward = name == "backward"
+            model = SkillTransitionModel(
+                skill, backward=backward, gp_max_iter=settings.gp_max_iter, lengthscale_prior=True
+            )
+            fit_transition(model, X, Y, R if backward else None)
+        models[name] = model
+        seconds[name] = time.perf_counter() - t0
+    return models, seconds
+
+
+def _in_action(T_a: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Planar displacements `d (..., K, 3)` (world dx, dy, dyaw) in the frame A's (x, y)."""
+    R = T_a[:2, :2]
+    xy = d[..., :2] @ R  # row vectors: (R^T v)^T
+    return np.concatenate([xy, d[..., 2:]], axis=-1)
+
+
+def _chain_records(
+    chain: ModularTransitionModel,
+    scenes: Any,
+    rows: np.ndarray,
+    samples: int,
+    seed: int,
+    keep: int,
+) -> dict[str, Any]:
+    """Chained predictions of scenes `rows`: means and intervals in the hand's frame A.
+
+    Returns ``{"mean", "lo", "hi"}`` each (n, K, 3) as lists, ``"touched"`` (n, K) sample
+    fractions, ``"seconds"`` per scene, and ``"samples"`` (keep, S, K, 3) world planar final
+    poses of the first `keep` scenes, ``"start"`` their start poses, for figures.
+    """
+    mean, lo, hi, touched, shown, seconds = [], [], [], [], [], []
+    for j, i in enumerate(rows):
+        scene = ChainScene(
+            scenes.sizes[i],
+            scenes.T_world_obj[i],
+            scenes.hand_points[i],
+            scenes.hand_normals[i],
+            scenes.T_world_hand_start[i],
+            scenes.T_world_hand_end[i],
+        )
+        t0 = time.perf_counter()
+        pred = chain.predict_chain(scene, n_samples=samples, seed=seed + j)
+        seconds.append(time.perf_counter() - t0)
+        d = _in_action(scenes.T_world_action[i], pred.displacement)  # (S, K, 3)
+        mean.append(d.mean(0))
+        q = np.quantile(d, [(1 - LEVEL) / 2, (1 + LEVEL) / 2], axis=0)
+        lo.append(q[0])
+        hi.append(q[1])
+        touched.append(pred.touched.mean(0))
+        if j < keep:
+            shown.append(pred.planar)
+    return {
+        "mean": np.array(mean).tolist(),
+        "lo": np.array(lo).tolist(),
+        "hi": np.array(hi).tolist(),
+        "touched": np.array(touched).tolist(),
+        "seconds": seconds,
+        "samples": np.array(shown).round(5).tolist(),
+    }
+
+
+def _test_chains(
+    chain: ModularTransitionModel, data: TrialData, settings: TrialSettings, keep: int
+) -> dict[str, Any]:
+    """Per K of ``data.chains``: the truth and the chained predictions of ``data.test_rows``."""
+    rows, geo = np.asarray(data.test_rows), geometry_for(settings.push_groups)
+    out = {}
+    for n_objects, path in data.chains:
+        ds = _push_dataset(path)
+        scenes = push_scenes(ds, geometry=geo)
+        out[str(n_objects)] = {
+            "rows": rows.tolist(),
+            "true": scene_effects(ds)[rows].reshape(-1, n_objects, 3).tolist(),
+            **_chain_records(chain, scenes, rows, settings.chain_samples, data.seed, keep),
+        }
+    return out
+
+
+def push_trial(data: TrialData, settings: TrialSettings, keep: int = 2) -> dict[str, Any]:
+    """Fit the push models on the training pushes and predict the test scenes.
+
+    Args:
+        data: The training push dataset (two cuboids per scene) and its rows, the test
+            dataset of the same scene and the chains' (both predicted at ``test_rows``).
+        settings: Models and sampling.
+        keep: Scenes per test set whose chain samples are kept for figures.
+
+    Returns:
+        A JSON-ready record: ``"hand"`` (o1's effect under each of `PUSH_MODELS`: means, sds,
+        NLPD and coverage, and the truth), ``"two"`` (both objects' displacement in the hand's
+        frame: ``"true"``, ``"modular"`` and ``"monolithic"`` means and intervals),
+        ``"chains"`` (per K: truth and modular means and intervals), ``"fit_seconds"``,
+        ``"reaction_mm"`` (mean |deviation| of the hand in the training rows) and the counts.
+    """
+    train, test, train_rows, test_rows = data.train, data.test, data.train_rows, data.test_rows
+    seed = data.seed
+    with torch_threads(1):
+        X, Y, R = _push_training_rows(train, train_rows, settings.push_groups)
+        hand, objects = _push_rows(train, settings.push_groups)
+        use = np.isin(hand.push, train_rows)
+        use_o = np.isin(objects.push, train_rows)
+        cols = list(PLANAR_EFFECT_COLUMNS)
+        models, seconds = _fit_skill_models("push", X, Y, R, settings, seed)
+
+        ds_train, ds_test = _push_dataset(train), _push_dataset(test)
+        t0 = time.perf_counter()
+        mono = MonolithicTransitionModel(
+            ds_train.n_objects, gp_max_iter=settings.gp_max_iter, lengthscale_prior=True
+        )
+        rows = np.asarray(train_rows)
+        fit_transition(mono, scene_features(ds_train)[rows], scene_effects(ds_train)[rows])
+        seconds["monolithic"] = time.perf_counter() - t0
+
+        test_hand, _ = _push_rows(test, settings.push_groups)
+        t_rows = np.asarray(test_rows)
+        pick = np.flatnonzero(np.isin(test_hand.push, t_rows))
+        y_hand = test_hand.effect[pick][:, cols]
+        x_hand = torch.as_tensor(test_hand.features[pick], dtype=torch.float64)
+        record: dict[str, Any] = {
+            "hand": {
+                "true": y_hand.tolist(),
+                **{
+                    name: _scores(m.predict(x_hand, skill="push"), y_hand)
+                    for name, m in models.items()
+                },
+            },
+            "fit_seconds": seconds,
+            "reaction_mm": 1000 * float(np.linalg.norm(hand.reaction[use], axis=1).mean()),
+            "n_rows": {"hand": int(use.sum()), "objects": int(use_o.sum())},
+        }
+
+        geo = geometry_for(settings.push_groups)
+        push_model = models["backward" if settings.chain_backward else "forward"]
+        chain = ModularTransitionModel({"push": push_model}, geo)
+        scenes = push_scenes(ds_test, geometry=geo)
+        mdist = mono.predict(scene_features(ds_test)[t_rows])
+        m_mean, m_sd = _moments(mdist)
+        k = ds_test.n_objects
+        record["two"] = {
+            "rows": t_rows.tolist(),
+            "true": scene_effects(ds_test)[t_rows].reshape(-1, k, 3).tolist(),
+            "modular": _chain_records(chain, scenes, t_rows, settings.chain_samples, seed, keep),
+            "monolithic": {
+                "mean": m_mean.reshape(-1, k, 3).tolist(),
+                "lo": (m_mean - _Z90 * m_sd).reshape(-1, k, 3).tolist(),
+                "hi": (m_mean + _Z90 * m_sd).reshape(-1, k, 3).tolist(),
+            },
+        }
+        record["chains"] = _test_chains(chain, data, settings, keep)
+    return record
+
+
+def skill_trial(skill: str, data: TrialData, settings: TrialSettings) -> dict[str, Any]:
+    """Fit the pick or place models on training rows and predict the test rows.
+
+    Args:
+        skill: ``"pick"`` or ``"place"``.
+        data: The training skill dataset and its rows, the test dataset of the same scene
+            and its rows, and the seed of the mixture's EM.
+        settings: Models.
+
+    Returns:
+        A JSON-ready record: ``"true"`` (n, 3) effects ``(up, x, turn)`` in the action frame,
+        ``"success"`` (n,) the simulator's verdict (lifted, placed), and per model of
+        `SKILL_MODELS` its means, sds, NLPD and coverage; ``"fit_seconds"``,
+        ``"reaction_mm"``.
+    """
+    if skill not in ("pick", "place"):
+        raise InputError(f"skill must be 'pick' or 'place', got {skill!r}.")
+    train, test, train_rows, test_rows = data.train, data.test, data.train_rows, data.test_rows
+    with torch_threads(1):
+        rows = skill_rows(train, skill, settings.skill_groups)
+        use = np.asarray(train_rows)
+        cols = list(SIDEVIEW_EFFECT_COLUMNS)
+        models, seconds = _fit_skill_models(
+            skill,
+            rows.features[use],
+            rows.effect[use][:, cols],
+            rows.reaction[use],
+            settings,
+            data.seed,
+        )
+        test_set = skill_rows(test, skill, settings.skill_groups)
+        t_rows = np.asarray(test_rows)
+        y = test_set.effect[t_rows][:, cols]
+        x = torch.as_tensor(test_set.features[t_rows], dtype=torch.float64)
+        success = test_set.lifted if skill == "pick" else test_set.placed
+        return {
+            "true": y.tolist(),
+            "success": success[t_rows].astype(bool).tolist(),
+            **{name: _scores(m.predict(x, skill=skill), y) for name, m in models.items()},
+            "fit_seconds": seconds,
+            "reaction_mm": 1000 * float(np.linalg.norm(rows.reaction[use], axis=1).mean()),
+        }
+
+
+def _push_training_rows(
+    path: str, rows: list[int] | None, groups: tuple[str, ...]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Features, planar effects and reactions of the hand and object rows of pushes `rows`."""
+    hand, objects = _push_rows(path, groups)
+    use = np.ones(len(hand), bool) if rows is None else np.isin(hand.push, rows)
+    use_o = np.ones(len(objects), bool) if rows is None else np.isin(objects.push, rows)
+    cols = list(PLANAR_EFFECT_COLUMNS)
+    return (
+        np.concatenate([hand.features[use], objects.features[use_o]]),
+        np.concatenate([hand.effect[use][:, cols], objects.effect[use_o][:, cols]]),
+        np.concatenate([hand.reaction[use], objects.reaction[use_o]]),
+    )
+
+
+def chain_trained_trial(data: TrialData, settings: TrialSettings) -> dict[str, Any]:
+    """The chain's push model fitted on two-object rows plus every row of longer scenes.
+
+    The same push model as `push_trial`'s chain (with the backward component if
+    ``settings.chain_backward``), but its training rows also hold the hand and object rows
+    of every push of `extra` (e.g. three-object chains): object-on-object pushes straight
+    through a packed row, which two-object scenes with the second object anywhere up to
+    30 cm sideways rarely show. It then predicts the test chains, longer ones included.
+
+    Args:
+        data: The two-object training pool and its rows (``train``, ``train_rows``), the
+            added training pushes (``test``, every row), the test chains and the scenes of
+            each to predict (``test_rows``), and the seed of the chains' samples.
+        settings: Models and sampling.
+
+    Returns:
+        ``{"chains": per K the truth and the modular means and intervals, "n_rows"}``.
+    """
+    train, extra, train_rows = data.train, data.test, data.train_rows
+    with torch_threads(1):
+        parts = [
+            _push_training_rows(train, train_rows, settings.push_groups),
+            _push_training_rows(extra, None, settings.push_groups),
+        ]
+        X, Y, R = (np.concatenate(a) for a in zip(*parts, strict=True))
+        backward = settings.chain_backward
+        model = SkillTransitionModel(
+            "push", backward=backward, gp_max_iter=settings.gp_max_iter, lengthscale_prior=True
+        )
+        fit_transition(model, X, Y, R if backward else None)
+        geo = geometry_for(settings.push_groups)
+        chain = ModularTransitionModel({"push": model}, geo)
+        return {"chains": _test_chains(chain, data, settings, 0), "n_rows": {"total": len(X)}}

@@ -1,0 +1,139 @@
+"""Settings of the chapter 2 study: its config, the thesis's data set and the smoke sizes."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any, ClassVar
+
+from probaff._checks import check_count
+from probaff.errors import InputError
+from probaff.experiments.base import StudyConfig
+from probaff.perception.merge import PROXIMITIES
+from probaff.perception.scan_labels import PerceptionConfig
+
+__all__ = ["SMOKE", "THESIS_SEGMENTS", "PointCloudStudyConfig"]
+
+THESIS_SEGMENTS = (195, 10)
+"""The thesis's data set: 195 segments from 10 office scenes."""
+
+SMOKE: Mapping[str, Any] = MappingProxyType(
+    {
+        "n_scenes": 4,
+        "scene_counts": (4,),
+        "n_splits": 2,
+        "perception": PerceptionConfig(pans_deg=(0.0,)),
+        "min_gains": (0.1,),
+        "view_counts": (1, 2),
+        "merge_pans_deg": (-10.0, 10.0),
+        "merge_scenes": 1,
+        "progress": False,
+    }
+)
+"""Sizes of a tiny run that checks the whole pipeline in seconds."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class PointCloudStudyConfig(StudyConfig):
+    """Settings of the chapter 2 study.
+
+    Attributes:
+        out: Output folder (per-scene records, tables, figures).
+        seed: Seed of the scenes, the scans, the CV folds and the 2-means runs.
+        n_scenes: Scenes of the headline CV, Algorithm 1 and the merge classifiers (the
+            thesis's 10).
+        scene_counts: Scene counts of the label CV (the first n scenes each); larger ones show
+            how the classifiers improve with data.
+        n_splits: Folds of the CV by scene (the thesis's 4).
+        label_min_points: Further label CVs, each on the segments of at least this many
+            points only (the same scenes and folds). Region growing keeps segments from
+            ``perception.min_size`` (50) points, about 66 a scene; at 300 points about 24 a
+            scene are left, near the thesis's 19.5.
+        perception: The scan-to-segments pipeline's settings.
+        min_gains: Algorithm 1's entropy drop below which a split is undone (nats; 0 is the
+            thesis's rule).
+        view_counts: Views merged in the merge study (each at most the merge views).
+        merge_pans_deg: Pan angles of the merge scans (degrees, left positive), centre out.
+        merge_scenes: How many of the first scenes the merge study scans again.
+        merge_proximities: How the merge reads "segments lie close", each of `PROXIMITIES`
+            (``"points"``: nearest points; ``"centroid"``: centroids); the first one is drawn
+            in the figure.
+    """
+
+    out: str = "results/point_cloud_labels"
+    n_scenes: int = 10
+    scene_counts: tuple[int, ...] = (10, 30)
+    n_splits: int = 4
+    label_min_points: tuple[int, ...] = (300,)
+    perception: PerceptionConfig = field(default_factory=PerceptionConfig)
+    min_gains: tuple[float, ...] = (0.0, 0.05, 0.1, 0.2)
+    view_counts: tuple[int, ...] = (1, 2, 4)
+    merge_pans_deg: tuple[float, ...] = (-10.0, 10.0, -30.0, 30.0)
+    merge_scenes: int = 10
+    merge_proximities: tuple[str, ...] = PROXIMITIES
+
+    SMOKE: ClassVar[Mapping[str, Any]] = SMOKE
+
+    def check(self) -> dict[str, Any]:
+        """Raise `InputError` for impossible counts, gains, views or settings."""
+        check_count("n_scenes", self.n_scenes, minimum=2)
+        splits = check_count("n_splits", self.n_splits, minimum=2)
+        if not self.scene_counts:
+            raise InputError("scene_counts is empty; give at least one scene count, e.g. 10.")
+        for n in self.scene_counts:
+            if check_count("scene_counts", n) < splits:
+                raise InputError(
+                    f"scene_counts holds {n}, fewer scenes than n_splits={splits}; every CV "
+                    "needs at least one scene per fold."
+                )
+        if self.n_scenes < splits:
+            raise InputError(
+                f"n_scenes={self.n_scenes} is fewer than n_splits={splits}; raise n_scenes."
+            )
+        for m in self.label_min_points:
+            check_count("label_min_points", m)
+        if not self.min_gains or any(
+            not isinstance(g, (int, float)) or not math.isfinite(g) or g < 0 for g in self.min_gains
+        ):
+            raise InputError(
+                f"min_gains must be finite numbers >= 0 (nats), got {self.min_gains!r}."
+            )
+        if not isinstance(self.perception, PerceptionConfig):
+            raise InputError(
+                f"perception must be a PerceptionConfig, got {type(self.perception).__name__}."
+            )
+        pans = self.merge_pans_deg
+        if not pans or any(not isinstance(p, (int, float)) or not math.isfinite(p) for p in pans):
+            raise InputError(f"merge_pans_deg must be finite angles (degrees), got {pans!r}.")
+        if not self.view_counts:
+            raise InputError("view_counts is empty; give at least one number of views, e.g. 1.")
+        for v in self.view_counts:
+            if check_count("view_counts", v) > len(pans):
+                raise InputError(
+                    f"view_counts holds {v}, more than the {len(pans)} merge_pans_deg; add "
+                    "pans or lower the view count."
+                )
+        merged = check_count("merge_scenes", self.merge_scenes)
+        if merged > self.n_scenes:
+            raise InputError(
+                f"merge_scenes={merged} exceeds n_scenes={self.n_scenes}; the merge scenes "
+                "are among the first n_scenes."
+            )
+        proximities = self.merge_proximities
+        if (
+            not proximities
+            or any(p not in PROXIMITIES for p in proximities)
+            or len(set(proximities)) < len(proximities)
+        ):
+            raise InputError(
+                f"merge_proximities must hold distinct names among {', '.join(PROXIMITIES)}, "
+                f"got {proximities!r}."
+            )
+        return {}
+
+    @property
+    def scanned(self) -> int:
+        """Scenes scanned: the largest of `n_scenes` and `scene_counts`."""
+        return max(self.n_scenes, *self.scene_counts)

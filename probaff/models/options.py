@@ -1,0 +1,276 @@
+"""Typed, validated options of the model fits: EM, SVI and the exact GP expert.
+
+Every fitting keyword of `fit_em` / `fit_em_path` (`EMOptions`), of `fit_svi` (`SVIOptions`)
+and of a `GPExpert` (`GPOptions`) is a field here, with the same name and default. The
+options are frozen dataclasses that validate and normalise their fields on construction, so
+a value that reaches a fit has been checked exactly once, and a configuration can hold them
+under the names the fits use. Each fit takes ``options=`` and keyword overrides of single
+fields (`resolve_options`), e.g. ``fit_em(model, X, Y, EMOptions(max_iter=20), seed=3)``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, TypeVar
+
+import torch
+from torch import Tensor
+
+from probaff._checks import check_count, check_finite, check_positive
+from probaff.errors import InputError
+from probaff.models.initialization import check_initialization
+
+__all__ = [
+    "NOISE_BOUNDS",
+    "OUTPUTSCALE_BOUNDS",
+    "EMOptions",
+    "GPOptions",
+    "SVIOptions",
+    "resolve_options",
+]
+
+OUTPUTSCALE_BOUNDS = (1e-4, 1e4)
+"""Open interval of a GP's signal variance, in standardised output units."""
+
+NOISE_BOUNDS = (1e-6, 1e2)
+"""Open interval of a GP's observation-noise variance, in standardised output units."""
+
+OptionsT = TypeVar("OptionsT")
+
+
+def resolve_options(
+    options_type: type[OptionsT], options: OptionsT | None, overrides: Mapping[str, Any]
+) -> OptionsT:
+    """`options` (or the defaults) with the given fields replaced, validated again.
+
+    Args:
+        options_type: The options dataclass, e.g. `EMOptions`.
+        options: Base options; None for ``options_type()``.
+        overrides: Field name -> value; every entry replaces the base value (None included,
+            where None is a valid value of the field).
+
+    Returns:
+        Validated options of `options_type`.
+
+    Raises:
+        InputError: If `options` is of another type, an override names no field, or a value
+            is out of range.
+    """
+    base = options_type() if options is None else options
+    if not isinstance(base, options_type):
+        raise InputError(
+            f"options must be a {options_type.__name__} or None, got {type(base).__name__}."
+        )
+    names = {f.name for f in dataclasses.fields(options_type)}  # type: ignore[arg-type]
+    unknown = sorted(set(overrides) - names)
+    if unknown:
+        raise InputError(
+            f"unknown fitting option(s) {unknown}; {options_type.__name__} has {sorted(names)}."
+        )
+    return dataclasses.replace(base, **overrides) if overrides else base  # type: ignore[type-var]
+
+
+def _set(options: Any, name: str, value: Any) -> None:
+    object.__setattr__(options, name, value)
+
+
+def _check_bool(name: str, value: Any) -> bool:
+    """`value` as a bool; True, False, 1, 0 and numpy booleans are accepted."""
+    try:
+        ok = not isinstance(value, (str, bytes)) and bool(value in (0, 1))
+    except (TypeError, ValueError, RuntimeError):
+        ok = False
+    if not ok:
+        raise InputError(f"{name} must be True or False, got {value!r}.")
+    return bool(value)
+
+
+def _check_init(init: Any, *, extra: tuple[type, ...] = ()) -> None:
+    """A named initialisation, or responsibilities `(N, M)` (checked against the data later)."""
+    if isinstance(init, str):
+        check_initialization(init)
+    elif not isinstance(init, (Tensor, *extra)):
+        raise InputError(
+            f"init must be an initialisation name or responsibilities (N, M), got "
+            f"{type(init).__name__}."
+        )
+
+
+@dataclass(frozen=True)
+class EMOptions:
+    """Settings of an EM fit of a `MixtureOfGPExperts` (`fit_em`, `fit_em_path`).
+
+    Attributes:
+        init: ``"auto"``, ``"effects"``, ``"joint"``, ``"grow"``, or responsibilities
+            `(N, M)` that start one run (see `fit_em`).
+        n_restarts: Starts tried for each `M` (the grown one counts).
+        screen_iter: Iterations every start runs before only the best `n_finish` are run
+            to convergence (the "small EM" strategy of Biernacki et al., 2003); None runs
+            every start to convergence.
+        n_finish: Screened starts run to convergence, the best by their screened objective
+            first; the best of them is kept. The first gets `split_merge` rounds, the
+            others one. A grown start is warm and can lead the screening although a cold
+            start would end higher; finishing two catches that, for about a third more
+            time.
+        split_merge: Rounds of split-and-merge moves tried after convergence (0: none).
+        max_iter: Maximum number of EM iterations of a run.
+        tol: Convergence tolerance on the objective per sample, >= 0.
+        n_init: Restarts of each initial Gaussian mixture.
+        seed: Seed of the initialisations (an integer >= 0); the rest of EM is
+            deterministic.
+        prune_below: Responsibilities below this are 0 in the experts' M-step, >= 0 (and
+            below ``1 / n_experts``, checked by the fit).
+        min_size: Minimum summed responsibility of an expert before it is repaired, >= 0.
+        gp_max_iter: L-BFGS iterations of the first M-step of a cold start; None for the
+            model's `gp_max_iter`.
+        warm_max_iter: L-BFGS iterations of later M-steps (and of every M-step of a grown
+            start), warm-started from the previous hyperparameters.
+        anneal: Temper the E-step (deterministic annealing).
+        anneal_start: First inverse temperature of the annealing, in (0, 1].
+        anneal_iter: Iterations over which the inverse temperature rises to 1.
+
+    Raises:
+        InputError: On construction, naming the first field out of range.
+    """
+
+    init: str | Tensor = "auto"
+    n_restarts: int = 3
+    screen_iter: int | None = 2
+    n_finish: int = 1
+    split_merge: int = 2
+    max_iter: int = 10
+    tol: float = 1e-3
+    n_init: int = 5
+    seed: int = 0
+    prune_below: float = 1e-4
+    min_size: float = 3.0
+    gp_max_iter: int | None = None
+    warm_max_iter: int = 8
+    anneal: bool = False
+    anneal_start: float = 0.1
+    anneal_iter: int = 4
+
+    def __post_init__(self) -> None:
+        """Validate every field and store counts and numbers as builtin types."""
+        _check_init(self.init)
+        for name in ("n_restarts", "n_finish", "max_iter", "n_init", "warm_max_iter"):
+            _set(self, name, check_count(name, getattr(self, name)))
+        _set(self, "split_merge", check_count("split_merge", self.split_merge, minimum=0))
+        _set(self, "seed", check_count("seed", self.seed, minimum=0))
+        for name in ("screen_iter", "gp_max_iter"):
+            value = getattr(self, name)
+            _set(self, name, None if value is None else check_count(name, value))
+        for name in ("tol", "prune_below", "min_size"):
+            check_positive(name, getattr(self, name), allow_zero=True)
+            _set(self, name, float(getattr(self, name)))
+        _set(self, "anneal", _check_bool("anneal", self.anneal))
+        check_positive("anneal_start", self.anneal_start)
+        if not self.anneal_start <= 1.0:
+            raise InputError(f"anneal_start must be in (0, 1], got {self.anneal_start!r}.")
+        _set(self, "anneal_start", float(self.anneal_start))
+        _set(self, "anneal_iter", check_count("anneal_iter", self.anneal_iter))
+
+
+@dataclass(frozen=True)
+class SVIOptions:
+    """Settings of an SVI fit of a `VariationalMixtureOfGPExperts` (`fit_svi`).
+
+    Attributes:
+        n_steps: SVI steps.
+        batch_size: Minibatch size (capped at `N` by the fit).
+        lr: Adam step size, > 0.
+        n_init: Restarts of the initial Gaussian mixture.
+        seed: Seed of the initialisation and the minibatches (an integer >= 0).
+        init: ``"auto"``, ``"grow"``, ``"effects"``, ``"joint"``, a fitted
+            `MixtureOfGPExperts`, or responsibilities `(N, M)` (see `fit_svi`).
+        init_rows: Rows of the exact EM fit behind ``"grow"`` and ``"auto"``.
+
+    Raises:
+        InputError: On construction, naming the first field out of range.
+    """
+
+    n_steps: int = 1500
+    batch_size: int = 64
+    lr: float = 0.02
+    n_init: int = 5
+    seed: int = 0
+    init: Any = "auto"
+    init_rows: int = 400
+
+    def __post_init__(self) -> None:
+        """Validate every field and store counts and numbers as builtin types."""
+        for name in ("n_steps", "batch_size", "n_init", "init_rows"):
+            _set(self, name, check_count(name, getattr(self, name)))
+        check_positive("lr", self.lr)
+        _set(self, "lr", float(self.lr))
+        _set(self, "seed", check_count("seed", self.seed, minimum=0))
+        _check_init(self.init, extra=(torch.nn.Module,))
+
+
+def _check_inside(name: str, value: Any, bounds: tuple[float, float]) -> float:
+    """`value` as a float, or `InputError` unless it is finite and strictly inside `bounds`."""
+    check_positive(name, value)
+    v = float(value)
+    if not bounds[0] < v < bounds[1]:
+        raise InputError(
+            f"{name} must lie strictly between {bounds[0]:g} and {bounds[1]:g} "
+            f"(standardised units), got {value!r}."
+        )
+    return v
+
+
+def _check_noise_floor(noise_floor: Any) -> float | tuple[float, ...] | None:
+    """None, or finite non-negative standard deviation(s): one float or a tuple of them."""
+    if noise_floor is None:
+        return None
+    try:
+        floor = torch.as_tensor(noise_floor, dtype=torch.float64)
+    except (TypeError, ValueError, RuntimeError):
+        floor = None
+    if floor is None or isinstance(noise_floor, str):
+        raise InputError(
+            f"noise_floor must be None or non-negative standard deviations, got {noise_floor!r}."
+        )
+    check_finite("noise_floor", floor)
+    if bool((floor < 0).any()):
+        raise InputError(
+            f"noise_floor must be one non-negative standard deviation or one per output, got "
+            f"{noise_floor!r}."
+        )
+    if floor.dim() == 0:
+        return float(floor)
+    return tuple(float(v) for v in floor.flatten())
+
+
+@dataclass(frozen=True)
+class GPOptions:
+    """Settings of an exact `GPExpert` and its fit.
+
+    Attributes:
+        max_iter: L-BFGS iterations per call to `GPExpert.fit`.
+        lengthscale_prior: Put the dimension-scaled log-normal prior on the length scales.
+        noise_floor: Smallest observation-noise standard deviation, in output units: None
+            (no floor), one value, or one value per output `(E,)` (stored as a tuple).
+        outputscale: Initial signal variance, inside `OUTPUTSCALE_BOUNDS`.
+        noise: Initial observation-noise variance, inside `NOISE_BOUNDS`.
+
+    Raises:
+        InputError: On construction, naming the first field out of range.
+    """
+
+    max_iter: int = 50
+    lengthscale_prior: bool = False
+    noise_floor: float | Sequence[float] | None = None
+    outputscale: float = 1.0
+    noise: float = 0.1
+
+    def __post_init__(self) -> None:
+        """Validate every field and store it as builtin types."""
+        _set(self, "max_iter", check_count("max_iter", self.max_iter))
+        _set(self, "lengthscale_prior", _check_bool("lengthscale_prior", self.lengthscale_prior))
+        _set(self, "noise_floor", _check_noise_floor(self.noise_floor))
+        outputscale = _check_inside("outputscale", self.outputscale, OUTPUTSCALE_BOUNDS)
+        _set(self, "outputscale", outputscale)
+        _set(self, "noise", _check_inside("noise", self.noise, NOISE_BOUNDS))

@@ -1,0 +1,271 @@
+"""What chapter 6's transition models share: skills, components, checks, sampling, history.
+
+The constants and helpers of `SkillTransitionModel` and `MonolithicTransitionModel`
+(`probaff.models.transition`): the skill and component names, the checks of their
+arguments, the predictive distribution and draws of a component, and the record of a fit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import torch
+from torch import Tensor
+from torch.distributions import Distribution, Independent, MixtureSameFamily, Normal
+
+from probaff._checks import check_count, check_positive
+from probaff.errors import InputError
+from probaff.models.em import EMHistory
+from probaff.models.gp_expert import GPExpert, exact_gp_settings
+from probaff.models.mixture import MixtureOfGPExperts
+from probaff.models.tensors import training_rows
+
+__all__ = [
+    "AUTO_NOISE_FLOOR",
+    "COMPONENTS",
+    "DEFAULT_EXPERTS",
+    "DEFAULT_SEED",
+    "KINDS",
+    "MONOLITHIC_NOT_FITTED",
+    "PREDICT_ROWS",
+    "SKILLS",
+    "Component",
+    "TransitionBase",
+    "TransitionHistory",
+    "check_asked_skill",
+    "check_generator",
+    "check_noise_floor",
+    "check_skill",
+    "component_predict",
+    "gp_objective",
+    "predict_moments",
+    "resolve_noise_floor",
+    "sample_effects",
+    "training_pair",
+]
+
+SKILLS: tuple[str, ...] = ("pick", "place", "push")
+"""The skills a transition model can be trained for."""
+
+KINDS: tuple[str, ...] = ("gp", "mixture")
+"""Kinds of components: one multi-output ARD GP, or a mixture of GP experts."""
+
+COMPONENTS: tuple[str, ...] = ("effect", "reaction", "corrected")
+"""Component names: the effect `X -> Y`, the reaction `[X, Y] -> R` and the corrected
+effect `[X, R] -> Y` (the last two only with a backward component)."""
+
+# Noise floor of `noise_floor="auto"` as a fraction of each target's standard deviation
+# (the value `MixtureOfGPExperts` uses).
+AUTO_NOISE_FLOOR = 0.01
+
+# Experts of `kind="mixture"` when `n_experts` is not given (chapter 5's best M).
+DEFAULT_EXPERTS = 3
+
+# Seed of the sampled prediction when no generator is given.
+DEFAULT_SEED = 0
+
+# Rows per call to a component's `predict` in sampled predictions (an exact GP's prediction
+# of n rows costs O(n^2) memory, so S * N rows at once would not scale).
+PREDICT_ROWS = 1024
+
+MONOLITHIC_NOT_FITTED = (
+    "this MonolithicTransitionModel is not fitted; call "
+    "probaff.models.fit_transition(model, X, Y) first."
+)
+
+Component = GPExpert | MixtureOfGPExperts
+"""A component of a transition model: one multi-output GP or a mixture of GP experts."""
+
+
+# ------------------------------------------------------------------ helpers
+def check_skill(name: str, skill: Any) -> str:
+    """`skill` if it is a known skill name, else `InputError` listing the known ones."""
+    if not isinstance(skill, str) or skill not in SKILLS:
+        known = ", ".join(repr(s) for s in SKILLS)
+        raise InputError(f"unknown {name} {skill!r}; known skills: {known}.")
+    return skill
+
+
+def check_asked_skill(own: str, skill: Any) -> None:
+    """Refuse a prediction for another skill than the model's own (``None`` skips it)."""
+    if skill is None:
+        return
+    asked = check_skill("skill", skill)
+    if asked != own:
+        raise InputError(f"a {own} model cannot predict {asked}; use the {asked} model.")
+
+
+def check_noise_floor(noise_floor: Any) -> float | str | None:
+    """The noise floor argument as ``"auto"``, ``None`` or a non-negative float."""
+    if noise_floor is None or (isinstance(noise_floor, str) and noise_floor == "auto"):
+        return noise_floor
+    if isinstance(noise_floor, str):
+        raise InputError(
+            f"noise_floor must be 'auto', None or a standard deviation >= 0, got {noise_floor!r}."
+        )
+    check_positive("noise_floor", noise_floor, allow_zero=True)
+    return float(noise_floor)
+
+
+def resolve_noise_floor(noise_floor: float | str | None, targets: Tensor) -> Tensor:
+    """Noise floor of a GP component with training targets `(N, C)`, in their units, `(C,)`."""
+    if noise_floor is None:
+        return torch.zeros(targets.shape[1], dtype=torch.float64)
+    if isinstance(noise_floor, str):
+        return AUTO_NOISE_FLOOR * targets.std(dim=0, correction=0)
+    return torch.full((targets.shape[1],), noise_floor, dtype=torch.float64)
+
+
+def component_predict(component: Component, x: Tensor) -> Distribution:
+    """Predictive distribution of a component at inputs `x: (N, C)`: batch `(N,)`, event `(E,)`."""
+    if isinstance(component, GPExpert):
+        return Independent(component.predict(x), 1)
+    return component.predict(x)
+
+
+def predict_moments(component: Component, x: Tensor) -> tuple[Tensor, Tensor]:
+    """Predictive mean and variance of a component at many inputs `x: (n, C)`, `(n, E)` each.
+
+    The rows are predicted `PREDICT_ROWS` at a time.
+    """
+    means, variances = [], []
+    for rows in torch.split(x, PREDICT_ROWS):
+        pred = component_predict(component, rows)
+        means.append(pred.mean)
+        variances.append(pred.variance)
+    return torch.cat(means), torch.cat(variances)
+
+
+def sample_effects(dist: Distribution, n_samples: int, generator: torch.Generator) -> Tensor:
+    """Draw `n_samples` values from a component's prediction with `generator`.
+
+    Mixtures draw the expert of each sample first, then its normal; the same generator
+    state gives the same draws.
+
+    Args:
+        dist: Independent normals (batch `(N,)`, event `(E,)`), or a mixture of them (loc
+            `(N, M, E)`), as the transition models predict.
+        n_samples: Number of draws `S`.
+        generator: Source of randomness.
+
+    Returns:
+        Samples, `(S, N, E)`.
+
+    Raises:
+        InputError: For a distribution of another kind.
+    """
+    if isinstance(dist, MixtureSameFamily):
+        comp = dist.component_distribution
+        normal = comp.base_dist if isinstance(comp, Independent) else comp
+        if not (isinstance(comp, Independent) and isinstance(normal, Normal)):
+            raise InputError(f"cannot sample a mixture of {type(comp).__name__} components.")
+        probs = dist.mixture_distribution.probs  # (N, M)
+        pick = torch.multinomial(probs, n_samples, replacement=True, generator=generator)
+        rows = torch.arange(probs.shape[0])[:, None]
+        loc = normal.loc[rows, pick].transpose(0, 1)  # (S, N, E)
+        scale = normal.scale[rows, pick].transpose(0, 1)
+    elif isinstance(dist, Independent) and isinstance(dist.base_dist, Normal):
+        normal = dist.base_dist
+        loc = normal.loc.expand(n_samples, *normal.loc.shape)
+        scale = normal.scale.expand_as(loc)
+    else:
+        raise InputError(
+            f"only independent normals or mixtures of them can be sampled; got a "
+            f"{type(dist).__name__}."
+        )
+    eps = torch.randn(loc.shape, generator=generator, dtype=loc.dtype)
+    return loc + scale * eps
+
+
+def gp_objective(expert: GPExpert) -> float:
+    """Log marginal likelihood per sample, summed over the expert's outputs."""
+    with torch.no_grad(), exact_gp_settings(float(expert.jitter)):
+        return float(expert.marginal_log_likelihood().sum())
+
+
+def training_pair(X: Any, Y: Any) -> tuple[Tensor, Tensor]:
+    """Validate features `(N, D)` and effects `(N, E)` of a training set with N >= 2."""
+    x, y = training_rows(X, Y, "interaction")
+    if x.shape[0] < 2:
+        raise InputError(f"a transition model needs at least 2 training samples, got {x.shape[0]}.")
+    return x, y
+
+
+def check_generator(generator: Any) -> torch.Generator:
+    """`generator`, or a fresh one seeded with `DEFAULT_SEED` when it is ``None``."""
+    if generator is None:
+        return torch.Generator().manual_seed(DEFAULT_SEED)
+    if not isinstance(generator, torch.Generator):
+        raise InputError(
+            f"generator must be a torch.Generator or None, got {type(generator).__name__}."
+        )
+    return generator
+
+
+# ------------------------------------------------------------------ history
+@dataclass
+class TransitionHistory:
+    """Record of one `fit_transition`.
+
+    Attributes:
+        objective: Training objective per sample of every fitted component, by name (see
+            `COMPONENTS`): for a GP its log marginal likelihood summed over outputs
+            (`GPExpert.marginal_log_likelihood`), for a mixture its EM objective
+            (`EMHistory.best`) over the number of samples.
+        em: The `EMHistory` of every mixture component (empty for GP components).
+        n_samples: Number of training samples `N`.
+    """
+
+    objective: dict[str, float] = field(default_factory=dict)
+    em: dict[str, EMHistory] = field(default_factory=dict)
+    n_samples: int = 0
+
+
+class TransitionBase(torch.nn.Module):
+    r"""What both transition models hold: the skill, the GP settings and the training data.
+
+    Args:
+        skill: The skill, one of `SKILLS`.
+        gp_max_iter: L-BFGS iterations of each GP fit.
+        lengthscale_prior: Put `GPExpert`'s dimension-scaled prior on the length scales.
+        noise_floor: Smallest observation-noise standard deviation of every component, in
+            its targets' units: ``"auto"`` (default; 1 % of each target's standard
+            deviation over the training set), ``None`` (no floor) or one number >= 0.
+        outputscale: Initial signal variance :math:`\theta_0` of the GP components.
+        noise: Initial noise variance of the GP components.
+
+    Raises:
+        InputError: For an unknown skill, a non-integer count, or a malformed noise floor
+            or start value.
+    """
+
+    def __init__(
+        self,
+        skill: str,
+        *,
+        gp_max_iter: int = 50,
+        lengthscale_prior: bool = False,
+        noise_floor: float | str | None = "auto",
+        outputscale: float = 0.1,
+        noise: float = 0.1,
+    ) -> None:
+        super().__init__()
+        self.skill = check_skill("skill", skill)
+        self.gp_max_iter = check_count("gp_max_iter", gp_max_iter)
+        self.lengthscale_prior = bool(lengthscale_prior)
+        self.noise_floor = check_noise_floor(noise_floor)
+        # GPExpert validates the start values; build one now so that errors come early.
+        GPExpert(1, 1, outputscale=outputscale, noise=noise)
+        self.outputscale = float(outputscale)
+        self.noise = float(noise)
+        self.components = torch.nn.ModuleDict()
+        self.n_features: int | None = None
+        self.n_outputs: int | None = None
+        self.train_X: Tensor | None = None
+        self.train_Y: Tensor | None = None
+
+    def _gp_config(self) -> dict[str, Any]:
+        """The GP settings as constructor arguments."""
+        names = ("gp_max_iter", "lengthscale_prior", "noise_floor", "outputscale", "noise")
+        return {n: getattr(self, n) for n in names}

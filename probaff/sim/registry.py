@@ -1,0 +1,334 @@
+"""The registry of world kinds: each kind's loaders, its simulation and the dataset it makes.
+
+A world kind (gym's and robosuite's registered environments) is what a scene template belongs
+to: its world file loader, its scene templates (``worlds/<folder>/NAME.yaml``) and their
+loader, its simulation entry point and the kind of dataset its scenes generate
+(`probaff.data.generate` looks it up). The built-in kinds, in this order:
+
+==============  ==========================  =============================  ============
+kind            world file, loader          scene templates                dataset kind
+==============  ==========================  =============================  ============
+``tabletop``    ``tabletop.yaml``           ``scenes/``                    ``push``
+``sideview``    ``sideview.yaml``           ``sideview_scenes/``           ``skill``
+``warehouse``   ``warehouse.yaml``          none (maps are generated)      none
+``office``      ``office.yaml``             none (scenes are sampled)      none
+==============  ==========================  =============================  ============
+
+A new world kind is its world file and scene templates, its module (spec, loader and simulate
+function), one `register_world` call and its test; a dataset kind for it is registered in
+`probaff.data.kinds`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Generic, Protocol, TypeVar
+
+import numpy as np
+
+from probaff._checks import check_count
+from probaff.errors import ConfigError, InputError
+from probaff.sim.inputs import check_type
+from probaff.sim.office import sample_office_scene
+from probaff.sim.office_config import load_office
+from probaff.sim.sideview import simulate_sideview
+from probaff.sim.sideview_config import SCENES as SIDEVIEW_SCENES
+from probaff.sim.sideview_config import load_sideview, load_sideview_scene
+from probaff.sim.tabletop import simulate_push
+from probaff.sim.tabletop_config import SCENES as TABLETOP_SCENES
+from probaff.sim.tabletop_config import load_scene, load_tabletop
+from probaff.sim.warehouse import push_box
+from probaff.sim.warehouse_config import load_warehouse
+from probaff.sim.world_files import scene_names, worlds_dir
+
+__all__ = [
+    "Registry",
+    "SceneRows",
+    "UnknownSceneError",
+    "WorldKind",
+    "kind_of_scene",
+    "register_world",
+    "unregister_world",
+    "world_kind",
+    "world_kinds",
+]
+
+
+class UnknownSceneError(InputError, ConfigError):
+    """An unknown scene name: a bad ``scene`` argument (`InputError`) naming no world file.
+
+    It is also a `ConfigError`, which is what an unknown scene raised before the side-view
+    scenes existed, so code catching either keeps working.
+    """
+
+
+@dataclass(frozen=True)
+class SceneRows:
+    """How a world kind's scenes become dataset rows, for a kind with no options of its own.
+
+    `probaff.data.kinds` turns it into a dataset kind (a dataset class of these arrays, its
+    shards and manifest) unless a `probaff.data.kinds.DatasetKind` is registered for it.
+
+    Attributes:
+        arrays: Name and dtype of each array; the first axis of each is the row.
+            ``object_ids`` (``int16``, an index into the object names, -1 for an empty slot)
+            is added when missing.
+        make: ``make(scene, rows, seeds)``: the arrays of `rows` rows of scene template
+            `scene`, drawn from the shard's ``numpy.random.SeedSequence`` alone.
+        object_names: ``object_names(scene)``: the vocabulary of ``object_ids``.
+        unit: One row in words, for progress bars.
+        schema_version: The version of this array schema, recorded in the manifest.
+
+    Raises:
+        InputError: For no arrays, a `make` or `object_names` that is not callable, or a
+            schema version that is not a positive integer.
+    """
+
+    arrays: dict[str, str]
+    make: Callable[[str, int, np.random.SeedSequence], dict[str, np.ndarray]]
+    object_names: Callable[[str], list[str]]
+    unit: str = "row"
+    schema_version: int = 1
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.arrays, dict) or not self.arrays:
+            raise InputError(f"SceneRows.arrays must name at least one array, got {self.arrays!r}.")
+        object.__setattr__(self, "arrays", {"object_ids": "int16", **self.arrays})
+        for name in ("make", "object_names"):
+            if not callable(getattr(self, name)):
+                raise InputError(f"SceneRows.{name} must be callable.")
+        check_count("SceneRows.schema_version", self.schema_version)
+
+
+@dataclass(frozen=True)
+class WorldKind:
+    """One kind of world.
+
+    Attributes:
+        name: Registry key, e.g. ``"tabletop"``.
+        label: The kind in words, as in "a side-view scene", e.g. ``"side-view"``.
+        load_world: Loads the world file: ``load_world()`` for the standard one,
+            ``load_world(path)`` for another (e.g. `probaff.sim.load_tabletop`).
+        simulate: The world's simulation entry point (e.g. `probaff.sim.simulate_push`); its
+            arguments are the kind's own.
+        scenes: Folder of the scene templates ``NAME.yaml`` (relative: under
+            `probaff.sim.world_files.worlds_dir`), or ``None`` for a kind without templates.
+        load_scene: Loads a scene template by name; required with `scenes`.
+        dataset_kind: Name of the dataset kind its scenes generate (`probaff.data.kinds`), or
+            ``None``.
+        actions: What its scenes' datasets hold, in words (``"push"``, ``"pick/place"``).
+        describe_scene: A one-line description of a scene for listings; by default the
+            loaded template's ``description``.
+        rows: How its scenes become dataset rows, for a `dataset_kind` that is not registered
+            in `probaff.data.kinds` (one with no options of its own).
+
+    Raises:
+        InputError: For an empty name or label, a non-callable loader or simulation, scene
+            templates without a `load_scene`, or `rows` without scene templates and a
+            `dataset_kind`.
+    """
+
+    name: str
+    label: str
+    load_world: Callable[..., Any]
+    simulate: Callable[..., Any]
+    scenes: str | Path | None = None
+    load_scene: Callable[[str], Any] | None = None
+    dataset_kind: str | None = None
+    actions: str = ""
+    describe_scene: Callable[[str], str] | None = None
+    rows: SceneRows | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("name", "label"):
+            value = getattr(self, name)
+            if not isinstance(value, str) or not value:
+                raise InputError(f"WorldKind.{name} must be a non-empty string, got {value!r}.")
+        for name in ("load_world", "simulate"):
+            if not callable(getattr(self, name)):
+                raise InputError(f"WorldKind.{name} of {self.name!r} must be callable.")
+        if self.scenes is not None and not callable(self.load_scene):
+            raise InputError(
+                f"WorldKind {self.name!r} has scene templates ({self.scenes}) but no "
+                "load_scene; give the function that loads a template by name."
+            )
+        if self.dataset_kind is not None and not isinstance(self.dataset_kind, str):
+            raise InputError(
+                f"WorldKind.dataset_kind of {self.name!r} must be a name or None, got "
+                f"{self.dataset_kind!r}."
+            )
+        if self.rows is not None and (self.scenes is None or self.dataset_kind is None):
+            raise InputError(
+                f"WorldKind {self.name!r} has rows but no scene templates or dataset_kind; "
+                "rows are made from a scene template for the dataset kind."
+            )
+
+    def scene_names(self) -> list[str]:
+        """Sorted names of its scene templates (none without a `scenes` folder)."""
+        return [] if self.scenes is None else scene_names(self.scenes)
+
+    def scene_path(self, name: str) -> Path:
+        """The file of scene template `name` (which need not exist).
+
+        Raises:
+            InputError: If the kind has no scene templates.
+        """
+        if self.scenes is None:
+            raise InputError(f"world kind {self.name!r} has no scene templates.")
+        folder = Path(self.scenes)
+        return (folder if folder.is_absolute() else worlds_dir() / folder) / f"{name}.yaml"
+
+    def describe(self, scene: str) -> str:
+        """One line on scene template `scene`, for listings such as ``probaff scenes``."""
+        if self.describe_scene is not None:
+            return self.describe_scene(scene)
+        assert self.load_scene is not None  # checked with scenes
+        return str(getattr(self.load_scene(scene), "description", ""))
+
+
+class _Named(Protocol):
+    @property
+    def name(self) -> str: ...
+
+
+_N = TypeVar("_N", bound=_Named)
+
+
+class Registry(Generic[_N]):
+    """Named entries in registration order: the store behind a registry's functions.
+
+    Args:
+        what: What an entry is, in messages (``"world kind"``).
+        cls: The class of every entry.
+        unregister: The public function that removes one, named in messages.
+    """
+
+    def __init__(self, what: str, cls: type[_N], unregister: str) -> None:
+        self.what, self.cls, self.unregister = what, cls, unregister
+        self.entries: dict[str, _N] = {}
+
+    def add(self, entry: _N) -> _N:
+        """Register `entry` under its name and return it.
+
+        Raises:
+            InputError: If `entry` is of another class, or its name is taken.
+        """
+        check_type("kind", entry, self.cls)
+        if entry.name in self.entries:
+            raise InputError(
+                f"{self.what} {entry.name!r} is registered already; {self.unregister} it first "
+                "or choose another name."
+            )
+        self.entries[entry.name] = entry
+        return entry
+
+    def remove(self, name: str) -> _N:
+        """Remove the entry `name` and return it.
+
+        Raises:
+            InputError: If no entry has that name.
+        """
+        if name not in self.entries:
+            raise InputError(
+                f"{self.what} {name!r} is not registered; registered: {list(self.entries)}."
+            )
+        return self.entries.pop(name)
+
+    def values(self) -> list[_N]:
+        """Every entry, in registration order."""
+        return list(self.entries.values())
+
+    def get(self, name: str) -> _N:
+        """The entry `name`.
+
+        Raises:
+            InputError: If no entry has that name (the message lists the registered ones).
+        """
+        if not isinstance(name, str) or name not in self.entries:
+            raise InputError(
+                f"unknown {self.what} {name!r}; registered kinds: {list(self.entries)}."
+            )
+        return self.entries[name]
+
+
+_WORLDS: Registry[WorldKind] = Registry("world kind", WorldKind, "unregister_world")
+
+
+register_world = _WORLDS.add
+"""Register a world kind under its name and return it (see `Registry.add`)."""
+unregister_world = _WORLDS.remove
+"""Remove a registered world kind by name and return it (see `Registry.remove`)."""
+world_kind = _WORLDS.get
+"""The registered world kind of a name (see `Registry.get`)."""
+world_kinds = _WORLDS.values
+"""Every registered world kind, in registration order, the built-in ones first."""
+
+
+def kind_of_scene(scene: str) -> WorldKind:
+    """The world kind whose scene templates hold `scene`.
+
+    Args:
+        scene: A scene template name, e.g. ``"two_objects"`` or ``"pick"``.
+
+    Raises:
+        InputError: If `scene` is not a string.
+        UnknownSceneError: If no kind has a template of that name (the message lists every
+            kind's templates); it is also a `ConfigError`.
+        ConfigError: If two kinds have a template of that name.
+    """
+    if not isinstance(scene, str):
+        raise InputError(f"scene must be a scene name (a string), got {scene!r}.")
+    owners = [k for k in world_kinds() if scene in k.scene_names()]
+    if len(owners) > 1:
+        paths = " and in ".join(str(k.scene_path(scene)) for k in owners)
+        raise ConfigError(
+            f"scene {scene!r} is defined twice, in {paths}; rename one of the two files."
+        )
+    if not owners:
+        listing = ", ".join(
+            f"{k.label} ({k.actions or k.dataset_kind}) {k.scene_names()}"
+            for k in world_kinds()
+            if k.scenes is not None
+        )
+        raise UnknownSceneError(f"unknown scene {scene!r}; available scenes: {listing}.")
+    return owners[0]
+
+
+def _describe_sideview_scene(name: str) -> str:
+    spec = load_sideview_scene(name)
+    return f"side view, {spec.skill}: {spec.description}"
+
+
+register_world(
+    WorldKind(
+        name="tabletop",
+        label="tabletop",
+        load_world=load_tabletop,
+        simulate=simulate_push,
+        scenes=TABLETOP_SCENES,
+        load_scene=load_scene,
+        dataset_kind="push",
+        actions="push",
+    )
+)
+register_world(
+    WorldKind(
+        name="sideview",
+        label="side-view",
+        load_world=load_sideview,
+        simulate=simulate_sideview,
+        scenes=SIDEVIEW_SCENES,
+        load_scene=load_sideview_scene,
+        dataset_kind="skill",
+        actions="pick/place",
+        describe_scene=_describe_sideview_scene,
+    )
+)
+register_world(
+    WorldKind(name="warehouse", label="warehouse", load_world=load_warehouse, simulate=push_box)
+)
+register_world(
+    WorldKind(name="office", label="office", load_world=load_office, simulate=sample_office_scene)
+)

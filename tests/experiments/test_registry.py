@@ -1,0 +1,130 @@
+"""Studies are found folder by folder, and ``probaff study NAME`` runs any of them.
+
+Covers probaff.experiments.registry. A new study is one folder: the test writes one to
+tmp_path and points the registry at it.
+"""
+
+import json
+import re
+import textwrap
+
+import pytest
+
+from probaff.errors import InputError
+from probaff.experiments import STUDIES, discover_studies, study_main
+
+TINY = '''
+"""A study of squares (a test's study)."""
+
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+from probaff.eval.tables import markdown_table
+from probaff.experiments.base import StudyConfig, StudyRun
+
+SMOKE = {"n": 2, "progress": False}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Config(StudyConfig):
+    """Squares.
+
+    Attributes:
+        n: Numbers squared.
+    """
+
+    out: str = "results/squares"
+    n: int = 5
+
+    SMOKE: ClassVar[dict[str, Any]] = SMOKE
+
+
+def square(i: int) -> dict[str, Any]:
+    return {"i": i, "square": i * i}
+
+
+def run(config: Config) -> dict[str, Any]:
+    study = StudyRun(config)
+    tag = study.config.tag(version=1)
+    rows = study.tasks(square, [(f"i{i}.{tag}", (i,)) for i in range(config.n)], desc="sq")
+    study.table("squares.csv", rows)
+    study.summary(["# Squares", "", markdown_table(rows, ["i", "square"])])
+    return {"rows": rows, "files": study.files}
+'''
+
+
+@pytest.fixture
+def tiny(tmp_path, monkeypatch):
+    """A folder of studies in tmp_path holding one study, ``squares``, importable.
+
+    The package is named after tmp_path, so that each test imports its own.
+    """
+    package = "studies_" + re.sub(r"\W", "_", tmp_path.name)
+    root = tmp_path / package
+    (root / "squares").mkdir(parents=True)
+    (root / "__init__.py").write_text("")
+    (root / "squares" / "__init__.py").write_text(textwrap.dedent(TINY))
+    (root / "_helpers").mkdir()  # private folders are not studies
+    (root / "_helpers" / "__init__.py").write_text("")
+    (root / "notes").mkdir()  # nor folders without a package
+    monkeypatch.syspath_prepend(str(tmp_path))
+    return discover_studies(root, package)
+
+
+def test_the_studies_of_probaff():
+    assert list(STUDIES) == [
+        "affordance_map",
+        "modular",
+        "planning",
+        "point_cloud_labels",
+        "push_models",
+    ]
+    for name in STUDIES:
+        study = STUDIES[name]
+        assert study.run and study.SMOKE is study.Config.SMOKE
+
+
+def test_a_new_study_is_one_folder(tiny, tmp_path, capsys):
+    assert list(tiny) == ["squares"] and "squares" in tiny
+    out = tmp_path / "out"
+    assert study_main(["squares", "--smoke", "--out", str(out)], studies=tiny) == 0
+    files = json.loads(capsys.readouterr().out)["files"]
+    assert files == [str(out / "squares.csv"), str(out / "summary.md")]
+    assert "| 1 | 1 |" in (out / "summary.md").read_text()  # n = 2 under --smoke
+    assert study_main(["squares", "--n", "3", "--out", str(out)], studies=tiny) == 0
+    assert "| 2 | 4 |" in (out / "summary.md").read_text()
+
+
+def test_bad_names_and_flags_print_one_line(tiny, tmp_path, capsys):
+    assert study_main(["cubes"], studies=tiny) == 2
+    assert capsys.readouterr().err == (
+        "probaff study cubes: error: unknown study 'cubes'; choose one of squares.\n"
+    )
+    assert study_main(["squares", "--seed", "-1", "--out", str(tmp_path)], studies=tiny) == 2
+    assert capsys.readouterr().err == (
+        "probaff study squares: error: seed must be an integer >= 0, got -1.\n"
+    )
+    assert study_main(["squares", "--n", "x"], studies=tiny) == 2  # argparse's own message
+    assert "argument --n: invalid int value: 'x'" in capsys.readouterr().err
+    assert study_main([], studies=tiny) == 2
+    assert "studies: squares" in capsys.readouterr().out
+    assert study_main(["--help"], studies=tiny) == 0
+
+
+def test_a_real_study_refuses_a_bad_flag_before_any_work(tmp_path, capsys):
+    out = tmp_path / "out"
+    argv = ["push_models", "--smoke", "--gate", "bar", "--out", str(out)]
+    assert study_main(argv) == 2
+    assert capsys.readouterr().err == (
+        "probaff study push_models: error: unknown gate 'bar'; use 'linear' or 'fourier'.\n"
+    )
+    assert not out.exists()
+
+
+def test_a_folder_without_the_study_face_is_refused(tiny):
+    (tiny.folder / "broken").mkdir()
+    (tiny.folder / "broken" / "__init__.py").write_text("x = 1\n")
+    with pytest.raises(InputError, match=r"does not name \['Config', 'SMOKE', 'run'\]"):
+        tiny["broken"]
+    with pytest.raises(KeyError):
+        tiny["nothing"]
