@@ -1,4 +1,4 @@
-"""The `probaff` command: generate, describe, scenes, demo, study."""
+"""The `probaff` command: generate, describe, scenes, export, import, demo, study."""
 
 from __future__ import annotations
 
@@ -63,11 +63,29 @@ def build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser("scenes", help="list the scene templates of every world kind")
 
-    m = sub.add_parser("demo", help="generate a small two-object dataset and draw it")
+    x = sub.add_parser("export", help="write a push or skill dataset to one HDF5 file")
+    x.add_argument("dataset", help="dataset folder")
+    x.add_argument("--to", required=True, metavar="FILE.h5", help="HDF5 file to write")
+
+    i = sub.add_parser(
+        "import", help="write a dataset folder from an HDF5 file (layout: probaff.data.hdf5)"
+    )
+    i.add_argument("file", metavar="FILE.h5", help="HDF5 file to read")
+    i.add_argument("--out", required=True, help="dataset folder to create")
+    i.add_argument(
+        "--shard-size", type=int, default=None, help="rows per shard (default: the file's, or 64)"
+    )
+
+    m = sub.add_parser(
+        "demo",
+        help="the main job on a small default: pushes, models, maps, planning, skills and "
+        "point clouds, printed as a short report ending with its figures",
+    )
     m.add_argument("--out", default="results/demo")
     m.add_argument("--n", type=int, default=96)
     m.add_argument("--seed", type=int, default=0)
     m.add_argument("--workers", type=int, default=0)
+    m.add_argument("--quiet", action="store_true", help="no progress bar")
 
     sub.add_parser(
         "study",
@@ -76,6 +94,20 @@ def build_parser() -> argparse.ArgumentParser:
         add_help=False,
     )
     return p
+
+
+def _hdf5(args: argparse.Namespace) -> None:
+    """``probaff export`` and ``probaff import``: a dataset to and from an HDF5 file."""
+    from probaff.data.hdf5 import export_hdf5, import_hdf5
+    from probaff.data.store import read_manifest
+
+    if args.command == "export":
+        export_hdf5(args.dataset, args.to)
+        rows = read_manifest(args.dataset)["plan"]["n"]
+        print(f"wrote {rows} rows of {args.dataset} to {args.to}")
+    else:
+        out = import_hdf5(args.file, args.out, shard_size=args.shard_size)
+        print(f"wrote {read_manifest(out)['plan']['n']} rows of {args.file} to {out}")
 
 
 def _dispatch(args: argparse.Namespace) -> None:
@@ -120,13 +152,23 @@ def _dispatch(args: argparse.Namespace) -> None:
         for world in world_kinds():
             for name in world.scene_names():
                 print(f"{name:16s} {world.describe(name)}")
+    elif args.command in ("export", "import"):
+        _hdf5(args)
     elif args.command == "demo":
         from probaff._checks import check_output_dir
 
         check_output_dir("--out", args.out)
         from probaff.demo import DemoConfig, run
 
-        run(DemoConfig(out=args.out, n=args.n, seed=args.seed, workers=args.workers))
+        run(
+            DemoConfig(
+                out=args.out,
+                n=args.n,
+                seed=args.seed,
+                workers=args.workers,
+                progress=not args.quiet,
+            )
+        )
 
 
 def main(argv: Sequence[str] | None = None) -> int:

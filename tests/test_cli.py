@@ -1,13 +1,8 @@
 """The `probaff` command line."""
 
 import json
-import subprocess
-import sys
 
 from probaff.cli import main
-from probaff.data.generation import GenerateConfig, generate
-from probaff.data.noise import PoseNoise
-from probaff.experiments.modular.demo import demo as modular_demo
 
 
 def test_generate_and_describe(tmp_path, capsys):
@@ -109,34 +104,14 @@ def test_negative_count(tmp_path, capsys):
     assert "n must be a positive integer" in capsys.readouterr().err
 
 
-def test_demo_smoke(tmp_path):
-    proc = subprocess.run(
-        [sys.executable, "-m", "probaff.cli", "demo", "--out", str(tmp_path), "--n", "8"],
-        capture_output=True,
-        text=True,
-        check=True,
+def test_demo_flags_are_checked_before_any_work(tmp_path, capsys):
+    # the whole demo runs once, through this command, in tests/test_demo.py
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--n", "0", "--quiet"]) == 2
+    assert capsys.readouterr().err == (
+        "probaff demo: error: n must be a positive integer, got 0.\n"
     )
-    assert "figure:" in proc.stdout
-    for png in (
-        tmp_path / "demo_pushes.png",
-        tmp_path / "modular" / "tabletop_predictions.png",
-        tmp_path / "modular" / "sideview_predictions.png",
-    ):
-        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "three-object chain: position error per object" in proc.stdout
-    assert "pick (" in proc.stdout and "place (" in proc.stdout
-    # a second run finds the finished dataset and the chapter 6 records and resumes them
-    again = generate(
-        GenerateConfig("two_objects", 8, seed=0, shard_size=16, pose_noise=PoseNoise()),
-        tmp_path / "two_objects",
-        resume=True,
-        progress=False,
-    )
-    assert len(again) == 8
-    records = sorted((tmp_path / "modular" / "tasks").glob("*.json"))
-    stamp = [p.stat().st_mtime_ns for p in records]
-    modular_demo(tmp_path / "modular", progress=False)
-    assert [p.stat().st_mtime_ns for p in records] == stamp and len(records) == 3
+    assert not out.exists()
 
 
 def test_scenes_listing(capsys):
@@ -157,3 +132,33 @@ def test_study_subcommand_runs_the_registered_studies_with_their_flags(capsys, t
     assert main(["study", "planning", "--trials", "0", "--out", out]) == 2
     err = capsys.readouterr().err
     assert err == "probaff study planning: error: trials must be a positive integer, got 0.\n"
+
+
+def test_export_and_import_round_trip_an_hdf5_file(tmp_path, capsys):
+    from probaff.data.generation import GenerateConfig, generate
+
+    ds = tmp_path / "ds"
+    config = GenerateConfig("two_objects", 5, seed=3, shard_size=2, cloud_points=8)
+    generate(config, ds, workers=0, progress=False)
+    file = tmp_path / "ds.h5"
+    assert main(["export", str(ds), "--to", str(file)]) == 0
+    assert capsys.readouterr().out == f"wrote 5 rows of {ds} to {file}\n"
+    back = tmp_path / "back"
+    assert main(["import", str(file), "--out", str(back)]) == 0
+    assert capsys.readouterr().out == f"wrote 5 rows of {file} to {back}\n"
+    files = sorted(p.relative_to(ds) for p in ds.rglob("*") if p.is_file())
+    assert files == sorted(p.relative_to(back) for p in back.rglob("*") if p.is_file())
+    assert all((ds / p).read_bytes() == (back / p).read_bytes() for p in files)
+    # bad input: one line each, exit status 2, nothing written or lost
+    before = (back / "manifest.json").read_bytes()
+    assert main(["import", str(file), "--out", str(back)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("probaff import: error: ") and err.count("\n") == 1
+    assert "already holds a push dataset" in err
+    assert (back / "manifest.json").read_bytes() == before
+    (tmp_path / "junk.h5").write_bytes(b"\x89HDF\r\n" + bytes(100))
+    assert main(["import", str(tmp_path / "junk.h5"), "--out", str(tmp_path / "x")]) == 2
+    assert "not a readable HDF5 file" in capsys.readouterr().err
+    assert main(["export", str(tmp_path / "none"), "--to", str(tmp_path / "y.h5")]) == 2
+    assert "not a probaff dataset" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y.h5").exists()

@@ -49,3 +49,11 @@ def test_modular_model_example(tmp_path, monkeypatch):
     with torch_threads(1):
         exec(compile(block, "README.md", "exec"), scope)
     assert scope["push"].is_fitted and (tmp_path / "results" / "ch6_example").is_dir()
+
+
+def test_scikit_learn_example(capsys):
+    from probaff._threads import torch_threads
+
+    with torch_threads(1):
+        exec(compile(_block("scikit-learn"), "README.md", "exec"), {})
+    assert capsys.readouterr().out.startswith("{'n_experts': 3}")

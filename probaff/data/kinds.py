@@ -6,12 +6,17 @@ kind makes a shard's arrays from the shard's seeds, records its plan and manifes
 names its dataset class (a `probaff.data.dataset.ArrayDataset`) and summarises a dataset. The
 built-in kinds:
 
-=========  ============  ============================  ====================  ===============
-kind       world kind    dataset                       schema versions       progress unit
-=========  ============  ============================  ====================  ===============
-``push``   ``tabletop``  `probaff.data.PushDataset`    1 (no pose noise), 2  push
-``skill``  ``sideview``  `probaff.data.SkillDataset`   3                     skill
-=========  ============  ============================  ====================  ===============
+=========  ============  ============================  ========================  =============
+kind       world kind    dataset                       schema versions           progress unit
+=========  ============  ============================  ========================  =============
+``push``   ``tabletop``  `probaff.data.PushDataset`    1 (no pose noise), 2;     push
+                                                       4 (observation-only)
+``skill``  ``sideview``  `probaff.data.SkillDataset`   3; 5 (observation-only)   skill
+=========  ============  ============================  ========================  =============
+
+A kind's ``schema_versions`` are those of its simulated datasets; a dataset class may declare
+an observation-only version besides (`ArrayDataset.OBSERVATION_VERSION`, listed by
+`observation_versions`), for datasets that lack what only a simulator knows.
 
 A manifest without a ``kind`` entry is a push dataset (`DEFAULT_KIND`), so push datasets are
 written exactly as before other kinds existed.
@@ -46,6 +51,8 @@ __all__ = [
     "DatasetKind",
     "dataset_kind",
     "dataset_kinds",
+    "kind_of_dataset",
+    "observation_versions",
     "readable_versions",
     "register_dataset_kind",
     "unregister_dataset_kind",
@@ -230,8 +237,40 @@ def dataset_kinds() -> list[DatasetKind]:
 
 
 def readable_versions() -> dict[str, tuple[int, ...]]:
-    """Each dataset kind (`dataset_kinds`) and the schema versions of it this probaff reads."""
+    """Each dataset kind (`dataset_kinds`) and the schema versions of it this probaff reads.
+
+    These are the versions of simulated datasets; a kind's observation-only version is in
+    `observation_versions`.
+    """
     return {k.name: k.schema_versions for k in _all_kinds().values()}
+
+
+def observation_versions() -> dict[str, int]:
+    """Each dataset kind with an observation-only schema version, and that version."""
+    out = {}
+    for kind in _all_kinds().values():
+        version = kind.dataset_type.OBSERVATION_VERSION
+        if version is not None:
+            out[kind.name] = version
+    return out
+
+
+def kind_of_dataset(ds: ArrayDataset) -> DatasetKind:
+    """The dataset kind whose dataset class `ds` is an instance of (the most derived).
+
+    Raises:
+        InputError: If `ds` is of no registered kind's class.
+    """
+    for kind in _all_kinds().values():
+        if type(ds) is kind.dataset_type:
+            return kind
+    for kind in _all_kinds().values():
+        if isinstance(ds, kind.dataset_type):
+            return kind
+    raise InputError(
+        f"{type(ds).__name__} is the dataset class of no registered dataset kind; give a "
+        "PushDataset, a SkillDataset or a dataset of a registered kind."
+    )
 
 
 register_dataset_kind(

@@ -33,6 +33,8 @@ array                         shape            dtype     meaning
 ``max_penetration``           (N,)             float64   deepest final overlap (m)
 ``cloud_points``              (N, K, P, 3)     float32   object clouds before the push
 ``cloud_normals``             (N, K, P, 3)     float32   their outward normals
+``object_size`` (version 4)   (N, K, 3)        float64   box (length, width, height) (m) the
+                                                         clouds were sampled from
 ``traj_time`` (optional)      (N, T)           float64   trajectory sample times (s)
 ``traj_hand`` (optional)      (N, T, 3)        float32   world (x, y, yaw) of the hand
 ``traj_objects`` (optional)   (N, T, K, 3)     float32   world (x, y, theta) of the objects
@@ -40,6 +42,18 @@ array                         shape            dtype     meaning
 ``true_state_after`` (opt.)   (N, K, 3)        float64   exact world (x, y, theta) after
 ``true_effect`` (optional)    (N, K, 3)        float64   exact (dy_p, dz_p, dtheta_p)
 ============================  ===============  ========  ====================================
+
+Observations and the simulator. The arrays a robot observes, `OBSERVATION_ARRAYS` (the object
+ids, the poses before and after, their effect, the push, the walls and the object clouds), are
+required in every version. Schema versions 1 and 2 (what `probaff generate` writes) also
+require `SIMULATOR_ARRAYS`, which only a simulator knows (masses, frictions, support weights,
+contact flags, IK waypoints, hand lag, penetration). Version 4 (`OBSERVATION_SCHEMA_VERSION`)
+makes each of those optional, for a robot's own logs
+(`probaff.data.observations.observation_dataset` builds one from arrays); it alone may hold
+``object_size``, the boxes a dataset's clouds were sampled from when it was given box
+footprints instead of clouds. Poses are world ``(x, y, theta)`` (m, m, rad), with the table top
+at z = 0 and theta unwrapped; the clouds are world points (m) with unit normals; the units of
+every array are `ARRAY_UNITS`.
 
 Observed and exact poses. Without pose noise (the default) the recorded poses are the
 simulator's exact ones and the three ``true_*`` arrays are absent. A dataset generated with a
@@ -59,23 +73,32 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from probaff.data.dataset import ArrayDataset
+from probaff.data.dataset import ArrayDataset, Shape, split_arrays
 from probaff.errors import DatasetError
 
 __all__ = [
+    "ARRAY_UNITS",
     "GROUND_TRUTH_ARRAYS",
+    "OBSERVATION_ARRAYS",
+    "OBSERVATION_SCHEMA_VERSION",
     "OPTIONAL_ARRAYS",
+    "PUSH_SHAPES",
     "READABLE_SCHEMA_VERSIONS",
     "REQUIRED_ARRAYS",
     "SCHEMA_VERSION",
+    "SIMULATOR_ARRAYS",
     "PushDataset",
     "schema_version_for",
 ]
 
 SCHEMA_VERSION = 2
-"""Newest schema version: 2 added the optional ``true_*`` arrays and pose noise."""
+"""Newest simulated push schema version: 2 added the ``true_*`` arrays and pose noise."""
 READABLE_SCHEMA_VERSIONS = (1, 2)
-"""Versions this probaff reads: a version 1 dataset is a version 2 one without pose noise."""
+"""Versions of simulated push datasets this probaff reads: a version 1 dataset is a version 2
+one without pose noise."""
+OBSERVATION_SCHEMA_VERSION = 4
+"""Version of observation-only push datasets: `SIMULATOR_ARRAYS` optional, ``object_size``
+allowed (version 3 is the skill datasets')."""
 
 REQUIRED_ARRAYS: dict[str, str] = {
     "object_ids": "int16",
@@ -100,6 +123,25 @@ REQUIRED_ARRAYS: dict[str, str] = {
     "cloud_points": "float32",
     "cloud_normals": "float32",
 }
+"""The arrays schema versions 1 and 2 require, and their dtypes."""
+OBSERVATION_ARRAYS, SIMULATOR_ARRAYS = split_arrays(
+    REQUIRED_ARRAYS,
+    (
+        "object_ids",
+        "state_before",
+        "state_after",
+        "effect",
+        "push_origin",
+        "push_yaw",
+        "push_distance",
+        "walls",
+        "cloud_points",
+        "cloud_normals",
+    ),
+)
+"""`OBSERVATION_ARRAYS`: what a robot observes, the arrays every version requires.
+`SIMULATOR_ARRAYS`: what only a simulator knows, required by versions 1 and 2, optional in
+version 4. Both map names to dtypes."""
 OPTIONAL_ARRAYS: dict[str, str] = {
     "traj_time": "float64",
     "traj_hand": "float32",
@@ -108,8 +150,71 @@ OPTIONAL_ARRAYS: dict[str, str] = {
     "true_state_after": "float64",
     "true_effect": "float64",
 }
+"""The optional arrays of every version, and their dtypes."""
 GROUND_TRUTH_ARRAYS = ("true_state_before", "true_state_after", "true_effect")
 """The exact poses and effect, stored (all three together) when the observed ones are noisy."""
+_OBSERVED_ONLY = {"object_size": "float64"}
+
+PUSH_SHAPES: dict[str, Shape] = {
+    "object_ids": ("N", "K"),
+    "state_before": ("N", "K", 3),
+    "state_after": ("N", "K", 3),
+    "effect": ("N", "K", 3),
+    "push_origin": ("N", 2),
+    "push_yaw": ("N",),
+    "push_distance": ("N",),
+    "walls": ("N", "Wn", 4),
+    "cloud_points": ("N", "K", "P", 3),
+    "cloud_normals": ("N", "K", "P", 3),
+    "object_size": ("N", "K", 3),
+    "q_waypoints": ("N", "W", "D"),
+    "mass": ("N", "K"),
+    "ground_friction": ("N", "K"),
+    "contact_friction": ("N", "K"),
+    "support_weights": ("N", "K", "G"),
+    "hand_contact": ("N", "K"),
+    "object_contact": ("N", "K", "K"),
+    "wall_contact": ("N", "K"),
+    "fell_off": ("N", "K"),
+    "hand_lag": ("N",),
+    "max_penetration": ("N",),
+    "traj_time": ("N", "T"),
+    "traj_hand": ("N", "T", 3),
+    "traj_objects": ("N", "T", "K", 3),
+}
+"""The symbolic shape of every push array (`probaff.data.dataset.Shape`)."""
+_POSE = "m, m, rad"
+ARRAY_UNITS: dict[str, str] = {
+    "object_ids": "index",
+    "state_before": _POSE,
+    "state_after": _POSE,
+    "effect": _POSE,
+    "push_origin": "m",
+    "push_yaw": "rad",
+    "push_distance": "m",
+    "walls": "m",
+    "cloud_points": "m",
+    "cloud_normals": "1",
+    "object_size": "m",
+    "q_waypoints": "rad",
+    "mass": "kg",
+    "ground_friction": "1",
+    "contact_friction": "1",
+    "support_weights": "1",
+    "hand_contact": "bool",
+    "object_contact": "bool",
+    "wall_contact": "bool",
+    "fell_off": "bool",
+    "hand_lag": "m",
+    "max_penetration": "m",
+    "traj_time": "s",
+    "traj_hand": "m, m, rad",
+    "traj_objects": _POSE,
+    "true_state_before": _POSE,
+    "true_state_after": _POSE,
+    "true_effect": _POSE,
+}
+"""The units of every push array: one unit, or one per component of the last axis."""
 
 
 def schema_version_for(pose_noise: bool) -> int:
@@ -135,26 +240,36 @@ class PushDataset(ArrayDataset):
     """
 
     KIND = "push"
-    REQUIRED = REQUIRED_ARRAYS
-    OPTIONAL = OPTIONAL_ARRAYS
+    REQUIRED = OBSERVATION_ARRAYS
+    OPTIONAL: ClassVar[dict[str, str]] = {**SIMULATOR_ARRAYS, **OPTIONAL_ARRAYS, **_OBSERVED_ONLY}
     GROUPS: ClassVar[dict[str, tuple[str, ...]]] = {"ground-truth": GROUND_TRUTH_ARRAYS}
     ROWS = "effect"
+    SHAPES = PUSH_SHAPES
+    UNITS = ARRAY_UNITS
+    SIMULATED = tuple(SIMULATOR_ARRAYS)
+    SIMULATOR_ONLY = (*SIMULATOR_ARRAYS, *GROUND_TRUTH_ARRAYS)
+    OBSERVED_ONLY = tuple(_OBSERVED_ONLY)
+    OBSERVATION_VERSION = OBSERVATION_SCHEMA_VERSION
 
     def validate(self) -> None:
-        """Check names, dtypes, row counts, the ground-truth shapes and the object ids.
+        """Check names, dtypes, row counts, shapes (the ground truth's first) and object ids.
 
         Raises:
             DatasetError: Naming the offending array.
         """
-        super().validate()
-        for name in (n for n in GROUND_TRUTH_ARRAYS if n in self.arrays):
-            observed = self.arrays[name.removeprefix("true_")]
-            if self.arrays[name].shape != observed.shape:
+        for name in GROUND_TRUTH_ARRAYS:
+            observed = self.arrays.get(name.removeprefix("true_"))
+            if (
+                name in self.arrays
+                and observed is not None
+                and (self.arrays[name].shape != observed.shape)
+            ):
                 raise DatasetError(
                     f"array {name!r} has shape {self.arrays[name].shape}, "
                     f"expected that of {name.removeprefix('true_')!r}, "
                     f"{observed.shape}."
                 )
+        super().validate()
         ids = self.arrays["object_ids"]
         if ids.size and (ids.min() < 0 or ids.max() >= len(self.object_names)):
             raise DatasetError("object_ids index outside object_names.")
@@ -175,6 +290,11 @@ class PushDataset(ArrayDataset):
         return "traj_hand" in self.arrays
 
     @property
+    def simulated_version(self) -> int:
+        """1 without pose noise, 2 with it (`schema_version_for`)."""
+        return schema_version_for(self.has_pose_noise)
+
+    @property
     def has_pose_noise(self) -> bool:
         """Whether the observed poses and effects are noisy (the ``true_*`` arrays are stored)."""
         return "true_effect" in self.arrays
@@ -187,6 +307,20 @@ class PushDataset(ArrayDataset):
         which is then exact.
         """
         return self.arrays["true_effect"] if self.has_pose_noise else self.arrays["effect"]
+
+    def plan_entries(self) -> dict[str, Any]:
+        """``trajectories``, and ``pose_noise`` when the dataset holds the ground truth.
+
+        The noise's parameters come from ``meta["pose_noise"]``; when it does not record
+        them (a robot's own ground truth), they are ``None``.
+        """
+        entries: dict[str, Any] = {"trajectories": self.has_trajectories}
+        if self.has_pose_noise:
+            noise = self.meta.get("pose_noise")
+            entries["pose_noise"] = (
+                noise if isinstance(noise, dict) else {"position_std": None, "yaw_std": None}
+            )
+        return entries
 
     def check_plan(self, plan: dict[str, Any]) -> str | None:
         """What contradicts the plan's pose noise: the ground-truth arrays come with it."""

@@ -64,7 +64,18 @@ array                        shape         dtype     meaning
 ``traj_objects`` (opt.)      (N, T, K, 3)  float32   world (x, z, phi) of the objects
 ===========================  ============  ========  ============================================
 
-The optional trajectory arrays are stored all together or not at all.
+The optional trajectory arrays are stored all together or not at all, and so are
+``q_waypoints`` and ``n_waypoints``.
+
+Observations and the simulator. Every version requires what a robot observes,
+`SKILL_OBSERVATION_ARRAYS`: the object ids and box sizes, the poses before and after, and the
+skill itself (``target``, ``support`` and ``target_xz``; the trajectories, when stored, are
+observations too). Version 3 (what `probaff generate` writes) also requires
+`SKILL_SIMULATOR_ARRAYS`, which only a simulator knows or judges (masses, frictions, the
+release height, the outcome flags, the IK waypoints); version 5
+(`SKILL_OBSERVATION_SCHEMA_VERSION`) makes each of them optional, for a robot's own logs
+(`probaff.data.observations.observation_dataset`). The units of every array are
+`SKILL_ARRAY_UNITS`.
 """
 
 from __future__ import annotations
@@ -74,19 +85,27 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from probaff.data.dataset import ArrayDataset
+from probaff.data.dataset import ArrayDataset, Shape, split_arrays
 from probaff.errors import DatasetError
 
 __all__ = [
     "NO_OBJECT",
     "SKILL_ARRAYS",
+    "SKILL_ARRAY_UNITS",
+    "SKILL_OBSERVATION_ARRAYS",
+    "SKILL_OBSERVATION_SCHEMA_VERSION",
     "SKILL_SCHEMA_VERSION",
+    "SKILL_SHAPES",
+    "SKILL_SIMULATOR_ARRAYS",
     "SKILL_TRAJECTORY_ARRAYS",
     "SkillDataset",
 ]
 
 SKILL_SCHEMA_VERSION = 3
-"""Schema version of skill datasets (manifest kind ``"skill"``); push datasets use 1 and 2."""
+"""Schema version of simulated skill datasets (manifest kind ``"skill"``); push datasets use 1,
+2 and 4."""
+SKILL_OBSERVATION_SCHEMA_VERSION = 5
+"""Schema version of observation-only skill datasets: `SKILL_SIMULATOR_ARRAYS` optional."""
 NO_OBJECT = -1
 """``object_ids`` value of an empty object slot."""
 
@@ -108,7 +127,14 @@ SKILL_ARRAYS: dict[str, str] = {
     "q_waypoints": "float64",
     "n_waypoints": "int32",
 }
-"""The required arrays and their dtypes."""
+"""The arrays version 3 requires, and their dtypes."""
+SKILL_OBSERVATION_ARRAYS, SKILL_SIMULATOR_ARRAYS = split_arrays(
+    SKILL_ARRAYS,
+    ("object_ids", "size", "state_before", "state_after", "target", "support", "target_xz"),
+)
+"""`SKILL_OBSERVATION_ARRAYS`: what a robot observes, the arrays every version requires.
+`SKILL_SIMULATOR_ARRAYS`: what only a simulator knows or judges, required by version 3,
+optional in version 5. Both map names to dtypes."""
 SKILL_TRAJECTORY_ARRAYS: dict[str, str] = {
     "traj_time": "float64",
     "traj_length": "int32",
@@ -120,15 +146,59 @@ SKILL_TRAJECTORY_ARRAYS: dict[str, str] = {
 }
 """The optional trajectory arrays (all or none) and their dtypes."""
 
-_PER_OBJECT = {"size": (3,), "mass": (), "friction": (), "state_before": (3,), "state_after": (3,)}
-_PER_SAMPLE = {"target_xz": (2,)}
-_PER_STEP = {
-    "traj_time": (),
-    "ee_commanded": (3,),
-    "ee_actual": (3,),
-    "opening_commanded": (),
-    "opening_actual": (),
+SKILL_SHAPES: dict[str, Shape] = {
+    "object_ids": ("N", "K"),
+    "size": ("N", "K", 3),
+    "mass": ("N", "K"),
+    "friction": ("N", "K"),
+    "state_before": ("N", "K", 3),
+    "state_after": ("N", "K", 3),
+    "target": ("N",),
+    "support": ("N",),
+    "target_xz": ("N", 2),
+    "release_height": ("N",),
+    "grasped": ("N",),
+    "lifted": ("N",),
+    "slipped": ("N",),
+    "placed": ("N",),
+    "q_waypoints": ("N", "W", "D"),
+    "n_waypoints": ("N",),
+    "traj_time": ("N", "T"),
+    "traj_length": ("N",),
+    "ee_commanded": ("N", "T", 3),
+    "ee_actual": ("N", "T", 3),
+    "opening_commanded": ("N", "T"),
+    "opening_actual": ("N", "T"),
+    "traj_objects": ("N", "T", "K", 3),
 }
+"""The symbolic shape of every skill array (`probaff.data.dataset.Shape`)."""
+_POSE = "m, m, rad"
+SKILL_ARRAY_UNITS: dict[str, str] = {
+    "object_ids": "index",
+    "size": "m",
+    "mass": "kg",
+    "friction": "1",
+    "state_before": _POSE,
+    "state_after": _POSE,
+    "target": "index",
+    "support": "index",
+    "target_xz": "m",
+    "release_height": "m",
+    "grasped": "bool",
+    "lifted": "bool",
+    "slipped": "bool",
+    "placed": "bool",
+    "q_waypoints": "rad",
+    "n_waypoints": "1",
+    "traj_time": "s",
+    "traj_length": "1",
+    "ee_commanded": _POSE,
+    "ee_actual": _POSE,
+    "opening_commanded": "m",
+    "opening_actual": "m",
+    "traj_objects": _POSE,
+}
+"""The units of every skill array: one unit, or one per component of the last axis."""
 
 
 class SkillDataset(ArrayDataset):
@@ -142,10 +212,18 @@ class SkillDataset(ArrayDataset):
     """
 
     KIND = "skill"
-    REQUIRED = SKILL_ARRAYS
-    OPTIONAL = SKILL_TRAJECTORY_ARRAYS
-    GROUPS: ClassVar[dict[str, tuple[str, ...]]] = {"trajectory": tuple(SKILL_TRAJECTORY_ARRAYS)}
+    REQUIRED = SKILL_OBSERVATION_ARRAYS
+    OPTIONAL: ClassVar[dict[str, str]] = {**SKILL_SIMULATOR_ARRAYS, **SKILL_TRAJECTORY_ARRAYS}
+    GROUPS: ClassVar[dict[str, tuple[str, ...]]] = {
+        "trajectory": tuple(SKILL_TRAJECTORY_ARRAYS),
+        "waypoint": ("q_waypoints", "n_waypoints"),
+    }
     ROWS = "object_ids"
+    SHAPES = SKILL_SHAPES
+    UNITS = SKILL_ARRAY_UNITS
+    SIMULATED = tuple(SKILL_SIMULATOR_ARRAYS)
+    SIMULATOR_ONLY = tuple(SKILL_SIMULATOR_ARRAYS)
+    OBSERVATION_VERSION = SKILL_OBSERVATION_SCHEMA_VERSION
 
     def validate(self) -> None:
         """Check names, dtypes, row counts, shapes and indices.
@@ -160,10 +238,6 @@ class SkillDataset(ArrayDataset):
         arrays = self.arrays
         ids = arrays["object_ids"]
         n, k = ids.shape
-        self._check_shapes(n, k)
-        q = arrays["q_waypoints"]
-        if q.ndim != 3:
-            raise DatasetError(f"array 'q_waypoints' has shape {q.shape}, expected (N, W, D).")
         if ids.size and (ids.min() < NO_OBJECT or ids.max() >= len(self.object_names)):
             raise DatasetError("object_ids index outside object_names (or below -1, no object).")
         rows = np.arange(n)
@@ -172,35 +246,20 @@ class SkillDataset(ArrayDataset):
             raise DatasetError("target must be the slot of a present object (0..K-1).")
         if n and (support.min() < -1 or support.max() >= k):
             raise DatasetError("support must be -1 (the table) or an object slot (0..K-1).")
-        self._check_lengths("n_waypoints", q.shape[1])
+        if "q_waypoints" in arrays:
+            self._check_lengths("n_waypoints", arrays["q_waypoints"].shape[1])
         if self.has_trajectories:
             self._check_lengths("traj_length", arrays["traj_time"].shape[1])
-
-    def _check_shapes(self, n: int, k: int) -> None:
-        """Raise `DatasetError` for an array whose shape does not fit N rows and K slots."""
-        arrays = self.arrays
-        shapes: dict[str, tuple[int, ...]] = {
-            **{name: (n, k, *tail) for name, tail in _PER_OBJECT.items()},
-            **{name: (n, *tail) for name, tail in _PER_SAMPLE.items()},
-        }
-        for name in ("target", "support", "release_height", "n_waypoints", "traj_length"):
-            shapes[name] = (n,)
-        for flag in ("grasped", "lifted", "slipped", "placed"):
-            shapes[flag] = (n,)
-        if self.has_trajectories:
-            t = arrays["traj_time"].shape[1] if arrays["traj_time"].ndim == 2 else -1
-            shapes.update({name: (n, t, *tail) for name, tail in _PER_STEP.items()})
-            shapes["traj_objects"] = (n, t, k, 3)
-        for name, shape in shapes.items():
-            if name in arrays and arrays[name].shape != shape:
-                raise DatasetError(
-                    f"array {name!r} has shape {arrays[name].shape}, expected {shape}."
-                )
 
     def _check_lengths(self, name: str, most: int) -> None:
         lengths = self.arrays[name]
         if lengths.size and (lengths.min() < 1 or lengths.max() > most):
             raise DatasetError(f"array {name!r} must lie in 1..{most}.")
+
+    @property
+    def simulated_version(self) -> int:
+        """`SKILL_SCHEMA_VERSION`."""
+        return SKILL_SCHEMA_VERSION
 
     @property
     def rows_label(self) -> str:
@@ -232,6 +291,13 @@ class SkillDataset(ArrayDataset):
         """``"pick"`` or ``"place"``, from ``meta`` (empty if it is not recorded)."""
         return str(self.meta.get("skill", ""))
 
+    def plan_entries(self) -> dict[str, Any]:
+        """``trajectories``, and ``record_rate`` (Hz) when ``meta`` records it."""
+        entries: dict[str, Any] = {"trajectories": self.has_trajectories}
+        if "record_rate" in self.meta:
+            entries["record_rate"] = self.meta["record_rate"]
+        return entries
+
     def check_plan(self, plan: dict[str, Any]) -> str | None:
         """What contradicts the plan's ``trajectories``: the trajectory arrays come with it."""
         wanted = bool(plan.get("trajectories"))
@@ -247,10 +313,16 @@ class SkillDataset(ArrayDataset):
         """Raise `DatasetError` unless the parts share vocabularies, arrays and K, W and T."""
         super().check_joinable(parts)
         keys = parts[0].arrays.keys()
-        if any(p.arrays.keys() != keys for p in parts):
+        differ = sorted(set().union(*(p.arrays.keys() ^ keys for p in parts)))
+        if any(name in SKILL_TRAJECTORY_ARRAYS for name in differ):
             raise DatasetError(
                 "skill datasets with and without trajectories cannot be joined; generate them "
                 "with the same options."
+            )
+        if differ:
+            raise DatasetError(
+                f"skill datasets with and without arrays {differ} cannot be joined; give every "
+                "part the same arrays."
             )
         for name in keys:
             tails = {p.arrays[name].shape[1:] for p in parts}

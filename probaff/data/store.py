@@ -29,9 +29,16 @@ A manifest without ``kind`` is a push dataset, so push datasets are written exac
 dataset by its version number. `load_dataset` reads push datasets and `load_skill_dataset`
 skill datasets; each refuses the other kind, naming the function to use.
 
+Version 4 (push) and version 5 (skill) are observation-only datasets: what a robot logged,
+without what only a simulator knows (`probaff.data.schema`, `probaff.data.skill_schema`). Their
+layout is the same; their shards may lack the simulator's arrays, and a push dataset's may hold
+``object_size``. `probaff generate` never writes them; `save_dataset` writes any in-memory
+dataset (`probaff.data.observations.observation_dataset`, `probaff.data.hdf5.import_hdf5`)
+under the version its arrays call for, so a simulated dataset keeps versions 1 to 3.
+
 The kinds and the versions this probaff reads are those registered in `probaff.data.kinds`
-(`probaff.data.kinds.readable_versions`); `load_any_dataset` reads a dataset of any of them into
-the kind's dataset class.
+(`probaff.data.kinds.readable_versions` and `probaff.data.kinds.observation_versions`);
+`load_any_dataset` reads a dataset of any of them into the kind's dataset class.
 """
 
 from __future__ import annotations
@@ -40,6 +47,7 @@ import hashlib
 import io
 import json
 import os
+import shutil
 import warnings
 import zipfile
 from pathlib import Path
@@ -47,15 +55,23 @@ from typing import Any
 
 import numpy as np
 
+from probaff._checks import check_count, check_output_dir
 from probaff._io import atomic_write_bytes
 from probaff.data.dataset import ArrayDataset
-from probaff.data.kinds import DEFAULT_KIND, dataset_kind, readable_versions
+from probaff.data.kinds import (
+    DEFAULT_KIND,
+    dataset_kind,
+    kind_of_dataset,
+    observation_versions,
+    readable_versions,
+)
 from probaff.data.schema import PushDataset
 from probaff.data.skill_schema import SkillDataset
 from probaff.errors import DatasetError
 
 __all__ = [
     "FORMAT_NAME",
+    "check_new_dataset_folder",
     "count_rows",
     "load_any_dataset",
     "load_dataset",
@@ -63,6 +79,7 @@ __all__ = [
     "manifest_kind",
     "read_manifest",
     "read_shard",
+    "save_dataset",
     "shard_path",
     "write_manifest",
     "write_shard",
@@ -74,11 +91,15 @@ _EPOCH = (1980, 1, 1, 0, 0, 0)
 
 def _readable() -> str:
     """What this probaff reads, in words, for error messages."""
-    return " and ".join(
+    simulated = " and ".join(
         f"{kind} datasets of schema version{'s' if len(v) > 1 else ''} "
         + ", ".join(str(x) for x in v)
         for kind, v in readable_versions().items()
     )
+    observed = " and ".join(
+        f"{kind} datasets of schema version {v}" for kind, v in observation_versions().items()
+    )
+    return f"{simulated}; observation-only {observed}" if observed else simulated
 
 
 def manifest_kind(manifest: dict[str, Any]) -> str:
@@ -226,7 +247,7 @@ def read_manifest(root: Path) -> dict[str, Any]:
             "read it with the probaff release that wrote it, or regenerate it with "
             "`probaff generate`."
         )
-    if version not in readable[kind]:
+    if version not in readable[kind] and version != observation_versions().get(kind):
         raise DatasetError(
             f"{root} is a {kind} dataset of schema version {version}, but this probaff reads "
             f"{_readable()}; read it with the probaff release that wrote it, or regenerate it "
@@ -299,6 +320,7 @@ def _load_parts(root: Path, manifest: dict[str, Any], make: type[ArrayDataset]) 
             stacklevel=4,
         )
     names, meta = list(manifest["object_names"]), manifest["meta"]
+    observed = manifest["schema_version"] == make.OBSERVATION_VERSION
     parts = []
     for i in range(n_shards):
         entry = shards[f"{i:05d}"]
@@ -310,12 +332,23 @@ def _load_parts(root: Path, manifest: dict[str, Any], make: type[ArrayDataset]) 
                 f"{entry['rows']}; delete it and rerun `probaff generate ... --resume`."
             )
         try:
-            parts.append(make(arrays, names, meta))
+            part = make(arrays, names, meta)
+            if part.missing_simulated and not observed:
+                raise DatasetError(
+                    f"{part.KIND} dataset is missing arrays {part.missing_simulated}"
+                )
+            if part.observation_only and not observed:
+                extra = sorted(set(part.OBSERVED_ONLY) & set(arrays))
+                raise DatasetError(
+                    f"{part.KIND} dataset holds observation-only arrays {extra} under schema "
+                    f"version {manifest['schema_version']}"
+                )
         except DatasetError as exc:
             raise DatasetError(
                 f"shard {shard_path(root, i)} does not hold a valid dataset ({exc}); delete it "
                 "and rerun `probaff generate ... --resume`."
             ) from exc
+        parts.append(part)
     return parts
 
 
@@ -390,3 +423,125 @@ def load_skill_dataset(root: str | os.PathLike[str]) -> SkillDataset:
     """
     ds: SkillDataset = _load(root, "skill")
     return ds
+
+
+def check_new_dataset_folder(out: Path) -> None:
+    """Raise `DatasetError` unless `out` is absent or an empty folder; nothing is touched.
+
+    Args:
+        out: The folder a new dataset is to be written to.
+    """
+    if (out / "manifest.json").is_file():
+        try:
+            what = f"a {manifest_kind(read_manifest(out))} dataset"
+        except DatasetError:
+            what = "a dataset (its manifest.json)"
+        raise DatasetError(
+            f"{out} already holds {what}; nothing was written and it is left as it was. Choose "
+            "a new folder, or delete that dataset first."
+        )
+    if out.is_dir() and any(out.iterdir()):
+        raise DatasetError(
+            f"{out} exists and is not empty (and not a probaff dataset); nothing was written. "
+            "Choose a new folder."
+        )
+
+
+def _manifest_for(ds: ArrayDataset, shard_size: int, given: dict[str, Any] | None) -> dict:
+    """The manifest `ds` is saved with, without shards: `given`'s, checked, or a new one."""
+    kind = kind_of_dataset(ds)
+    version = ds.schema_version or kind.schema_versions[-1]
+    if given is None:
+        plan = {
+            "scene": ds.meta.get("scene"),
+            "n": len(ds),
+            "seed": ds.meta.get("seed"),
+            "shard_size": shard_size,
+            **ds.plan_entries(),
+        }
+        named = {} if kind.name == DEFAULT_KIND else {"kind": kind.name}
+        return {
+            "format": FORMAT_NAME,
+            **named,
+            "schema_version": version,
+            "plan": plan,
+            "object_names": list(ds.object_names),
+            "meta": {k: v for k, v in ds.meta.items() if k not in plan},
+        }
+    manifest = {k: v for k, v in given.items() if k != "shards"}
+    problem = _layout_problem({**manifest, "shards": {}})
+    found = (manifest_kind(manifest), manifest.get("schema_version"))
+    if problem is None and found != (kind.name, version):
+        problem = (
+            f"it describes a {found[0]} dataset of schema version {found[1]}, but the arrays "
+            f"make a {kind.name} dataset of schema version {version}"
+        )
+    if problem is None and manifest["plan"]["n"] != len(ds):
+        problem = f"its plan's n is {manifest['plan']['n']}, but the dataset has {len(ds)} rows"
+    if problem is None and manifest["object_names"] != list(ds.object_names):
+        problem = "its object_names differ from the dataset's"
+    if problem is None:
+        problem = ds.check_plan(manifest["plan"])
+    if problem:
+        raise DatasetError(f"the manifest given for the dataset does not fit it: {problem}.")
+    return manifest
+
+
+def save_dataset(
+    ds: ArrayDataset,
+    out: str | os.PathLike[str],
+    *,
+    shard_size: int = 64,
+    manifest: dict[str, Any] | None = None,
+) -> Path:
+    """Write an in-memory dataset as a dataset folder (manifest and shards), atomically.
+
+    The folder is written under a temporary name beside `out` and renamed into place, so a
+    failure leaves `out` as it was. A dataset that lacks what only a simulator knows is
+    written under its kind's observation-only schema version (4 for pushes, 5 for skills);
+    a simulated one under the version `probaff generate` would give it.
+
+    Args:
+        ds: The dataset (a `PushDataset`, a `SkillDataset` or one of a registered kind).
+        out: The folder to create; it must not exist, or be an empty folder.
+        shard_size: Rows per shard of a new manifest, a positive integer.
+        manifest: A manifest to keep (e.g. that of the dataset `ds` was exported from): its
+            format, kind, schema version, plan, object names and meta are written as they are
+            (its shards are recomputed; its plan's ``shard_size`` is used). ``None`` makes one:
+            the plan records ``scene`` and ``seed`` from ``ds.meta``, ``n``, `shard_size` and
+            the dataset's own entries (`ArrayDataset.plan_entries`); the meta is ``ds.meta``
+            without the plan's keys.
+
+    Returns:
+        `out` as a `Path`.
+
+    Raises:
+        InputError: For an `out` that is a file, lies under one or in a folder that cannot
+            be written, or a bad `shard_size`.
+        DatasetError: If `out` already holds a dataset or other files (nothing is written),
+            the `manifest` does not fit `ds`, or a file cannot be written.
+    """
+    path = check_output_dir("out", out)
+    shard_size = check_count("shard_size", shard_size)
+    check_new_dataset_folder(path)
+    entries = _manifest_for(ds, shard_size, manifest)
+    size = int(entries["plan"]["shard_size"])
+    tmp = path.parent / f".{path.name}.tmp-{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    try:
+        shards = {}
+        for i, start in enumerate(range(0, len(ds), size)):
+            rows = slice(start, start + size)
+            digest = write_shard(tmp, i, {k: v[rows] for k, v in ds.arrays.items()})
+            shards[f"{i:05d}"] = {"rows": len(ds.arrays[ds.ROWS][rows]), "sha256": digest}
+        write_manifest(tmp, {**entries, "shards": shards})
+        os.replace(tmp, path)
+    except OSError as exc:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if isinstance(exc, DatasetError):
+            raise
+        raise DatasetError(
+            f"cannot write the dataset folder {path} ({exc.strerror or exc}); choose a folder "
+            "you may write to, with free space, that nothing else writes to meanwhile."
+        ) from exc
+    return path

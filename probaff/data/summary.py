@@ -40,7 +40,7 @@ def summarize(ds: PushDataset | SkillDataset) -> dict[str, Any]:
 def summarize_pushes(ds: PushDataset) -> dict[str, Any]:
     """Counts and effect statistics per object slot (o1 is the pushed object).
 
-    Every statistic describes what the simulator did: the mean |effect| and the "moved"
+    Every statistic describes what the simulator did: the mean absolute effect and the "moved"
     fractions use the exact effect (`PushDataset.true_effect`), never a noisy observation, and
     the fell-off and contact fractions come from the simulator's flags. A dataset with pose
     noise also reports, per slot, the standard deviation of its observation error
@@ -51,10 +51,12 @@ def summarize_pushes(ds: PushDataset) -> dict[str, Any]:
 
     Returns:
         A JSON-serialisable dict: counts; ``pose_noise`` (``None``, or the measurement noise's
-        ``position_std_m`` and ``yaw_std_rad``); per slot, the mean exact |effect| (dy_p and
-        dz_p in m, dtheta_p in rad), the fraction of pushes that moved it more than 1 cm, the
-        fraction in which it fell off the table, contact rates and, with pose noise,
-        ``observed_effect_error_std`` (m, m, rad).
+        ``position_std_m`` and ``yaw_std_rad``); per slot, the mean exact absolute effect
+        (dy_p and dz_p in m, dtheta_p in rad), the fraction of pushes that moved it more than
+        1 cm, the fraction in which it fell off the table, contact rates and, with pose noise,
+        ``observed_effect_error_std`` (m, m, rad). The simulator's flags of an
+        observation-only dataset that lacks them give ``None``; ``observation_only`` says
+        whether it is one.
     """
     eff = ds.true_effect
     moved = np.hypot(eff[..., 0], eff[..., 1]) > MOVED_THRESHOLD
@@ -68,8 +70,8 @@ def summarize_pushes(ds: PushDataset) -> dict[str, Any]:
                 "dtheta_p_rad": float(np.abs(eff[:, k, 2]).mean()) if len(ds) else 0.0,
             },
             "fraction_moved_gt_1cm": float(moved[:, k].mean()) if len(ds) else 0.0,
-            "fraction_fell_off": float(ds["fell_off"][:, k].mean()) if len(ds) else 0.0,
-            "fraction_hand_contact": float(ds["hand_contact"][:, k].mean()) if len(ds) else 0.0,
+            "fraction_fell_off": _flag_rate(ds, "fell_off", k),
+            "fraction_hand_contact": _flag_rate(ds, "hand_contact", k),
         }
         if ds.has_pose_noise:
             err = ds["effect"][:, k] - eff[:, k]
@@ -91,11 +93,21 @@ def summarize_pushes(ds: PushDataset) -> dict[str, Any]:
         "pose_noise": None
         if noise is None
         else {"position_std_m": noise["position_std"], "yaw_std_rad": noise["yaw_std"]},
-        "fraction_objects_touching": float(ds["object_contact"].any(axis=(1, 2)).mean())
+        "fraction_objects_touching": None
+        if "object_contact" not in ds.arrays
+        else float(ds["object_contact"].any(axis=(1, 2)).mean())
         if len(ds)
         else 0.0,
+        "observation_only": ds.observation_only,
         "objects": slots,
     }
+
+
+def _flag_rate(ds: PushDataset, name: str, k: int) -> float | None:
+    """The fraction of pushes with flag `name` set for slot `k`; ``None`` when not stored."""
+    if name not in ds.arrays:
+        return None
+    return float(ds[name][:, k].mean()) if len(ds) else 0.0
 
 
 def _mean(x: np.ndarray) -> float:
@@ -127,12 +139,14 @@ def summarize_skills(ds: SkillDataset) -> dict[str, Any]:
         ``n_object_slots``; ``object_counts`` (objects present over all rows) and
         ``target_counts`` (the picked or held object); ``has_trajectories``,
         ``record_rate_hz`` and ``n_trajectory_samples``; ``outcomes``, the fraction of rows
-        with each flag of `SKILL_OUTCOMES` for the skill (all four for an unknown one);
+        with each flag of `SKILL_OUTCOMES` for the skill (all four for an unknown one;
+        ``None`` for a flag an observation-only dataset does not store);
         ``target`` (the acted-on object: its ``mean_effect``, signed, and
         ``mean_abs_effect``); ``fraction_on_table_support`` (place: the target is the
         table; ``None`` for a pick); ``release_height_m`` (place: mean, min and max;
-        ``None`` for a pick); and per slot (``o1`` ...) ``fraction_present``,
-        ``mean_abs_effect`` and ``fraction_moved_gt_1cm`` (the centre moved more than 1 cm).
+        ``None`` for a pick or when not stored); ``observation_only``; and per slot
+        (``o1`` ...) ``fraction_present``, ``mean_abs_effect`` and ``fraction_moved_gt_1cm``
+        (the centre moved more than 1 cm).
     """
     n = len(ds)
     eff = ds["state_after"] - ds["state_before"]
@@ -154,7 +168,7 @@ def summarize_skills(ds: SkillDataset) -> dict[str, Any]:
     skill = ds.skill
     flags = SKILL_OUTCOMES.get(skill, ("grasped", "lifted", "slipped", "placed"))
     target_eff = eff[rows, target].reshape(n, 3)
-    release = ds["release_height"]
+    release = ds.arrays.get("release_height")
     return {
         "scene": ds.meta.get("scene"),
         "skill": skill or None,
@@ -166,7 +180,10 @@ def summarize_skills(ds: SkillDataset) -> dict[str, Any]:
         "has_trajectories": ds.has_trajectories,
         "record_rate_hz": ds.meta.get("record_rate"),
         "n_trajectory_samples": ds.n_samples,
-        "outcomes": {f"fraction_{flag}": _mean(ds[flag]) for flag in flags},
+        "outcomes": {
+            f"fraction_{flag}": _mean(ds[flag]) if flag in ds.arrays else None for flag in flags
+        },
+        "observation_only": ds.observation_only,
         "target": {
             "mean_effect": _effect(target_eff),
             "mean_abs_effect": _effect(np.abs(target_eff)),
@@ -177,7 +194,7 @@ def summarize_skills(ds: SkillDataset) -> dict[str, Any]:
             "min": float(release.min()) if n else 0.0,
             "max": float(release.max()) if n else 0.0,
         }
-        if skill == "place"
+        if skill == "place" and release is not None
         else None,
         "objects": slots,
     }

@@ -45,7 +45,7 @@ def settings_fingerprint(settings: Mapping[str, Any], *, version: int = 1, lengt
 def config_fingerprint(
     config: Any, *, exclude: Iterable[str] = (), version: int = 1, length: int = 10
 ) -> str:
-    """Short hash of every field of a dataclass config except the `exclude`d ones.
+    """Short hash of every field of a dataclass config except those named in `exclude`.
 
     A study config declares its run-only fields (output folder, workers, scheduler,
     progress bars: where and how a run happens, not what it computes) and passes them as

@@ -1,7 +1,9 @@
 """The inference studies: one folder each, over a shared config and run skeleton.
 
-Studies (each a subpackage with ``Config``, ``SMOKE`` and ``run(config)``; `STUDIES` finds
-them by folder, ``probaff study NAME`` and ``inference/NAME.py`` run them):
+Each study is a subpackage with ``Config``, ``SMOKE`` and ``run(config)``; `STUDIES` finds
+them by folder, and ``probaff study NAME`` and ``inference/NAME.py`` run them.
+
+Studies:
     point_cloud_labels: chapter 2, affordance labels of scanned office segments, Algorithm 1
         and the multi-view merge.
     affordance_map: chapter 3, the manipulation loop's information gain against exhaustive

@@ -2,7 +2,9 @@
 
 Push features of chapters 4 (n = 631) and 5 (n = 101), interaction features of chapter 6
 (n = 169) with their action-frame geometry and the push, pick and place rows built from them,
-and per-voxel warehouse features of chapter 3.
+and per-voxel warehouse features of chapter 3. Each feature set states the dataset arrays and
+``meta`` entries it reads (`FEATURE_REQUIREMENTS`) and refuses a dataset that lacks one, naming
+it.
 """
 
 from probaff.features.action_frame import (
@@ -44,9 +46,11 @@ from probaff.features.ch6_scenes import (
 from probaff.features.chain_geometry import MOTION_COLUMNS, Ch6Geometry
 from probaff.features.featureset import FeatureSet
 from probaff.features.frames import directions_to_push_frame, points_to_push_frame
+from probaff.features.requirements import FEATURE_REQUIREMENTS, Requirements, requirements
 
 __all__ = [
     "CONTEXT_CLASSES",
+    "FEATURE_REQUIREMENTS",
     "HMP_SCALES",
     "INTERACTION_FEATURE_COUNT",
     "INTERACTION_GROUPS",
@@ -64,6 +68,7 @@ __all__ = [
     "PlaceInteractions",
     "PushInteractions",
     "PushScenes",
+    "Requirements",
     "TableGeometry",
     "VoxelFeatures",
     "action_frame",
@@ -82,6 +87,7 @@ __all__ = [
     "points_to_push_frame",
     "push_interactions",
     "push_scenes",
+    "requirements",
     "scene_effects",
     "scene_feature_names",
     "scene_features",

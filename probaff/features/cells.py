@@ -37,10 +37,15 @@ import numpy as np
 
 from probaff._checks import check_count, check_finite, check_positive, check_shape
 from probaff.features.featureset import FeatureSet
+from probaff.features.requirements import FEATURE_REQUIREMENTS
 from probaff.grid import DIRECTION_NAMES, DIRECTION_OFFSETS
 from probaff.perception.occupancy import OccupancyGrid
 
-__all__ = ["HMP_SCALES", "VoxelFeatures", "cell_features", "feature_names"]
+__all__ = ["HMP_SCALES", "REQUIRES", "VoxelFeatures", "cell_features", "feature_names"]
+
+REQUIRES = FEATURE_REQUIREMENTS["ch3.cells"]
+"""What `cell_features` reads of a dataset: nothing; its inputs are a merged cloud and an
+occupancy grid, checked as arguments."""
 
 HMP_SCALES: tuple[float, ...] = (0.5, 0.25)  # sub-voxel sides (m) of the multi-scale normals
 _STATES = ("free", "occupied", "unknown")

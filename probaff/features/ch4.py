@@ -12,7 +12,7 @@ Columns:
         the pushing frame, a turn about x_p taken from the cloud's principal axis (4); the
         minimum and maximum of its points along x_p, y_p, z_p relative to the centroid (6).
     f_c (42): a Gaussian summary of the surfaces in a 20 x 10 x 10 cm volume at the hand
-        (z_p in [0, 0.2], |y_p| <= 0.05, up to 0.1 m above the table): every object point in
+        (z_p in [0, 0.2], ``|y_p| <= 0.05``, up to 0.1 m above the table): every object point in
         it falls in a 1 cm voxel; each occupied voxel gives its mean position and unit mean
         normal (a 6-vector); the features are the mean (6) and the covariance (36, row-major)
         of those 6-vectors. An empty volume (a push that misses) gives zeros.
@@ -34,8 +34,13 @@ from probaff.data.queries import PushInputs
 from probaff.features._common import PushClouds, chunked, meta_float, principal_yaw
 from probaff.features.featureset import FeatureSet
 from probaff.features.frames import points_to_push_frame
+from probaff.features.requirements import FEATURE_REQUIREMENTS
 
-__all__ = ["CONTEXT_CLASSES", "TableGeometry", "chapter4_features"]
+__all__ = ["CONTEXT_CLASSES", "REQUIRES", "TableGeometry", "chapter4_features"]
+
+REQUIRES = FEATURE_REQUIREMENTS["ch4"]
+"""What `chapter4_features` reads: the clouds, the push, the walls and ``meta["push_height"]``
+(``meta["table_size"]`` too when there, else a 1 x 0.8 m table)."""
 
 CONTEXT_CLASSES = ("object", "obstacle", "table", "free")
 _VOX = 0.01
@@ -172,9 +177,11 @@ def chapter4_features(
         A (N, 631) `FeatureSet` with groups ``f_o``, ``f_c``, ``f_x``.
 
     Raises:
-        InputError: For an empty dataset or a `chunk` that is not a positive integer.
+        InputError: For an empty dataset, a `chunk` that is not a positive integer, or a
+            dataset that lacks an array or ``meta`` entry of `REQUIRES` (naming it).
     """
     chunk = check_count("chunk", chunk)
+    REQUIRES.check(ds)
     if table is None:
         size = ds.meta.get("table_size", (1.0, 0.8))
         table = TableGeometry(size=(float(size[0]), float(size[1])))

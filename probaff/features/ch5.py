@@ -33,8 +33,12 @@ from probaff.features._common import (
     principal_yaw,
 )
 from probaff.features.featureset import FeatureSet
+from probaff.features.requirements import FEATURE_REQUIREMENTS
 
-__all__ = ["CH5_BINS", "CH5_BIN_WIDTH", "chapter5_features"]
+__all__ = ["CH5_BINS", "CH5_BIN_WIDTH", "REQUIRES", "chapter5_features"]
+
+REQUIRES = FEATURE_REQUIREMENTS["ch5"]
+"""What `chapter5_features` reads: the clouds, the push and the gripper's geometry in meta."""
 
 CH5_BINS = 20
 CH5_BIN_WIDTH = 0.025
@@ -124,8 +128,10 @@ def chapter5_features(ds: PushInputs, chunk: int = 1024) -> FeatureSet:
         A (N, 101) `FeatureSet` with groups ``f_o``, ``f_c``, ``f_x``.
 
     Raises:
-        InputError: For an empty dataset or a `chunk` that is not a positive integer.
+        InputError: For an empty dataset, a `chunk` that is not a positive integer, or a
+            dataset that lacks an array or ``meta`` entry of `REQUIRES` (naming it).
     """
+    REQUIRES.check(ds)
     opening = meta_float(ds, "gripper_opening")
     height = meta_float(ds, "push_height")
 

@@ -33,9 +33,14 @@ from probaff.errors import InputError
 from probaff.features.action_frame import effect_in_action_frame, sideview_transform
 from probaff.features.ch6_push import _check_finite_rows
 from probaff.features.chain_geometry import Ch6Geometry, InteractionRows, resolve_geometry
+from probaff.features.requirements import FEATURE_REQUIREMENTS
 from probaff.sim.sideview_config import SideViewSpec, load_sideview
 
-__all__ = ["SIDEVIEW_EFFECT_COLUMNS", "PickInteractions", "pick_interactions"]
+__all__ = ["REQUIRES", "SIDEVIEW_EFFECT_COLUMNS", "PickInteractions", "pick_interactions"]
+
+REQUIRES = FEATURE_REQUIREMENTS["ch6.pick"]
+"""What `pick_interactions` reads: ids, sizes, poses, the grasp point, the ``lifted`` flag,
+the tcp trajectories and ``meta["lift"]``."""
 
 SIDEVIEW_EFFECT_COLUMNS = (1, 2, 3)
 """Effect columns that move in the side view under a vertical action: up, world x, the turn."""
@@ -136,9 +141,9 @@ def pick_interactions(
         One row per pick.
 
     Raises:
-        InputError: For a dataset of another skill, one without trajectories, a geometry of
-            the wrong type, or NaN or inf in an array the rows read (naming the array and its
-            first such row).
+        InputError: For a dataset of another skill, one without trajectories or another
+            array or ``meta`` entry of `REQUIRES` (naming it), a geometry of the wrong type,
+            or NaN or inf in an array the rows read (naming the array and its first such row).
     """
     geometry = resolve_geometry(geometry)
     if ds.skill != "pick":
@@ -146,6 +151,7 @@ def pick_interactions(
             f"pick_interactions needs a pick dataset, got a {ds.skill!r} one; generate it "
             "with a pick scene (probaff scenes lists them)."
         )
+    REQUIRES.check(ds)
     _check_skill_arrays(ds, ("size", "state_before", "state_after", "target_xz"))
     world = load_sideview() if world is None else world
     rows = np.arange(len(ds))

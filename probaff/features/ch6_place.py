@@ -44,9 +44,14 @@ from probaff.errors import InputError
 from probaff.features.action_frame import effect_in_action_frame, sideview_transform
 from probaff.features.ch6_pick import _check_skill_arrays, _tcp_reaction
 from probaff.features.chain_geometry import Ch6Geometry, InteractionRows, resolve_geometry
+from probaff.features.requirements import FEATURE_REQUIREMENTS
 from probaff.sim.sideview_config import SideViewSpec, load_sideview
 
-__all__ = ["TABLE_SLAB_THICKNESS", "PlaceInteractions", "place_interactions"]
+__all__ = ["REQUIRES", "TABLE_SLAB_THICKNESS", "PlaceInteractions", "place_interactions"]
+
+REQUIRES = FEATURE_REQUIREMENTS["ch6.place"]
+"""What `place_interactions` reads: ids, sizes, poses, the support, the ``placed`` flag and
+the tcp trajectories."""
 
 TABLE_SLAB_THICKNESS = 0.02
 """Thickness (m) of the slab that stands for the table top when the cube goes on the table."""
@@ -113,9 +118,10 @@ def place_interactions(
         One row per place.
 
     Raises:
-        InputError: For a dataset of another skill, one without rows or trajectories, a
-            geometry of the wrong type, NaN or inf in an array the rows read (naming the
-            array and its first such row), or a place whose commanded lowering is not down.
+        InputError: For a dataset of another skill, one without rows, trajectories or
+            another array of `REQUIRES` (naming it), a geometry of the wrong type, NaN or inf
+            in an array the rows read (naming the array and its first such row), or a place
+            whose commanded lowering is not down.
     """
     geometry = resolve_geometry(geometry)
     if ds.skill != "place":
@@ -125,6 +131,7 @@ def place_interactions(
         )
     if len(ds) == 0:
         raise InputError("the dataset has no places; generate at least one.")
+    REQUIRES.check(ds)
     _check_skill_arrays(ds, ("size", "state_before", "state_after"))
     world = load_sideview() if world is None else world
     rows = np.arange(len(ds))

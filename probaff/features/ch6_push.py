@@ -39,12 +39,25 @@ from probaff.errors import InputError
 from probaff.features._common import FINGER_LENGTH, meta_float
 from probaff.features.action_frame import effect_in_action_frame, tabletop_transform
 from probaff.features.chain_geometry import Ch6Geometry, InteractionRows, resolve_geometry
+from probaff.features.requirements import FEATURE_REQUIREMENTS, Requirements
 from probaff.sim.specs import load_catalogue
 
-__all__ = ["PAIR_KINDS", "PLANAR_EFFECT_COLUMNS", "PushInteractions", "push_interactions"]
+__all__ = [
+    "PAIR_KINDS",
+    "PLANAR_EFFECT_COLUMNS",
+    "REQUIRES",
+    "PushInteractions",
+    "push_interactions",
+]
 
 PAIR_KINDS = ("hand", "objects")
 """Kinds of interaction rows `push_interactions` builds."""
+
+REQUIRES: dict[str, Requirements] = {
+    kind: FEATURE_REQUIREMENTS[f"ch6.push.{kind}"] for kind in PAIR_KINDS
+}
+"""What `push_interactions` reads, by kind of row: ``"hand"`` rows the poses, the push, the
+hand trajectory and the hand's geometry in meta; ``"objects"`` rows the poses."""
 
 PLANAR_EFFECT_COLUMNS = (0, 1, 5)
 """Effect columns that move on the table: off-action dx, along-action dy, yaw turn rz."""
@@ -186,8 +199,9 @@ def push_interactions(
 
     Raises:
         InputError: For an unknown kind or geometry, circular objects, missing trajectories
-            (``"hand"`` rows need the hand's path), a dataset without rows, or NaN or inf in
-            an array the rows read (naming the array and its first such row).
+            (``"hand"`` rows need the hand's path) or another array or ``meta`` entry of
+            `REQUIRES` (naming it), a dataset without rows, or NaN or inf in an array the rows
+            read (naming the array and its first such row).
     """
     geometry = resolve_geometry(geometry)
     if kind not in PAIR_KINDS:
@@ -195,6 +209,7 @@ def push_interactions(
     check_positive("min_action", min_action)
     if len(ds) == 0:
         raise InputError("the dataset has no pushes.")
+    REQUIRES[kind].check(ds)
     for name in ("state_before", "state_after"):
         _check_finite_rows(name, ds[name])
     sizes = _box_sizes(ds)

@@ -31,8 +31,10 @@ from probaff.errors import InputError
 from probaff.features.action_frame import action_frame, tabletop_transform
 from probaff.features.ch6_push import _box_sizes, _hand
 from probaff.features.chain_geometry import Ch6Geometry, resolve_geometry
+from probaff.features.requirements import FEATURE_REQUIREMENTS
 
 __all__ = [
+    "REQUIRES",
     "SCENE_EFFECT_NAMES",
     "PushScenes",
     "push_scenes",
@@ -40,6 +42,10 @@ __all__ = [
     "scene_feature_names",
     "scene_features",
 ]
+
+REQUIRES = FEATURE_REQUIREMENTS["ch6.scenes"]
+"""What `push_scenes`, `scene_features` and `scene_effects` read: the poses, the push and the
+hand's geometry in meta."""
 
 SCENE_EFFECT_NAMES = ("dx", "dy", "dtheta")
 """Per-object target columns of the monolithic rows: off the push, along it, the turn."""
@@ -88,6 +94,7 @@ def _check_dataset(ds: PushDataset) -> None:
         )
     if len(ds) == 0:
         raise InputError("the dataset has no pushes; generate at least one.")
+    REQUIRES.check(ds)
     for name in ("state_before", "state_after", "push_origin", "push_yaw", "push_distance"):
         bad = np.argwhere(~np.isfinite(ds[name]))
         if bad.size:
@@ -109,8 +116,9 @@ def push_scenes(ds: PushDataset, *, geometry: Ch6Geometry | None = None) -> Push
         The scenes, one per push.
 
     Raises:
-        InputError: For another type of dataset, an empty one, circular objects, non-finite
-            poses or a geometry of the wrong type.
+        InputError: For another type of dataset, an empty one, one that lacks an array or
+            ``meta`` entry of `REQUIRES` (naming it), circular objects, non-finite poses or a
+            geometry of the wrong type.
     """
     geometry = resolve_geometry(geometry)
     _check_dataset(ds)

@@ -15,6 +15,10 @@ keyword overrides. Every kind of model is a `ModelKind` in one registry (`model_
 (`ModelSettings`); `fit` fits any registered model, and `save` and `load` store any
 registered model in one file. `FITTERS`, `get_fitter` and `register_fitter` see the registry
 as fitting procedures by name.
+
+`MixtureOfGPExpertsRegressor` (`probaff.models.sklearn`) is the EM mixture as a scikit-learn
+regressor, for `cross_val_score`, `GridSearchCV` and `Pipeline`; `mean_log_predictive_density`
+scores its whole predictive distribution there.
 """
 
 from probaff.errors import NotFittedError
@@ -46,6 +50,7 @@ from probaff.models.registry import (
     register_model_kind,
     unregister_model_kind,
 )
+from probaff.models.sklearn import MixtureOfGPExpertsRegressor, mean_log_predictive_density
 from probaff.models.svi import SVIHistory, fit_svi
 from probaff.models.transition import (
     MonolithicTransitionModel,
@@ -69,6 +74,7 @@ __all__ = [
     "GatedMixture",
     "InteractionGeometry",
     "MixtureOfGPExperts",
+    "MixtureOfGPExpertsRegressor",
     "ModelKind",
     "ModelSettings",
     "ModularTransitionModel",
@@ -89,6 +95,7 @@ __all__ = [
     "get_fitter",
     "load",
     "make_gate",
+    "mean_log_predictive_density",
     "model_kind",
     "model_kinds",
     "register_fitter",

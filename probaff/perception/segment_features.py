@@ -35,8 +35,9 @@ Thresholds and defaults (the thesis gives no values; our choices):
         ``exp(-0.6) ~ 0.55``) from those across a gap (0.15 m, ``exp(-3) ~ 0.05``).
     elevation_deg = asin(1/3) ~ 19.47 degrees: splits the sphere of directions into three
         layers of equal solid angle.
-    Degenerate covariance: a segment with fewer than 3 points, or with ``lambda1 <= 1e-12
-    lambda0`` (collinear or coincident points, no normal), is skipped and counted.
+    Degenerate covariance: a segment with fewer than 3 points, or with
+        ``lambda1 <= 1e-12 lambda0`` (collinear or coincident points, no normal), is skipped
+        and counted.
 
 Frames and units: points in the robot frame (x forward, y left, z up), metres. Points whose
 label is -1 are ignored (they may be NaN).

@@ -13,6 +13,7 @@ triple name the entry ``FILE:key`` at the top level and ``FILE:section.key`` bel
 
 from __future__ import annotations
 
+import importlib.resources
 import math
 import os
 from dataclasses import fields
@@ -61,18 +62,33 @@ _S = TypeVar("_S", bound="CheckedSpec")
 def worlds_dir() -> Path:
     """Return the folder that holds the world descriptions.
 
-    ``$PROBAFF_WORLDS`` wins; otherwise the ``worlds/`` folder beside the ``probaff`` package
-    (the repository checkout, for an editable install).
+    ``$PROBAFF_WORLDS`` wins; otherwise the package data ``probaff/worlds`` that an installed
+    wheel carries (read through `importlib.resources`); otherwise, for an editable install or
+    a source checkout, the repository's ``worlds/`` folder beside the ``probaff`` package (the
+    one source of both).
 
     Raises:
-        ConfigError: If no such folder exists.
+        ConfigError: If ``$PROBAFF_WORLDS`` is set to a folder without ``tabletop.yaml``, or
+            it is unset and neither the package data nor the repository holds one.
     """
     env = os.environ.get("PROBAFF_WORLDS")
-    path = Path(env) if env else Path(__file__).resolve().parents[2] / "worlds"
+    if env:
+        if not (Path(env) / "tabletop.yaml").is_file():
+            raise ConfigError(
+                f"PROBAFF_WORLDS is {env}, which holds no world descriptions (no "
+                "tabletop.yaml); set it to the folder holding tabletop.yaml, or unset it to "
+                "use the world descriptions installed with probaff."
+            )
+        return Path(env)
+    packaged = importlib.resources.files("probaff") / "worlds"
+    if isinstance(packaged, Path) and (packaged / "tabletop.yaml").is_file():
+        return packaged
+    path = Path(__file__).resolve().parents[2] / "worlds"
     if not (path / "tabletop.yaml").is_file():
         raise ConfigError(
-            f"no world descriptions found in {path}; install probaff from its repository with "
-            "`pip install -e .` or set PROBAFF_WORLDS to the folder holding tabletop.yaml."
+            f"no world descriptions found in {packaged} or {path}; install probaff with its "
+            "package data (`pip install .`, a built wheel, or `pip install -e .` from its "
+            "repository) or set PROBAFF_WORLDS to the folder holding tabletop.yaml."
         )
     return path
 

@@ -152,7 +152,7 @@ def summarise_two_objects(records: list[dict[str, Any]]) -> list[dict[str, Any]]
         Rows with ``n_train``, ``model`` (``"modular"`` or ``"monolithic"``), ``object``
         (1-based), ``axis`` (``"along"``, ``"off"``), ``trials``, ``error_cm`` and
         ``error_ci``, ``coverage90`` of the object's (off, along) intervals, and
-        ``still_motion_cm``: the mean predicted |along| motion of objects that truly moved
+        ``still_motion_cm``: the mean predicted ``|along|`` motion of objects that truly moved
         less than 1 cm (NaN when none did).
     """
     rows = []

@@ -323,7 +323,7 @@ def push_trial(data: TrialData, settings: TrialSettings, keep: int = 2) -> dict[
         NLPD and coverage, and the truth), ``"two"`` (both objects' displacement in the hand's
         frame: ``"true"``, ``"modular"`` and ``"monolithic"`` means and intervals),
         ``"chains"`` (per K: truth and modular means and intervals), ``"fit_seconds"``,
-        ``"reaction_mm"`` (mean |deviation| of the hand in the training rows) and the counts.
+        ``"reaction_mm"`` (mean ``|deviation|`` of the hand in the training rows) and the counts.
     """
     train, test, train_rows, test_rows = data.train, data.test, data.train_rows, data.test_rows
     seed = data.seed
