@@ -3,6 +3,7 @@
 Usage::
 
     python benchmarks/mixture_fit.py [--n 321] [--d 101] [--e 6] [--sklearn-restarts 0]
+    python benchmarks/mixture_fit.py --batched-vs-reference [--sizes 250,500,1000] [--repeats 2]
 
 The data come from `probaff.models.synthetic.regime_features`: three regimes selected by
 the first two feature columns, each mapping its own four columns to the E effects. The
@@ -11,11 +12,18 @@ the baseline is one `GaussianProcessRegressor` with an anisotropic RBF kernel (o
 scale per column, initialised like the experts' at sqrt(D)) times a constant, plus a white
 noise kernel, on the same standardised features. Both run with `--threads` torch/BLAS
 threads. A small EM fit runs first so that one-time import costs are not timed.
+
+With ``--batched-vs-reference`` it instead times, at each N of `--sizes` and alternating
+`--repeats` times, the default EM fit (the experts of each M-step fitted as one batch,
+`probaff.models.expert_batch`) against the reference path that fits and predicts the experts
+one at a time (`per_expert_fits`), in this one process, and prints both wall and CPU times,
+their ratio, and both fits' final objective and held-out NLPD (which should agree).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import time
 
@@ -29,6 +37,7 @@ from threadpoolctl import threadpool_limits
 
 from probaff._threads import torch_threads
 from probaff.models import MixtureOfGPExperts, fit_em
+from probaff.models.expert_batch import per_expert_fits
 from probaff.models.synthetic import regime_features
 
 
@@ -57,6 +66,51 @@ def time_em(
     assign = history.responsibilities.argmax(1).numpy()
     print(f"  assignment purity {purity(assign, labels):.3f}")
     return model, elapsed
+
+
+def _fit_once(
+    args: argparse.Namespace, data: tuple[torch.Tensor, ...], reference: bool
+) -> tuple[float, float, float, float]:
+    """One EM fit: (wall seconds, CPU seconds, final objective, held-out NLPD)."""
+    x_tr, y_tr, x_te, y_te = data
+    model = MixtureOfGPExperts(
+        args.experts,
+        groups={"f_x": slice(0, 3)},
+        gate_features=("f_x",),
+        lengthscale_prior=args.lengthscale_prior,
+    )
+    start, cpu = time.perf_counter(), time.process_time()
+    with per_expert_fits() if reference else contextlib.nullcontext():
+        history = fit_em(model, x_tr, y_tr, max_iter=args.em_iter, tol=0.0)
+        nlpd = -float(model.predict(x_te).log_prob(y_te).mean())
+    return time.perf_counter() - start, time.process_time() - cpu, history.best, nlpd
+
+
+def batched_vs_reference(args: argparse.Namespace) -> None:
+    """Time batched EM against the one-expert-at-a-time reference, side by side."""
+    sizes = [int(s) for s in args.sizes.split(",")]
+    print(f"M={args.experts} D={args.d} E={args.e}, {args.em_iter} EM iterations, 1 thread")
+    print("   N | path      | wall s | CPU s  | objective   | NLPD")
+    for n in sizes:
+        x, y, _ = regime_features(n + args.n_test, args.d, args.e, seed=0)
+        data = (x[:n], y[:n], x[n:], y[n:])
+        _fit_once(args, (x[:40], y[:40], x[n:], y[n:]), False)  # warm-up
+        totals = {False: [0.0, 0.0], True: [0.0, 0.0]}
+        for _ in range(args.repeats):
+            for reference in (True, False):
+                wall, cpu, objective, nlpd = _fit_once(args, data, reference)
+                totals[reference][0] += wall
+                totals[reference][1] += cpu
+                name = "reference" if reference else "batched"
+                print(
+                    f"{n:4d} | {name:9s} | {wall:6.1f} | {cpu:6.1f} | {objective:11.4f} | "
+                    f"{nlpd:.4f}"
+                )
+        ref, new = totals[True], totals[False]
+        print(
+            f"{n:4d} | speed-up: {ref[0] / new[0]:.2f}x wall, {ref[1] / new[1]:.2f}x CPU "
+            f"(sums over {args.repeats} alternating repeats)"
+        )
 
 
 def time_sklearn(
@@ -93,7 +147,18 @@ def main() -> None:
     parser.add_argument(
         "--lengthscale-prior", action="store_true", help="dimension-scaled length-scale prior"
     )
+    parser.add_argument(
+        "--batched-vs-reference",
+        action="store_true",
+        help="time batched EM against fitting the experts one at a time",
+    )
+    parser.add_argument("--sizes", default="250,500,1000", help="N values (comma-separated)")
+    parser.add_argument("--repeats", type=int, default=2, help="alternating repeats per N")
     args = parser.parse_args()
+    if args.batched_vs_reference:
+        with torch_threads(args.threads), threadpool_limits(args.threads):
+            batched_vs_reference(args)
+        return
 
     x, y, labels = regime_features(args.n + args.n_test, args.d, args.e, seed=0)
     scaler = StandardScaler().fit(x[: args.n].numpy())

@@ -55,6 +55,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="samples per second of the stored trajectories; side-view scenes only (default: "
         "the world's record rate)",
     )
+    g.add_argument(
+        "--hand",
+        choices=["stiff", "compliant"],
+        default=None,
+        help="how the hand follows its command: held to it, or a spring with a force limit "
+        "that yields to resistance (default: the world file's hand.mode)",
+    )
     g.add_argument("--resume", action="store_true", help="finish an interrupted dataset")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -128,6 +135,7 @@ def _dispatch(args: argparse.Namespace) -> None:
             trajectories=not args.no_trajectories,
             pose_noise=noise,
             record_rate=args.record_rate,
+            hand=args.hand,
         )
         ds = generate(
             cfg,

@@ -4,14 +4,15 @@ It generates a small two-object push dataset (chapter 5's scene, poses observed 
 camera's noise), prints a table of it and draws a few pushes with the arm's reachable region,
 fits a mixture of GP experts by EM next to a single GP, printing their held-out RMSE, NLPD and
 90 % interval coverage and drawing both models' predictive density of o2's motion for a push
-where the mixture sees two outcomes (o2 hit or not), and then explores a small warehouse map,
-pushes a few boxes chosen by information gain on the affordance MRF, and prints the map's
-entropy before and after, then plans and executes one push-to-edge episode (chapter 4: A*
-over the mixture's predictions, closed loop in the simulator), drawn to a PNG, and fits
-chapter 6's per-skill transition models and predicts a pick, a place and a three-object
-chained push, drawn against what the simulator did. Last (chapter 2) it scans a few office
-scenes from the robot's head, segments them by region growing, trains the label classifiers
-on all but one and draws the held-out scene's segments and predicted labels to a PNG,
+where the mixture sees two outcomes (o2 hit or not), and then explores a small warehouse map
+(boxes and interior wall blocks that the camera cannot tell apart), pushes a few blocks chosen
+by information gain on the affordance MRF, and prints the map's entropy before and after,
+drawing the walls crossed out on the loop's figure, then plans and executes one push-to-edge
+episode (chapter 4: A* over the mixture's predictions, closed loop in the simulator), drawn to
+a PNG, and fits chapter 6's per-skill transition models and predicts a pick, a place and a
+three-object chained push, drawn against what the simulator did. Last (chapter 2) it scans a
+few office scenes from the robot's head, segments them by region growing, trains the label
+classifiers on all but one and draws the held-out scene's segments and predicted labels to a PNG,
 printing its held-out precision and recall.
 
 The report: each stage's lines come out together when the stage ends, above one transient
@@ -337,7 +338,8 @@ def _summary_lines(result: dict[str, Any]) -> list[str]:
             "map entropy",
             f"{amap['entropy'][0]:.2f} -> {amap['entropy'][-1]:.2f} nats after "
             f"{len(amap['pushes'])} pushes (MAP accuracy {amap['accuracy'][0]:.3f} -> "
-            f"{amap['accuracy'][-1]:.3f})",
+            f"{amap['accuracy'][-1]:.3f}; {len(amap['boxes'])} boxes, {len(amap['walls'])} "
+            "wall blocks that look like boxes)",
         ),
         (
             "push to the edge",

@@ -162,3 +162,14 @@ def test_export_and_import_round_trip_an_hdf5_file(tmp_path, capsys):
     assert main(["export", str(tmp_path / "none"), "--to", str(tmp_path / "y.h5")]) == 2
     assert "not a probaff dataset" in capsys.readouterr().err
     assert not (tmp_path / "x").exists() and not (tmp_path / "y.h5").exists()
+
+
+def test_generate_with_a_compliant_hand_records_it(tmp_path, capsys):
+    from probaff.data.store import read_manifest
+
+    out = tmp_path / "soft"
+    argv = ["generate", "--scene", "near_obstacle", "--n", "2", "--seed", "1", "--out"]
+    assert main([*argv, str(out), "--workers", "0", "--hand", "compliant", "--quiet"]) == 0
+    capsys.readouterr()
+    manifest = read_manifest(out)
+    assert "compliant" in json.dumps(manifest)

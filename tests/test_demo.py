@@ -4,6 +4,7 @@ through the command line read as a report (the only full demo of the suite).
 Covers probaff.demo.
 """
 
+import re
 import subprocess
 import sys
 import warnings
@@ -122,6 +123,9 @@ def test_the_demo_command_prints_a_report_ending_with_its_figures(tmp_path):
     start, figures = lines.index("summary"), lines.index("figures")
     headlines = [s.split()[0] for s in lines[start + 1 : figures]]
     assert headlines == ["pushes", "o2", "NLPD", "map", "push", "three-object", "office"]
+    # the affordance map's world holds interior wall blocks besides its boxes
+    (amap,) = [s for s in lines[start + 1 : figures] if s.split()[0] == "map"]
+    assert re.search(r"; [1-9]\d* boxes, [1-9]\d* wall blocks that look like boxes\)$", amap)
     paths = [s.strip() for s in lines[figures + 1 :]]
     for name in ("demo_pushes.png", "demo_o2_density.png", "planning/edge_episode.png"):
         assert str(tmp_path / name) in paths

@@ -15,6 +15,7 @@ from typing import Any
 from probaff._checks import check_count, check_positive
 from probaff.data.noise import PoseNoise
 from probaff.errors import InputError
+from probaff.sim.pusher import HAND_MODES, check_hand_world
 from probaff.sim.registry import kind_of_scene
 
 __all__ = ["GenerateConfig", "base_plan", "scene_kind"]
@@ -66,6 +67,10 @@ class GenerateConfig:
             ``true_effect``.
         record_rate: Skill only: samples per second (Hz) of the stored trajectories, or
             ``None`` (the default) for the side-view world's ``physics.record_rate``.
+        hand: How the hand follows its command, ``"stiff"`` or ``"compliant"``
+            (`probaff.sim.pusher.HAND_MODES`), overriding the world file's ``hand.mode``;
+            ``None`` (the default) keeps the world file's. Tabletop and side-view scenes
+            only: the worlds with an arm's hand.
     """
 
     scene: str
@@ -79,6 +84,9 @@ class GenerateConfig:
         default=None, metadata={"kinds": ("push",), "hint": " (drop --pose-noise)"}
     )
     record_rate: float | None = field(default=None, metadata={"kinds": ("skill",)})
+    hand: str | None = field(
+        default=None, metadata={"kinds": ("push", "skill"), "hint": " (drop --hand)"}
+    )
 
     def validate(self) -> GenerateConfig:
         """Check the config and return it with its counts as builtin ints.
@@ -89,11 +97,14 @@ class GenerateConfig:
 
         Raises:
             InputError: For a non-positive count or size, a negative seed or noise, a
-                `pose_noise` that is not a `PoseNoise`, an unknown scene, or an option of
-                another kind of dataset (`pose_noise` for a side-view scene, `record_rate`
-                for a tabletop one).
+                `pose_noise` that is not a `PoseNoise`, an unknown scene, a `hand` that is
+                not a hand mode, or an option of another kind of dataset (`pose_noise` for a
+                side-view scene, `record_rate` for a tabletop one, `hand` for a world
+                without an arm's hand).
             ConfigError: For a scene name defined by two world kinds.
         """
+        if self.hand is not None:
+            check_hand_world(kind_of_scene(self.scene).name, "GenerateConfig.hand")
         kind = scene_kind(self.scene)
         n = check_count("n", self.n)
         shard_size = check_count("shard_size", self.shard_size)
@@ -103,6 +114,13 @@ class GenerateConfig:
         if self.pose_noise is not None and not isinstance(self.pose_noise, PoseNoise):
             raise InputError(
                 f"pose_noise must be None or a probaff.data.PoseNoise, got {self.pose_noise!r}."
+            )
+        if self.hand is not None and (
+            not isinstance(self.hand, str) or self.hand not in HAND_MODES
+        ):
+            raise InputError(
+                f"hand must be None (the world file's hand) or one of {list(HAND_MODES)}, got "
+                f"{self.hand!r}."
             )
         record_rate = self.record_rate
         if record_rate is not None:

@@ -22,6 +22,7 @@ from probaff.data.schema import schema_version_for
 from probaff.sim.runner import PushSample, PushSimulator
 from probaff.sim.sensing import object_cloud
 from probaff.sim.specs import load_catalogue
+from probaff.sim.tabletop_config import TabletopSpec, load_tabletop
 
 __all__ = [
     "add_pose_noise",
@@ -29,8 +30,20 @@ __all__ = [
     "push_manifest",
     "push_plan",
     "push_resume_problem",
+    "push_world",
     "samples_to_arrays",
 ]
+
+
+def push_world(config: GenerateConfig) -> TabletopSpec:
+    """The tabletop world of a push dataset: the world file's, with the config's hand mode.
+
+    Args:
+        config: The dataset's generation config; its ``hand`` (if set) replaces the world
+            file's ``hand.mode``.
+    """
+    world = load_tabletop()
+    return world if config.hand is None else world.with_hand(config.hand)
 
 
 def samples_to_arrays(
@@ -100,10 +113,12 @@ def samples_to_arrays(
         "max_penetration",
     ):
         out[field] = outcome(field)
+    out["hand_reaction"] = outcome("reaction").astype(np.float64)
     if trajectories:
         out["traj_time"] = outcome("traj_time")
         out["traj_hand"] = outcome("traj_hand").astype(np.float32)
         out["traj_objects"] = outcome("traj_objects").astype(np.float32)
+        out["traj_commanded"] = outcome("traj_commanded").astype(np.float32)
     return {k: v.astype(v.dtype, copy=False) for k, v in out.items()}
 
 
@@ -163,7 +178,7 @@ def make_push_shard(
     # spawn(3)'s first two children equal spawn(2)'s, so the noise stream leaves them unchanged
     sim_rng, sense_rng, noise_rng = (np.random.default_rng(s) for s in seeds.spawn(3))
     with torch_threads(1):
-        sim = PushSimulator(config.scene)
+        sim = PushSimulator(config.scene, push_world(config))
         samples = list(sim.run(rows, sim_rng))
     arrays = samples_to_arrays(
         samples,
@@ -181,8 +196,9 @@ def make_push_shard(
 def push_plan(config: GenerateConfig) -> dict[str, Any]:
     """The manifest's record of a push `config`.
 
-    Every field but ``record_rate``; ``pose_noise`` appears only when it is set, so push
-    manifests are what they were before pose noise and skill datasets existed.
+    Every field but ``record_rate``; ``pose_noise`` and ``hand`` (as ``hand_mode``) appear
+    only when they are set, so push manifests are what they were before pose noise, skill
+    datasets and hand modes existed.
     """
     plan = {
         **base_plan(config),
@@ -191,14 +207,16 @@ def push_plan(config: GenerateConfig) -> dict[str, Any]:
     }
     if config.pose_noise is not None:
         plan["pose_noise"] = config.pose_noise.to_dict()
+    if config.hand is not None:
+        plan["hand_mode"] = config.hand
     return plan
 
 
 def push_manifest(config: GenerateConfig) -> dict[str, Any]:
     """The schema version, object names and meta of a new push dataset (validates the scene)."""
-    sim = PushSimulator(config.scene)  # validates the scene before any work starts
+    sim = PushSimulator(config.scene, push_world(config))  # validates the scene first
     return {
-        "schema_version": schema_version_for(config.pose_noise is not None),
+        "schema_version": schema_version_for(config.pose_noise is not None, reaction=True),
         "object_names": sorted(load_catalogue()),
         "meta": {"scene": config.scene, **world_meta(sim.world)},
     }

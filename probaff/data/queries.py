@@ -41,7 +41,8 @@ def world_meta(world: TabletopSpec) -> dict[str, Any]:
 
     Returns:
         ``table_size``, ``push_height``, ``gripper_opening``, ``finger_radius``,
-        ``control_rate``, ``record_rate``, ``arm_base_xyz`` and ``arm_base_yaw``.
+        ``control_rate``, ``record_rate``, ``arm_base_xyz``, ``arm_base_yaw`` and ``hand``
+        (how the hand follows its command, `probaff.sim.pusher.HandSpec.to_dict`).
     """
     return {
         "table_size": list(world.table_size),
@@ -52,6 +53,7 @@ def world_meta(world: TabletopSpec) -> dict[str, Any]:
         "record_rate": world.record_rate,
         "arm_base_xyz": list(world.arm.base_xyz),
         "arm_base_yaw": world.arm.base_yaw,
+        "hand": world.hand.to_dict(),
     }
 
 

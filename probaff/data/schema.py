@@ -38,6 +38,13 @@ array                         shape            dtype     meaning
 ``traj_time`` (optional)      (N, T)           float64   trajectory sample times (s)
 ``traj_hand`` (optional)      (N, T, 3)        float32   world (x, y, yaw) of the hand
 ``traj_objects`` (optional)   (N, T, K, 3)     float32   world (x, y, theta) of the objects
+``traj_commanded`` (opt., 6)  (N, T, 3)        float32   commanded world (x, y, yaw) of the
+                                                         hand at ``traj_time``
+``hand_reaction`` (opt., 6)   (N, R, 3)        float64   the hand's deviation from its
+                                                         commanded pose (actual - commanded)
+                                                         in the pushing frame (dy_p, dz_p,
+                                                         dtheta) at R times evenly spaced
+                                                         over the push and its settling
 ``true_state_before`` (opt.)  (N, K, 3)        float64   exact world (x, y, theta) before
 ``true_state_after`` (opt.)   (N, K, 3)        float64   exact world (x, y, theta) after
 ``true_effect`` (optional)    (N, K, 3)        float64   exact (dy_p, dz_p, dtheta_p)
@@ -54,6 +61,16 @@ makes each of those optional, for a robot's own logs
 footprints instead of clouds. Poses are world ``(x, y, theta)`` (m, m, rad), with the table top
 at z = 0 and theta unwrapped; the clouds are world points (m) with unit normals; the units of
 every array are `ARRAY_UNITS`.
+
+The reaction (version 6). Chapter 6's backward component models the hand's deviation from its
+commanded pose, the reaction. Version 6 datasets record it along the path: ``hand_reaction``
+at ``R`` (``meta["hand"]["reaction_samples"]``) evenly spaced times from the start of the push
+to the end of its settling, and, with the trajectories, the commanded hand pose
+``traj_commanded`` beside the actual ``traj_hand``; ``meta["hand"]`` records how the hand
+followed its command (`probaff.sim.pusher.HandSpec`: stiff or compliant, its stiffness,
+damping and force limit). Versions 1 and 2 lack both arrays and are read as before; what needs
+the reaction along the path asks for a regenerated dataset. A robot's own logs (version 4)
+may hold both, from its commanded and measured flange poses.
 
 Observed and exact poses. Without pose noise (the default) the recorded poses are the
 simulator's exact ones and the three ``true_*`` arrays are absent. A dataset generated with a
@@ -83,6 +100,7 @@ __all__ = [
     "OBSERVATION_SCHEMA_VERSION",
     "OPTIONAL_ARRAYS",
     "PUSH_SHAPES",
+    "REACTION_ARRAYS",
     "READABLE_SCHEMA_VERSIONS",
     "REQUIRED_ARRAYS",
     "SCHEMA_VERSION",
@@ -91,11 +109,14 @@ __all__ = [
     "schema_version_for",
 ]
 
-SCHEMA_VERSION = 2
-"""Newest simulated push schema version: 2 added the ``true_*`` arrays and pose noise."""
-READABLE_SCHEMA_VERSIONS = (1, 2)
+SCHEMA_VERSION = 6
+"""Newest simulated push schema version: 2 added the ``true_*`` arrays and pose noise, 6 the
+hand's reaction along the path (``hand_reaction``, ``traj_commanded``, ``meta["hand"]``)."""
+READABLE_SCHEMA_VERSIONS = (1, 2, 6)
 """Versions of simulated push datasets this probaff reads: a version 1 dataset is a version 2
-one without pose noise."""
+one without pose noise, a version 2 one a version 6 one without the reaction."""
+REACTION_ARRAYS = ("hand_reaction", "traj_commanded")
+"""The arrays version 6 added: the reaction along the path and the commanded hand path."""
 OBSERVATION_SCHEMA_VERSION = 4
 """Version of observation-only push datasets: `SIMULATOR_ARRAYS` optional, ``object_size``
 allowed (version 3 is the skill datasets')."""
@@ -146,6 +167,8 @@ OPTIONAL_ARRAYS: dict[str, str] = {
     "traj_time": "float64",
     "traj_hand": "float32",
     "traj_objects": "float32",
+    "traj_commanded": "float32",
+    "hand_reaction": "float64",
     "true_state_before": "float64",
     "true_state_after": "float64",
     "true_effect": "float64",
@@ -181,6 +204,8 @@ PUSH_SHAPES: dict[str, Shape] = {
     "traj_time": ("N", "T"),
     "traj_hand": ("N", "T", 3),
     "traj_objects": ("N", "T", "K", 3),
+    "traj_commanded": ("N", "T", 3),
+    "hand_reaction": ("N", "R", 3),
 }
 """The symbolic shape of every push array (`probaff.data.dataset.Shape`)."""
 _POSE = "m, m, rad"
@@ -210,6 +235,8 @@ ARRAY_UNITS: dict[str, str] = {
     "traj_time": "s",
     "traj_hand": "m, m, rad",
     "traj_objects": _POSE,
+    "traj_commanded": "m, m, rad",
+    "hand_reaction": _POSE,
     "true_state_before": _POSE,
     "true_state_after": _POSE,
     "true_effect": _POSE,
@@ -217,17 +244,21 @@ ARRAY_UNITS: dict[str, str] = {
 """The units of every push array: one unit, or one per component of the last axis."""
 
 
-def schema_version_for(pose_noise: bool) -> int:
-    """The schema version a new dataset is written with.
+def schema_version_for(pose_noise: bool, reaction: bool = False) -> int:
+    """The schema version a dataset is written with.
 
-    A dataset without pose noise uses nothing that version 2 added, so it is written as
-    version 1, byte-identical to what earlier releases wrote; one with pose noise is version 2,
-    which earlier releases refuse by its version number.
+    A dataset with the reaction along the path is version 6, which earlier releases refuse by
+    its version number. Without it, a dataset without pose noise uses nothing that version 2
+    added, so it is written as version 1, byte-identical to what earlier releases wrote; one
+    with pose noise is version 2.
 
     Args:
         pose_noise: Whether the dataset records noisy observed poses.
+        reaction: Whether it records the hand's reaction (`REACTION_ARRAYS`).
     """
-    return SCHEMA_VERSION if pose_noise else 1
+    if reaction:
+        return SCHEMA_VERSION
+    return 2 if pose_noise else 1
 
 
 class PushDataset(ArrayDataset):
@@ -291,8 +322,13 @@ class PushDataset(ArrayDataset):
 
     @property
     def simulated_version(self) -> int:
-        """1 without pose noise, 2 with it (`schema_version_for`)."""
-        return schema_version_for(self.has_pose_noise)
+        """6 with the reaction, else 1 without pose noise and 2 with it (`schema_version_for`)."""
+        return schema_version_for(self.has_pose_noise, self.has_reaction)
+
+    @property
+    def has_reaction(self) -> bool:
+        """Whether the hand's reaction along the path (``hand_reaction``) is stored."""
+        return "hand_reaction" in self.arrays
 
     @property
     def has_pose_noise(self) -> bool:

@@ -311,6 +311,7 @@ def make_skill_shard(
     *,
     record_rate: float | None = None,
     trajectories: bool = True,
+    hand: str | None = None,
 ) -> dict[str, np.ndarray]:
     """Draw and simulate `rows` reachable skills of a side-view scene template.
 
@@ -321,6 +322,8 @@ def make_skill_shard(
         record_rate: Trajectory samples per second (Hz); ``None``: the world's
             ``physics.record_rate``.
         trajectories: Include the optional trajectory arrays.
+        hand: The hand's mode (``"stiff"``, ``"compliant"``), or ``None`` for the world
+            file's.
 
     Returns:
         The shard's arrays.
@@ -330,13 +333,19 @@ def make_skill_shard(
         InputError: For a bad `rows` or `record_rate`.
     """
     rows = check_count("rows", rows)
-    world = load_sideview()
+    world = _side_world(hand)
     spec = load_sideview_scene(scene)
     rate = world.physics.record_rate if record_rate is None else float(record_rate)
     dims = skill_dimensions(spec, world, rate)
     with torch_threads(1):
         samples = run_sampled(spec, rows, rng, world)
     return outcomes_to_arrays(samples, skill_object_names(world), dims, world, rate, trajectories)
+
+
+def _side_world(hand: str | None) -> SideViewSpec:
+    """The side-view world file's world, its hand in mode `hand` unless that is ``None``."""
+    world = load_sideview()
+    return world if hand is None else world.with_hand(hand)
 
 
 def _record_rate(config: GenerateConfig) -> float:
@@ -365,20 +374,27 @@ def skill_shard(
         np.random.default_rng(seeds.spawn(1)[0]),
         record_rate=config.record_rate,
         trajectories=config.trajectories,
+        hand=config.hand,
     )
 
 
 def skill_plan(config: GenerateConfig) -> dict[str, Any]:
-    """The manifest's record of a skill `config`: `base_plan` and the resolved ``record_rate``."""
-    return {**base_plan(config), "record_rate": _record_rate(config)}
+    """The manifest's record of a skill `config`.
+
+    `base_plan`, the resolved ``record_rate``, and ``hand`` (as ``hand_mode``) when it is set.
+    """
+    plan = {**base_plan(config), "record_rate": _record_rate(config)}
+    if config.hand is not None:
+        plan["hand_mode"] = config.hand
+    return plan
 
 
 def skill_manifest(config: GenerateConfig) -> dict[str, Any]:
     """The schema version, object names and meta of a new skill dataset (validates the scene)."""
-    world = load_sideview()
+    world = _side_world(config.hand)
     spec = load_sideview_scene(config.scene)
     return {
         "schema_version": SKILL_SCHEMA_VERSION,
         "object_names": skill_object_names(world),
-        "meta": skill_meta(spec, world, _record_rate(config)),
+        "meta": {**skill_meta(spec, world, _record_rate(config)), "hand": world.hand.to_dict()},
     }

@@ -12,6 +12,8 @@ Studies:
     push_models: chapters 5 and 4, mixtures of GP experts fitted by EM and VI,
         cross-validated.
     modular: chapter 6, modular push, pick and place transition models against a monolith.
+    pusht: Push-T in the unmodified gym-pusht, learned push models and beam-search planners,
+        closed loop.
 
 Modules:
     base: `StudyConfig` (out, seed, workers, scheduler, progress, the smoke sizes, and their

@@ -87,7 +87,7 @@ def discover_studies(folder: str | Path, package: str) -> StudyRegistry:
 
 STUDIES = discover_studies(Path(__file__).resolve().parent, "probaff.experiments")
 """The studies of probaff: ``affordance_map``, ``modular``, ``planning``,
-``point_cloud_labels`` and ``push_models``."""
+``point_cloud_labels``, ``push_models`` and ``pusht``."""
 
 
 def _usage(studies: Mapping[str, ModuleType]) -> str:

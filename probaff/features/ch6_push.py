@@ -6,7 +6,11 @@ per-skill push model learns from (`probaff.models.SkillTransitionModel`):
 
 * ``"hand"`` rows: the actor is the hand (two fingers), its action the commanded push from
   the push origin over ``push_distance`` along ``push_yaw``; the target is o1. The reaction
-  is the hand's deviation from the commanded end point, in the action frame's (x, y).
+  is the hand's deviation from its commanded pose, in the action frame's (x, y): at the
+  commanded end point (``reaction="end"``, from ``traj_hand``), or, with ``reaction="path"``,
+  that end point and the mean deviation along the whole push (from the dataset's
+  ``hand_reaction``, sampled along the path; schema version 6), which a hand that lags while
+  it pushes and catches up once the object stops shows and its end point does not.
 * ``"objects"`` rows: for each consecutive pair ``(k, k + 1)`` of objects, the actor is object
   k moving from its pose before to its pose after the push (that motion is its action) and
   the target is object k + 1. A pair whose actor moved less than `min_action` is skipped: a
@@ -45,6 +49,7 @@ from probaff.sim.specs import load_catalogue
 __all__ = [
     "PAIR_KINDS",
     "PLANAR_EFFECT_COLUMNS",
+    "REACTIONS",
     "REQUIRES",
     "PushInteractions",
     "push_interactions",
@@ -59,6 +64,11 @@ REQUIRES: dict[str, Requirements] = {
 """What `push_interactions` reads, by kind of row: ``"hand"`` rows the poses, the push, the
 hand trajectory and the hand's geometry in meta; ``"objects"`` rows the poses."""
 
+REACTIONS = {"end": 2, "path": 4}
+"""Kinds of reaction columns of the hand rows, and their count: ``"end"`` the deviation
+``(dx, dy)`` at the commanded end point; ``"path"`` that and the mean ``(dx, dy)`` over the
+reaction sampled along the path (``hand_reaction``)."""
+
 PLANAR_EFFECT_COLUMNS = (0, 1, 5)
 """Effect columns that move on the table: off-action dx, along-action dy, yaw turn rz."""
 
@@ -72,8 +82,11 @@ class PushInteractions(InteractionRows):
         touches: (n,) whether the actor touches the target during its action.
         T_world_action: (n, 4, 4) the action frames A_t.
         effect: (n, 6) observed displacement of each row's target in its action frame.
-        reaction: (n, 2) the actor's deviation ``(dx, dy)`` (m) from its commanded end point
-            in the action frame: the hand's for ``"hand"`` rows, 0 for object actors.
+        reaction: (n, Er) the actor's deviation (m) from its command in the action frame
+            (`REACTIONS`: Er = 2 for ``"end"``, 4 for ``"path"``): the hand's for ``"hand"``
+            rows, 0 for object actors.
+        reaction_path: (n, R, 2) the deviation ``(dx, dy)`` (m) at the R points along the
+            push the dataset records (``hand_reaction``); (n, 0, 2) when it records none.
         push: (n,) the push (row of the dataset) of each interaction.
         actor: (n,) the acting object's index, -1 for the hand.
         target: (n,) the target object's index.
@@ -82,6 +95,7 @@ class PushInteractions(InteractionRows):
     push: np.ndarray
     actor: np.ndarray
     target: np.ndarray
+    reaction_path: np.ndarray
 
 
 def _check_finite_rows(name: str, values: np.ndarray, length: np.ndarray | None = None) -> None:
@@ -178,12 +192,32 @@ def _hand_reaction(ds: PushDataset, T_a: np.ndarray, T_e: np.ndarray) -> np.ndar
     return np.einsum("nji,nj->ni", R, miss)
 
 
+def _reaction_path(ds: PushDataset, T_a: np.ndarray) -> np.ndarray:
+    """(N, R, 2) the recorded reaction along the path in A_t's (x, y); (N, 0, 2) without it."""
+    if "hand_reaction" not in ds.arrays:
+        return np.zeros((len(ds), 0, 2))
+    dev = ds["hand_reaction"].astype(np.float64)  # (N, R, 3) pushing frame (dy_p, dz_p, dth)
+    yaw = ds["push_yaw"]
+    z_p = np.column_stack([np.cos(yaw), np.sin(yaw)])
+    y_p = np.column_stack([-np.sin(yaw), np.cos(yaw)])
+    world = dev[..., :1] * y_p[:, None, :] + dev[..., 1:2] * z_p[:, None, :]
+    return np.einsum("nji,nrj->nri", T_a[:, :2, :2], world)
+
+
+def _reaction_columns(kind: str, end: np.ndarray, path: np.ndarray) -> np.ndarray:
+    """The reaction columns of `kind` from the end point (n, 2) and the path (n, R, 2)."""
+    if kind == "end":
+        return end
+    return np.concatenate([end, path.mean(axis=1)], axis=1)
+
+
 def push_interactions(
     ds: PushDataset,
     kind: str = "hand",
     *,
     geometry: Ch6Geometry | None = None,
     min_action: float = 1e-3,
+    reaction: str = "end",
 ) -> PushInteractions:
     """Chapter 6 interaction rows of a tabletop push dataset.
 
@@ -193,19 +227,31 @@ def push_interactions(
             object k + 1, for each consecutive pair whose actor moved).
         geometry: Surfaces and features (``Ch6Geometry()`` if ``None``).
         min_action: Shortest actor motion (m) that makes an ``"objects"`` row, > 0.
+        reaction: The reaction columns (`REACTIONS`): ``"end"`` (the deviation at the
+            commanded end point) or ``"path"`` (that and its mean along the push; needs a
+            dataset that records ``hand_reaction``, schema version 6).
 
     Returns:
         The rows, their features, observed effects and reactions.
 
     Raises:
-        InputError: For an unknown kind or geometry, circular objects, missing trajectories
-            (``"hand"`` rows need the hand's path) or another array or ``meta`` entry of
+        InputError: For an unknown kind, reaction or geometry, circular objects, missing
+            trajectories (``"hand"`` rows need the hand's path), a ``"path"`` reaction from a
+            dataset without ``hand_reaction``, or another array or ``meta`` entry of
             `REQUIRES` (naming it), a dataset without rows, or NaN or inf in an array the rows
             read (naming the array and its first such row).
     """
     geometry = resolve_geometry(geometry)
     if kind not in PAIR_KINDS:
         raise InputError(f"unknown interaction kind {kind!r}; use one of {list(PAIR_KINDS)}.")
+    if not isinstance(reaction, str) or reaction not in REACTIONS:
+        raise InputError(f"unknown reaction {reaction!r}; use one of {list(REACTIONS)}.")
+    if reaction == "path" and kind == "hand" and "hand_reaction" not in ds.arrays:
+        raise InputError(
+            "reaction='path' needs the hand's reaction along the path (array 'hand_reaction'), "
+            "which this dataset lacks (schema version 1 or 2); regenerate it with this version "
+            "of probaff, or use reaction='end'."
+        )
     check_positive("min_action", min_action)
     if len(ds) == 0:
         raise InputError("the dataset has no pushes.")
@@ -220,19 +266,23 @@ def push_interactions(
             _check_finite_rows(name, ds[name])
         if ds.has_trajectories:
             _check_finite_rows("traj_hand", ds["traj_hand"])
+        if "hand_reaction" in ds.arrays:
+            _check_finite_rows("hand_reaction", ds["hand_reaction"])
         t_pts, t_nrm, T_before = _boxes(geometry, sizes[:, 0], before[:, 0])
         a_pts, a_nrm, T_s, T_e = _hand(ds, geometry)
         X, touches, T_a = geometry.features(t_pts, t_nrm, a_pts, a_nrm, T_s, T_e)
         T_after = tabletop_transform(after[:, 0], sizes[:, 0, 2])
+        path = _reaction_path(ds, T_a)
         return PushInteractions(
             X,
             touches,
             T_a,
             effect_in_action_frame(T_a, T_before, T_after),
-            _hand_reaction(ds, T_a, T_e),
+            _reaction_columns(reaction, _hand_reaction(ds, T_a, T_e), path),
             np.arange(n),
             np.full(n, -1),
             np.zeros(n, dtype=int),
+            path,
         )
     if k < 2:
         raise InputError("object-on-object rows need scenes of at least two objects.")
@@ -254,8 +304,9 @@ def push_interactions(
         touches,
         T_a,
         effect_in_action_frame(T_a, T_before, T_after),
-        np.zeros((len(push), 2)),
+        np.zeros((len(push), REACTIONS[reaction])),
         push,
         actor,
         target.astype(int),
+        np.zeros((len(push), 0, 2)),
     )

@@ -35,7 +35,7 @@ from probaff.models.modular import (
     InteractionGeometry,
     ModularTransitionModel,
 )
-from probaff.models.options import EMOptions, GPOptions, SVIOptions
+from probaff.models.options import EMOptions, GPOptions, SparseGPOptions, SVIOptions
 from probaff.models.persistence import load, save
 from probaff.models.registry import (
     FITTERS,
@@ -51,6 +51,7 @@ from probaff.models.registry import (
     unregister_model_kind,
 )
 from probaff.models.sklearn import MixtureOfGPExpertsRegressor, mean_log_predictive_density
+from probaff.models.sparse_expert import SparseGPExpert
 from probaff.models.svi import SVIHistory, fit_svi
 from probaff.models.transition import (
     MonolithicTransitionModel,
@@ -85,6 +86,8 @@ __all__ = [
     "SVIOptions",
     "SkillTransitionModel",
     "SoftmaxGate",
+    "SparseGPExpert",
+    "SparseGPOptions",
     "TransitionHistory",
     "VariationalMixtureOfGPExperts",
     "fit",

@@ -37,7 +37,7 @@ class Standardizer(torch.nn.Module):
         Returns:
             This standardizer.
         """
-        w = torch.ones(x.shape[0], dtype=x.dtype) if weights is None else weights
+        w = torch.ones(x.shape[0], dtype=x.dtype, device=x.device) if weights is None else weights
         w = w / w.sum()
         mean = w @ x
         var = w @ (x - mean).square()

@@ -53,7 +53,9 @@ def _given_responsibilities(init: Tensor, n: int, sizes: list[int]) -> Tensor:
         raise InputError("responsibilities given as init fit one mixture size only.")
     resp = as_matrix("init responsibilities", init, n_rows=n, n_cols=sizes[0])
     check_probability("init responsibilities", resp)
-    if not torch.allclose(resp.sum(1), torch.ones(n, dtype=resp.dtype), atol=1e-6):
+    if not torch.allclose(
+        resp.sum(1), torch.ones(n, dtype=resp.dtype, device=resp.device), atol=1e-6
+    ):
         raise InputError("init responsibilities must have rows that sum to 1.")
     return resp
 
@@ -212,11 +214,23 @@ FORMAT = "probaff.models.MixtureOfGPExperts/1"
 
 
 def _dump(model: MixtureOfGPExperts) -> dict[str, Any]:
-    return mixture_payload(model, X=model.train_X, Y=model.train_Y, weights=model.train_weights)
+    return mixture_payload(
+        model,
+        X=model.train_X,
+        Y=model.train_Y,
+        weights=model.train_weights,
+        built_experts=model.built_expert_kind,
+    )
 
 
 def _restore(payload: dict[str, Any]) -> MixtureOfGPExperts:
-    model = MixtureOfGPExperts(**payload["config"])
+    # Files written before the gate had a lasso penalty hold a ridge-only gate.
+    model = MixtureOfGPExperts(**{"gate_l1": 0.0, **payload["config"]})
+    # The kind of experts the fit built ("exact" in files written before sparse experts).
+    kind = payload.get("built_experts") or "exact"
+    if kind not in ("exact", "sparse"):
+        raise InputError(f"unknown kind of experts {kind!r} in a saved mixture.")
+    model.built_expert_kind = kind
     model.build(payload["n_features"], payload["n_outputs"])
     model.condition(payload["X"], payload["Y"], payload["weights"])
     model.load_state_dict(payload["state_dict"])

@@ -119,7 +119,7 @@ def _reseed_collapsed(
     n, m = resp.shape
     k = max(1, min(max(math.ceil(n / (2 * m)), math.ceil(min_size)), n // m))
     order = torch.argsort(point_loglik, stable=True).tolist()
-    taken = torch.zeros(n, dtype=torch.bool)
+    taken = torch.zeros(n, dtype=torch.bool, device=resp.device)
     reseeded: list[int] = []
     for j in range(m):
         w = torch.where(resp >= prune_below, resp, torch.zeros_like(resp))
@@ -148,7 +148,7 @@ def _reseed_collapsed(
             spare[:, j] = True
             chosen = [next(i for i in order if bool(spare[i].all()))]
         if chosen:
-            idx = torch.tensor(chosen)
+            idx = torch.tensor(chosen, device=resp.device)
             resp[idx] = 0.0
             resp[idx, j] = 1.0
             taken[idx] = True
@@ -277,7 +277,7 @@ class EMRun:
 
     def _point_log_lik(self) -> Tensor:
         if self.log_lik is None:
-            return torch.zeros(self.resp.shape[0], dtype=torch.float64)
+            return self.resp.new_zeros(self.resp.shape[0])
         return torch.logsumexp(self.log_lik + self.resp.clamp_min(1e-300).log(), dim=1)
 
     def finish(self) -> EMHistory:

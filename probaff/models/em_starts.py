@@ -35,7 +35,7 @@ def _fresh(
 ) -> MixtureOfGPExperts:
     """A new, built mixture like `template` with `n_experts` experts."""
     model = MixtureOfGPExperts(**{**template.config(), "n_experts": n_experts})
-    model.build(x.shape[1], y.shape[1], template.resolve_noise_floor(y))
+    model.build(x.shape[1], y.shape[1], template.resolve_noise_floor(y), n_samples=x.shape[0])
     return model
 
 
@@ -235,7 +235,7 @@ def fit_level(
             model,
             x,
             y,
-            torch.ones(x.shape[0], 1, dtype=torch.float64),
+            torch.ones(x.shape[0], 1, dtype=torch.float64, device=x.device),
             settings,
             init="effects",
             seed=seed,

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import abc
 from collections.abc import Iterable, Iterator
-from typing import Any, ClassVar, Generic, TypeVar, cast, overload
+from typing import Any, ClassVar, Generic, Self, TypeVar, cast, overload
 
 import torch
 from torch import Tensor
@@ -26,7 +26,7 @@ from probaff.models.columns import (
     resolve_groups,
 )
 from probaff.models.gate import SoftmaxGate
-from probaff.models.tensors import as_matrix
+from probaff.models.tensors import as_matrix, check_to_device
 
 __all__ = [
     "ExpertList",
@@ -226,6 +226,28 @@ class GatedMixture(torch.nn.Module, Generic[ExpertT], metaclass=abc.ABCMeta):
         )
         self.n_features = int(n_features)
 
+    # ---------------------------------------------------------------- device
+    @property
+    def device(self) -> torch.device:
+        """Where the mixture's gate and experts live (the CPU before they are built)."""
+        for param in self.parameters():
+            return param.device
+        for buffer in self.buffers():
+            return buffer.device
+        return torch.device("cpu")
+
+    def to(self, *args: Any, **kwargs: Any) -> Self:
+        """`torch.nn.Module.to`, refusing a device that this machine does not have.
+
+        A fit runs on the device of its training data, so after ``model.to(device)`` fit
+        with data on that device; predictions move their inputs to the mixture's device.
+
+        Raises:
+            InputError: For a malformed device or one that does not exist.
+        """
+        check_to_device(args, kwargs)
+        return super().to(*args, **kwargs)
+
     # ---------------------------------------------------------------- fitted
     @property
     @abc.abstractmethod
@@ -256,7 +278,7 @@ class GatedMixture(torch.nn.Module, Generic[ExpertT], metaclass=abc.ABCMeta):
             X: Features, `(N, D)`.
 
         Returns:
-            `X` as a float64 tensor, `(N, D)`.
+            `X` as a float64 tensor on the mixture's device, `(N, D)`.
 
         Raises:
             NotFittedError: If the mixture is not fitted.
@@ -265,7 +287,7 @@ class GatedMixture(torch.nn.Module, Generic[ExpertT], metaclass=abc.ABCMeta):
         self.check_fitted()
         if self.n_features is None:
             raise NotFittedError(self.not_fitted_message)
-        return as_matrix("features X", X, n_cols=self.n_features)
+        return as_matrix("features X", X, n_cols=self.n_features, device=self.device)
 
     # ------------------------------------------------------------ prediction
     def gate_probs(self, X: Any) -> Tensor:

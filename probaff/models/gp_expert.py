@@ -5,15 +5,15 @@ from __future__ import annotations
 import contextlib
 import math
 import warnings
-from collections.abc import Iterator, Sequence
-from typing import Any
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any, Self, TypeAlias
 
 import gpytorch
 import torch
 from gpytorch.constraints import Interval
 from gpytorch.distributions import MultivariateNormal
 from gpytorch.means import ConstantMean
-from gpytorch.priors import LogNormalPrior, Prior
+from gpytorch.priors import Prior
 from linear_operator.utils.errors import NanError, NotPSDError
 from torch import Tensor
 from torch.distributions import Normal
@@ -22,12 +22,15 @@ from probaff._checks import check_count, check_finite
 from probaff.errors import InputError, NotFittedError
 from probaff.models._scaling import Standardizer
 from probaff.models.gaussian_density import gaussian_log_density
-from probaff.models.kernels import ard_se_kernel
+from probaff.models.kernels import ard_se_kernel, lengthscale_prior
 from probaff.models.likelihood import WeightedGaussianLikelihood
 from probaff.models.options import NOISE_BOUNDS, OUTPUTSCALE_BOUNDS, GPOptions, resolve_options
-from probaff.models.tensors import as_matrix, as_vector
+from probaff.models.tensors import as_matrix, as_vector, check_to_device
 
-__all__ = ["GPExpert", "exact_gp_settings", "noise_floor_vector"]
+__all__ = ["GPExpert", "LossFunction", "exact_gp_settings", "noise_floor_vector"]
+
+LossFunction: TypeAlias = Callable[[float, bool], Tensor]
+"""``loss(jitter, grad)``: an expert's loss at a jitter, setting the gradients if ``grad``."""
 
 # Diagonal jitter levels tried in turn when a kernel matrix is numerically singular.
 _JITTERS = (1e-8, 1e-6, 1e-4, 1e-2)
@@ -126,10 +129,11 @@ class GPExpert(torch.nn.Module):
     likelihood (see `WeightCorrection`) with L-BFGS, warm-started from their current values.
 
     With `lengthscale_prior`, each length scale gets the log-normal prior
-    :math:`\log \ell_d \sim \mathcal N(\sqrt 2 + \tfrac12 \log D, 3)` whose median grows
-    as :math:`\sqrt D` (Hvarfner et al., 2024), and the fit maximises the weighted marginal
-    likelihood plus the log prior. This curbs the overfitting of ML-II when the number of
-    samples is not much larger than `D`.
+    :math:`\log \ell_d \sim \mathcal N(\sqrt 2 + \tfrac12 \log D, 1)` whose median grows
+    as :math:`\sqrt D` (Hvarfner et al., 2024; see `probaff.models.kernels.lengthscale_prior`
+    for the choice of its width), and the fit maximises the weighted marginal likelihood
+    plus the log prior. This curbs the overfitting of ML-II when the number of samples is
+    not much larger than `D`.
 
     Args:
         n_features: Number of input features `D`.
@@ -172,14 +176,7 @@ class GPExpert(torch.nn.Module):
         self.likelihood = WeightedGaussianLikelihood(
             batch_shape=batch, noise_constraint=Interval(*NOISE_BOUNDS)
         )
-        prior = (
-            LogNormalPrior(
-                torch.tensor(math.sqrt(2.0) + 0.5 * math.log(self.n_features)),
-                torch.tensor(math.sqrt(3.0)),
-            )
-            if self.lengthscale_prior
-            else None
-        )
+        prior = lengthscale_prior(self.n_features) if self.lengthscale_prior else None
         self.gp = _BatchedExactGP(self.n_features, self.n_outputs, self.likelihood, prior)
         self.x_scaler = Standardizer(self.n_features)
         self.y_scaler = Standardizer(self.n_outputs)
@@ -207,6 +204,20 @@ class GPExpert(torch.nn.Module):
         self.gp.mean_module.constant.data.zero_()
 
     @property
+    def device(self) -> torch.device:
+        """The device of the expert's parameters, where it fits and predicts."""
+        return self.jitter.device
+
+    def to(self, *args: Any, **kwargs: Any) -> Self:
+        """`torch.nn.Module.to`, refusing a device that this machine does not have.
+
+        Raises:
+            InputError: For a malformed device or one that does not exist.
+        """
+        check_to_device(args, kwargs)
+        return super().to(*args, **kwargs)
+
+    @property
     def is_fitted(self) -> bool:
         """Whether training data has been set with `fit` or `condition`."""
         return self.gp.train_targets is not None
@@ -230,12 +241,13 @@ class GPExpert(torch.nn.Module):
         Raises:
             InputError: On malformed inputs or if every weight is zero.
         """
-        x = as_matrix("features X", X, n_cols=self.n_features)
-        y = as_matrix("targets Y", Y, n_rows=x.shape[0], n_cols=self.n_outputs)
+        device = self.device
+        x = as_matrix("features X", X, n_cols=self.n_features, device=device)
+        y = as_matrix("targets Y", Y, n_rows=x.shape[0], n_cols=self.n_outputs, device=device)
         if weights is None:
-            w = torch.ones(x.shape[0], dtype=torch.float64)
+            w = torch.ones(x.shape[0], dtype=torch.float64, device=device)
         else:
-            w = as_vector("weights", weights, n=x.shape[0])
+            w = as_vector("weights", weights, n=x.shape[0], device=device)
             if bool((w < 0).any()):
                 raise InputError("weights must be >= 0.")
         keep = w > 0
@@ -266,33 +278,65 @@ class GPExpert(torch.nn.Module):
             This expert.
         """
         self.condition(X, Y, weights)
-        self._optimise(self.max_iter if max_iter is None else int(max_iter))
+        if not self.optimise(self.max_iter if max_iter is None else int(max_iter)):
+            warnings.warn(
+                "GP hyperparameter optimisation failed at every jitter level; the previous "
+                "hyperparameters are kept.",
+                RuntimeWarning,
+                stacklevel=2,
+            )
         return self
 
-    def _optimise(self, max_iter: int) -> None:
+    def optimise(self, max_iter: int, evaluate: LossFunction | None = None) -> bool:
+        """Maximise the weighted marginal likelihood from the current hyperparameters.
+
+        L-BFGS runs with the expert's first jitter; if the covariance cannot be factorised
+        or anything becomes non-finite, the hyperparameters are restored and the next,
+        larger jitter is tried.
+
+        Args:
+            max_iter: L-BFGS iterations.
+            evaluate: ``evaluate(jitter, grad)`` returns the loss, minus the sum over outputs
+                of `marginal_log_likelihood` at that jitter, as a detached scalar, and with
+                ``grad`` sets the gradients of the expert's parameters; it may raise
+                ``NotPSDError`` or ``NanError``. None evaluates this expert alone
+                (`probaff.models.expert_batch` batches the evaluations of several).
+
+        Returns:
+            Whether a jitter level succeeded; if none did, the hyperparameters are those
+            before the call and the jitter is the largest level.
+        """
+        evaluate = self._loss if evaluate is None else evaluate
         params = [p for p in self.parameters() if p.requires_grad]
         start = [p.detach().clone() for p in params]
         for jitter in _JITTERS:
             self.train()
             try:
-                ok = self._lbfgs(params, max_iter, jitter)
+                ok = self._lbfgs(params, max_iter, jitter, evaluate)
             except (NotPSDError, NanError):
                 ok = False
             finally:
                 self.eval()
             if ok:
                 self.jitter.fill_(jitter)
-                return
+                return True
             with torch.no_grad():
                 for p, p0 in zip(params, start, strict=True):
                     p.copy_(p0)
         self.jitter.fill_(_JITTERS[-1])
-        warnings.warn(
-            "GP hyperparameter optimisation failed at every jitter level; the previous "
-            "hyperparameters are kept.",
-            RuntimeWarning,
-            stacklevel=3,
-        )
+        return False
+
+    def _loss(self, jitter: float, grad: bool) -> Tensor:
+        """Minus the summed `marginal_log_likelihood`; with `grad`, set the gradients."""
+        with exact_gp_settings(jitter):
+            if not grad:
+                with torch.no_grad():
+                    return -self.marginal_log_likelihood(jitter).sum()
+            for p in self.parameters():
+                p.grad = None
+            loss = -self.marginal_log_likelihood(jitter).sum()
+            loss.backward()
+        return loss.detach()
 
     def marginal_log_likelihood(self, jitter: float | None = None) -> Tensor:
         r"""Weighted log marginal likelihood (plus log prior) per output, divided by `n`.
@@ -330,7 +374,13 @@ class GPExpert(torch.nn.Module):
             res = res + log_p.reshape(self.n_outputs, -1).sum(-1)
         return res / n
 
-    def _lbfgs(self, params: list[torch.nn.Parameter], max_iter: int, jitter: float) -> bool:
+    def _lbfgs(
+        self,
+        params: list[torch.nn.Parameter],
+        max_iter: int,
+        jitter: float,
+        evaluate: LossFunction,
+    ) -> bool:
         """Minimise the negative weighted marginal likelihood; return whether all stayed finite."""
         optimiser = torch.optim.LBFGS(
             params,
@@ -341,16 +391,25 @@ class GPExpert(torch.nn.Module):
             tolerance_change=1e-9,
         )
 
+        seen: list[tuple[list[Tensor], Tensor]] = []
+
         def closure() -> Tensor:
-            optimiser.zero_grad()
-            loss = -self.marginal_log_likelihood(jitter).sum()
-            loss.backward()
+            loss = evaluate(jitter, True)
+            seen.append(([p.detach().clone() for p in params], loss))
             return loss
 
-        with exact_gp_settings(jitter):
-            optimiser.step(closure)
-            with torch.no_grad():
-                final = -self.marginal_log_likelihood(jitter).sum()
+        optimiser.step(closure)
+        # L-BFGS ends on a point it evaluated (bit for bit); reuse that loss if it did.
+        final = next(
+            (
+                loss
+                for snapshot, loss in reversed(seen)
+                if all(torch.equal(a, p) for a, p in zip(snapshot, params, strict=True))
+            ),
+            None,
+        )
+        if final is None:
+            final = evaluate(jitter, False)
         return bool(torch.isfinite(final)) and all(bool(torch.isfinite(p).all()) for p in params)
 
     # ------------------------------------------------------------- prediction
@@ -369,7 +428,7 @@ class GPExpert(torch.nn.Module):
         """
         if not self.is_fitted:
             raise NotFittedError("GPExpert has no training data; call fit first.")
-        x = as_matrix("features X", X, n_cols=self.n_features)
+        x = as_matrix("features X", X, n_cols=self.n_features, device=self.device)
         self.eval()
         with torch.no_grad(), exact_gp_settings(float(self.jitter)):
             post = self.gp(self.x_scaler(x))
@@ -409,7 +468,7 @@ class GPExpert(torch.nn.Module):
             k = self.gp.covar_module(x.expand(self.n_outputs, n, x.shape[-1])).to_dense()
             noise = self.likelihood.noise  # (E, 1)
             own = noise / self.likelihood.weights  # (E, n)
-            eye = torch.eye(n, dtype=k.dtype)
+            eye = torch.eye(n, dtype=k.dtype, device=k.device)
             a = k + torch.diag_embed(own)
             chol, info = torch.linalg.cholesky_ex(a + float(self.jitter) * eye)
             for jitter in _JITTERS:
@@ -438,7 +497,9 @@ class GPExpert(torch.nn.Module):
             Log densities, `(N,)`.
         """
         pred = self.predict(X)
-        y = as_matrix("targets Y", Y, n_rows=pred.loc.shape[0], n_cols=self.n_outputs)
+        y = as_matrix(
+            "targets Y", Y, n_rows=pred.loc.shape[0], n_cols=self.n_outputs, device=self.device
+        )
         return pred.log_prob(y).sum(-1)
 
     # ------------------------------------------------------------ relevances

@@ -91,7 +91,7 @@ def _gmm_responsibilities(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         gmm.fit(fit_rows)
-    return torch.as_tensor(gmm.predict_proba(z), dtype=torch.float64)
+    return torch.as_tensor(gmm.predict_proba(z), dtype=torch.float64, device=torch.device("cpu"))
 
 
 def initial_responsibilities(
@@ -119,12 +119,12 @@ def initial_responsibilities(
         raise InputError(f"initial_responsibilities takes 'effects' or 'joint', got {init!r}.")
     n = Y.shape[0]
     if n_experts == 1:
-        return torch.ones(n, 1, dtype=torch.float64)
-    z = _standardise(Y.numpy())
+        return torch.ones(n, 1, dtype=torch.float64, device=Y.device)
+    z = _standardise(Y.detach().cpu().numpy())
     if init == "joint":
-        g = _gate_block(x_gate.numpy(), seed)
+        g = _gate_block(x_gate.detach().cpu().numpy(), seed)
         z = np.concatenate([g * np.sqrt(z.shape[1] / g.shape[1]), z], axis=1)
-    return _gmm_responsibilities(z, n_experts, n_init=n_init, seed=seed)
+    return _gmm_responsibilities(z, n_experts, n_init=n_init, seed=seed).to(Y.device)
 
 
 def split_responsibilities(
@@ -159,11 +159,17 @@ def split_responsibilities(
     Returns:
         Responsibilities, `(N, M + 1)`, or `(N, M)` with `into`.
     """
-    w = resp[:, expert].numpy()
-    z = np.concatenate([_gate_block(x_gate.numpy(), seed), _standardise(residuals.numpy())], axis=1)
-    q = _gmm_responsibilities(z, 2, n_init=n_init, seed=seed, weights=w)
+    w = resp[:, expert].detach().cpu().numpy()
+    z = np.concatenate(
+        [
+            _gate_block(x_gate.detach().cpu().numpy(), seed),
+            _standardise(residuals.detach().cpu().numpy()),
+        ],
+        axis=1,
+    )
+    q = _gmm_responsibilities(z, 2, n_init=n_init, seed=seed, weights=w).to(resp.device)
     if into is None:
-        out = torch.cat([resp, torch.zeros(resp.shape[0], 1, dtype=resp.dtype)], dim=1)
+        out = torch.cat([resp, resp.new_zeros(resp.shape[0], 1)], dim=1)
         into = out.shape[1] - 1
     else:
         out = resp.clone()

@@ -63,7 +63,8 @@ class WeightedNoise(Noise):
 
     @noise.setter
     def noise(self, value: Tensor | float) -> None:
-        value = torch.as_tensor(value, dtype=self.raw_noise.dtype).expand_as(self.raw_noise)
+        value = torch.as_tensor(value, dtype=self.raw_noise.dtype, device=self.raw_noise.device)
+        value = value.expand_as(self.raw_noise)
         c = self.raw_noise_constraint
         lo, hi = float(c.lower_bound.max()), float(c.upper_bound.min())
         free = (value - self.floor).clamp_min(1.01 * lo + 1e-300)

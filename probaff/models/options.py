@@ -1,11 +1,12 @@
-"""Typed, validated options of the model fits: EM, SVI and the exact GP expert.
+"""Typed, validated options of the model fits: EM, SVI and the exact and sparse GP experts.
 
-Every fitting keyword of `fit_em` / `fit_em_path` (`EMOptions`), of `fit_svi` (`SVIOptions`)
-and of a `GPExpert` (`GPOptions`) is a field here, with the same name and default. The
-options are frozen dataclasses that validate and normalise their fields on construction, so
-a value that reaches a fit has been checked exactly once, and a configuration can hold them
-under the names the fits use. Each fit takes ``options=`` and keyword overrides of single
-fields (`resolve_options`), e.g. ``fit_em(model, X, Y, EMOptions(max_iter=20), seed=3)``.
+Every fitting keyword of `fit_em` / `fit_em_path` (`EMOptions`), of `fit_svi` (`SVIOptions`),
+of a `GPExpert` (`GPOptions`) and of a `SparseGPExpert` (`SparseGPOptions`) is a field here,
+with the same name and default. The options are frozen dataclasses that validate and
+normalise their fields on construction, so a value that reaches a fit has been checked
+exactly once, and a configuration can hold them under the names the fits use. Each fit
+takes ``options=`` and keyword overrides of single fields (`resolve_options`), e.g.
+``fit_em(model, X, Y, EMOptions(max_iter=20), seed=3)``.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ __all__ = [
     "EMOptions",
     "GPOptions",
     "SVIOptions",
+    "SparseGPOptions",
     "resolve_options",
 ]
 
@@ -274,3 +276,33 @@ class GPOptions:
         outputscale = _check_inside("outputscale", self.outputscale, OUTPUTSCALE_BOUNDS)
         _set(self, "outputscale", outputscale)
         _set(self, "noise", _check_inside("noise", self.noise, NOISE_BOUNDS))
+
+
+@dataclass(frozen=True)
+class SparseGPOptions(GPOptions):
+    """Settings of an inducing-point `SparseGPExpert` and its fit.
+
+    The fields of `GPOptions` (`max_iter`, `lengthscale_prior`, `noise_floor`, `outputscale`,
+    `noise`) mean the same here; two are added.
+
+    Attributes:
+        n_inducing: Inducing points `m` per output; None for 256. At most the number of
+            samples with non-zero weight are used (`MixtureOfGPExperts` refuses a value
+            above its `N` training rows).
+        learn_inducing: Optimise the inducing inputs with the hyperparameters (each fit
+            still starts them from the greedy selection on the expert's weighted samples);
+            False keeps the selection fixed, which is faster.
+
+    Raises:
+        InputError: On construction, naming the first field out of range.
+    """
+
+    n_inducing: int | None = None
+    learn_inducing: bool = False
+
+    def __post_init__(self) -> None:
+        """Validate every field and store it as builtin types."""
+        super().__post_init__()
+        if self.n_inducing is not None:
+            _set(self, "n_inducing", check_count("n_inducing", self.n_inducing))
+        _set(self, "learn_inducing", _check_bool("learn_inducing", self.learn_inducing))

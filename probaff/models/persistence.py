@@ -205,7 +205,7 @@ def _verified_payload(name: str, container: dict[str, Any]) -> Any:
             f"{name!r} is an incomplete saved model: its 'sha256' or 'payload' entry is missing "
             f"or malformed; {_FIX}."
         )
-    data = blob.numpy().tobytes()
+    data = blob.cpu().numpy().tobytes()
     if hashlib.sha256(data).hexdigest() != digest:
         raise InputError(
             f"{name!r} is corrupted: its content does not match the SHA-256 hash stored in it, "

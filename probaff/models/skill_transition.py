@@ -317,7 +317,7 @@ class SkillTransitionModel(TransitionBase):
                     raise InputError(
                         f"the sample weights of mixture component {name!r} are missing."
                     )
-                comp.build(inputs.shape[1], targets.shape[1])
+                comp.build(inputs.shape[1], targets.shape[1], n_samples=inputs.shape[0])
                 comp.condition(inputs, targets, weights[name])
         self.train_X, self.train_Y, self.train_R = X, Y, R
 

@@ -45,12 +45,15 @@ _SEED_BOUND = 2**31 - 1  # seeds drawn from a RandomState lie in [0, _SEED_BOUND
 _MIXTURE_ARGS = (
     "gate",
     "gate_l2",
+    "gate_l1",
     "groups",
     "gate_features",
     "expert_features",
     "gp_max_iter",
     "lengthscale_prior",
     "noise_floor",
+    "experts",
+    "n_inducing",
 )
 _EM_ARGS = ("n_restarts", "screen_iter", "split_merge", "max_iter", "tol", "n_init", "anneal")
 
@@ -90,6 +93,8 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
             Fourier features); see `MixtureOfGPExperts`.
         gate_l2: L2 penalty of the gate's weights, or ``"cv"`` to choose it by inner
             cross-validation.
+        gate_l1: L1 penalty of the gate's weights, or ``"cv"`` (cross-validated together
+            with `gate_l2`); see `MixtureOfGPExperts`.
         groups: Named column groups of `X` (slices or index lists), for `gate_features` and
             `expert_features`; None for none.
         gate_features: Columns of `X` the gate sees: None (all), group name(s) or column
@@ -97,10 +102,13 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
         expert_features: Columns of `X` every expert sees, in the same forms.
         gp_max_iter: L-BFGS iterations of an expert's first fit.
         lengthscale_prior: Give the experts' length scales the dimension-scaled log-normal
-            prior.
+            prior (default, as in `MixtureOfGPExperts`).
         noise_floor: Smallest noise standard deviation of every expert, in target units:
             ``"auto"`` (1 % of each target's standard deviation), one value, one per target,
             or None.
+        experts: ``"auto"``, ``"exact"`` or ``"sparse"`` GP experts (see
+            `MixtureOfGPExperts`).
+        n_inducing: Inducing points of sparse experts; None for the default.
         init: EM start: ``"auto"``, ``"grow"``, ``"joint"`` or ``"effects"`` (see `fit_em`).
         n_restarts: EM starts tried for each mixture size.
         screen_iter: Iterations every start runs before only the best is run to convergence;
@@ -129,12 +137,15 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
         *,
         gate: str = "linear",
         gate_l2: float | str = "cv",
+        gate_l1: float | str = "cv",
         groups: dict[str, slice | Sequence[int]] | None = None,
         gate_features: str | Sequence[str] | Sequence[int] | None = None,
         expert_features: str | Sequence[str] | Sequence[int] | None = None,
         gp_max_iter: int = 50,
-        lengthscale_prior: bool = False,
+        lengthscale_prior: bool = True,
         noise_floor: float | Sequence[float] | str | None = "auto",
+        experts: str = "auto",
+        n_inducing: int | None = None,
         init: str = "auto",
         n_restarts: int = 3,
         screen_iter: int | None = 2,
@@ -148,12 +159,15 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
         self.n_experts = n_experts
         self.gate = gate
         self.gate_l2 = gate_l2
+        self.gate_l1 = gate_l1
         self.groups = groups
         self.gate_features = gate_features
         self.expert_features = expert_features
         self.gp_max_iter = gp_max_iter
         self.lengthscale_prior = lengthscale_prior
         self.noise_floor = noise_floor
+        self.experts = experts
+        self.n_inducing = n_inducing
         self.init = init
         self.n_restarts = n_restarts
         self.screen_iter = screen_iter

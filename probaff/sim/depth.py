@@ -6,11 +6,12 @@ sensor sits at ``(x, y, sensor_height)`` above the robot's position and turns al
 ``sensor_azimuths`` azimuths evenly over 360 degrees (azimuth 0 along +x, counter-clockwise)
 times the ``sensor_elevations`` of the spec (degrees, positive up).
 
-The obstacles are axis-aligned boxes: one per box of the map (a ``box_size`` square centred on
-its cell, ``box_height`` tall) and the four walls (``wall_thickness`` thick, just outside the
-grid, ``wall_height`` tall). A ray returns the first surface it meets, the floor included, if
-that lies within ``sensor_range``; a ray passing over every obstacle returns nothing. Ranges get
-Gaussian noise of standard deviation ``sensor_noise`` along the ray.
+The obstacles are axis-aligned boxes: one per block of the map, a box or an interior wall block
+(a ``box_size`` square centred on its cell, ``box_height`` tall), and the four walls
+(``wall_thickness`` thick, just outside the grid, ``wall_height`` tall). A ray returns the first
+surface it meets, the floor included, if that lies within ``sensor_range``; a ray passing over
+every obstacle returns nothing. Ranges get Gaussian noise of standard deviation ``sensor_noise``
+along the ray.
 
 Besides the 3-D points, each scan carries one horizontal ray per azimuth at sensor height, whose
 end point bounds the free space seen in the plane: the occupancy grid traces these.

@@ -285,6 +285,8 @@ class _Gripper:
             g.max_force,
             g.max_torque,
             g.max_speed,
+            hand=world.hand,
+            compensated_mass=2 * g.finger_mass,
         )
         hand = self.palm.body
         self.fingers: list[pymunk.Body] = []

@@ -8,12 +8,13 @@ objects are cuboids from their own catalogue (``worlds/cuboids.yaml``, the forma
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
 from probaff.errors import ConfigError
 from probaff.sim import world_files as wf
+from probaff.sim.pusher import HandSpec, read_hand
 from probaff.sim.specs import ArmSpec, ObjectSpec, load_arm_spec, load_catalogue
 from probaff.sim.world_files import CheckedSpec, Range
 
@@ -191,6 +192,9 @@ class SideViewSpec(CheckedSpec):
         place_tolerance: Height error within which a released object counts as placed (m).
         pick: Pick parameters.
         place: Place parameters.
+        hand: How the palm follows the arm's command: stiff tracking or a Cartesian impedance
+            that compensates the weight of the palm and fingers, not of a held object
+            (``hand`` section; stiff when absent).
     """
 
     POSITIVE = ("table_length", "speed", "acceleration", "slip_tolerance", "place_tolerance")
@@ -209,11 +213,26 @@ class SideViewSpec(CheckedSpec):
     place_tolerance: float
     pick: PickSkillSpec
     place: PlaceSkillSpec
+    hand: HandSpec = field(default_factory=HandSpec)
 
     def __post_init__(self) -> None:
         super().__post_init__()
         if not math.isfinite(self.plane_y):
             raise ConfigError(f"SideViewSpec.plane_y must be finite, got {self.plane_y!r}.")
+        if not isinstance(self.hand, HandSpec):
+            raise ConfigError(
+                f"SideViewSpec.hand must be a HandSpec, got {type(self.hand).__name__}."
+            )
+        dt = 1.0 / (self.physics.control_rate * self.physics.substeps)
+        self.hand.check_stable("side-view world", self.gripper.hand_mass, dt)
+
+    def with_hand(self, mode: str) -> SideViewSpec:
+        """This world with its hand in `mode` (``"stiff"`` or ``"compliant"``).
+
+        Raises:
+            InputError: For an unknown mode.
+        """
+        return replace(self, hand=self.hand.with_mode(mode))
 
 
 @dataclass(frozen=True)
@@ -278,7 +297,7 @@ def load_sideview(path: Path | None = None) -> SideViewSpec:
         ConfigError: Naming the file and field of a missing, unknown or malformed entry.
     """
     raw, w, p = wf.load_root(path, "sideview.yaml")
-    wf.no_extra(w, raw, {"catalogue", "table", "physics", "arm", "gripper", "skills"})
+    wf.no_extra(w, raw, {"catalogue", "table", "physics", "arm", "gripper", "skills", "hand"})
     table = wf.section(w, raw, "table", set(_TABLE_KEYS))
     phys = wf.section(w, raw, "physics", set(SidePhysicsSpec.__dataclass_fields__))
     arm = wf.section(w, raw, "arm", {"urdf", "tcp_link", "base_xyz", "base_yaw", "plane_y", "ik"})
@@ -300,6 +319,7 @@ def load_sideview(path: Path | None = None) -> SideViewSpec:
         **SideViewSpec.read_fields(s, skills, {k: k for k in _SKILL_KEYS}),
         pick=PickSkillSpec.read(f"{s}.pick", pick),
         place=PlaceSkillSpec.read(f"{s}.place", place),
+        hand=read_hand(f"{w}:hand", raw.get("hand")),
     )
 
 

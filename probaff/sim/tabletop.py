@@ -1,6 +1,8 @@
 """The top-down tabletop in pymunk 7.
 
-Objects carry distributed Coulomb friction; a force-limited hand tracks the arm's trajectory.
+Objects carry distributed Coulomb friction; a force-limited hand tracks the arm's trajectory,
+stiffly or through a Cartesian impedance (``hand`` in ``worlds/tabletop.yaml``,
+`probaff.sim.pusher.HandSpec`), and records its deviation from the command (the reaction).
 Units are SI. The table is centred at the world origin; its surface is the plane of the
 simulation. Objects slide with Coulomb friction spread over their footprints
 (`probaff.sim.friction`). pymunk multiplies the two shapes' friction coefficients at a contact,
@@ -222,6 +224,11 @@ class PushOutcome:
         hand_lag: Largest distance (m) between the commanded and the actual hand position,
             large when the hand stalls against something it cannot move.
         max_penetration: Deepest overlap (m) between any two bodies at the end.
+        traj_commanded: (T, 3) commanded world ``(x, y, yaw)`` of the hand at `traj_time`.
+        reaction: (R, 3) the hand's deviation from its commanded pose, actual minus
+            commanded, in the pushing frame ``(Delta y_p, Delta z_p, Delta theta)``, at R =
+            ``world.hand.reaction_samples`` times evenly spaced from the start of the push to
+            the end of the settling (the thesis's reaction, along the path).
     """
 
     state_before: np.ndarray
@@ -236,6 +243,8 @@ class PushOutcome:
     traj_objects: np.ndarray
     hand_lag: float
     max_penetration: float
+    traj_commanded: np.ndarray
+    reaction: np.ndarray
 
 
 def _object_shape(body: pymunk.Body, obj: ObjectSpec) -> pymunk.Shape:
@@ -366,6 +375,7 @@ def _build(
         grip.max_force,
         grip.max_torque,
         grip.max_speed,
+        hand=world.hand,
     )
     return space, contacts, bodies, parts, pusher
 
@@ -404,12 +414,14 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
     K = len(bodies)
     before = np.array([_pose(b) for b in bodies])
     frozen: list[tuple[float, float, float] | None] = [None] * K
-    t_rec, hand_rec, obj_rec = [], [], []
+    t_rec, hand_rec, obj_rec, cmd_rec = [], [], [], []
+    ticks_hand, ticks_cmd = [_pose(hand)], [_pose(pusher.control)]
     lag = 0.0
 
     def record(t: float) -> None:
         t_rec.append(t)
         hand_rec.append(_pose(hand))
+        cmd_rec.append(_pose(pusher.control))
         obj_rec.append([frozen[k] or _pose(b) for k, b in enumerate(bodies)])
 
     record(0.0)
@@ -418,6 +430,8 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
         for _ in range(phys.substeps):
             space.step(dt)
         lag = max(lag, pusher.lag(path[i + 1]))
+        ticks_hand.append(_pose(hand))
+        ticks_cmd.append(_pose(pusher.control))
         for k, b in enumerate(bodies):
             if frozen[k] is None and (abs(b.position.x) > hx or abs(b.position.y) > hy):
                 frozen[k] = _pose(b)  # its centre passed the edge: it tips over and falls
@@ -442,7 +456,32 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
         traj_objects=np.array(obj_rec),
         hand_lag=lag,
         max_penetration=_max_penetration(space),
+        traj_commanded=np.array(cmd_rec),
+        reaction=_reaction_samples(
+            np.array(ticks_cmd), np.array(ticks_hand), scene.push_yaw, world.hand.reaction_samples
+        ),
     )
+
+
+def _reaction_samples(
+    commanded: np.ndarray, actual: np.ndarray, push_yaw: float, samples: int
+) -> np.ndarray:
+    """The hand's deviation from its command at `samples` evenly spaced ticks.
+
+    Args:
+        commanded: (T, 3) commanded world ``(x, y, yaw)`` of the hand at every control tick.
+        actual: (T, 3) its actual pose at the same ticks.
+        push_yaw: World yaw of z_p (rad).
+        samples: R, the points to keep.
+
+    Returns:
+        (R, 3) actual minus commanded ``(Delta y_p, Delta z_p, Delta theta)`` in the pushing
+        frame, linearly interpolated between ticks.
+    """
+    deviation = push_frame_effect(commanded, actual, push_yaw)  # (T, 3)
+    ticks = np.arange(len(deviation), dtype=float)
+    at = np.linspace(0.0, ticks[-1], samples)
+    return np.stack([np.interp(at, ticks, deviation[:, c]) for c in range(3)], axis=1)
 
 
 def _max_penetration(space: pymunk.Space) -> float:

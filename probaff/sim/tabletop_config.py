@@ -10,12 +10,13 @@ Covered by tests/sim/test_sim_config.py.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
 from probaff.errors import ConfigError
 from probaff.sim import world_files as wf
+from probaff.sim.pusher import HandSpec, read_hand
 from probaff.sim.specs import ArmSpec, ObjectSpec, load_arm_spec, load_catalogue
 from probaff.sim.world_files import CheckedSpec, Range
 
@@ -100,6 +101,8 @@ class TabletopSpec(CheckedSpec):
         push_acceleration: Acceleration and deceleration of the hand (m/s^2).
         settle_time: Time simulated after the hand stops (s).
         record_rate: Samples per second of the recorded trajectories (Hz).
+        hand: How the hand follows the arm's command: stiff tracking or a Cartesian
+            impedance (``hand`` section; stiff when absent).
     """
 
     POSITIVE = ("table_size", "push_speed", "push_acceleration", "record_rate")
@@ -114,6 +117,24 @@ class TabletopSpec(CheckedSpec):
     push_acceleration: float
     settle_time: float
     record_rate: float
+    hand: HandSpec = field(default_factory=HandSpec)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not isinstance(self.hand, HandSpec):
+            raise ConfigError(
+                f"TabletopSpec.hand must be a HandSpec, got {type(self.hand).__name__}."
+            )
+        dt = 1.0 / (self.physics.control_rate * self.physics.substeps)
+        self.hand.check_stable("tabletop world", self.gripper.mass, dt)
+
+    def with_hand(self, mode: str) -> TabletopSpec:
+        """This world with its hand in `mode` (``"stiff"`` or ``"compliant"``).
+
+        Raises:
+            InputError: For an unknown mode.
+        """
+        return replace(self, hand=self.hand.with_mode(mode))
 
 
 @dataclass(frozen=True)
@@ -188,6 +209,11 @@ def load_tabletop(path: Path | None = None) -> TabletopSpec:
 
     Args:
         path: Another world file; defaults to the one in `probaff.sim.world_files.worlds_dir()`.
+
+    Raises:
+        ConfigError: Naming the file and field of a missing, unknown or malformed entry.
+        InputError: Naming the field of a ``hand`` value that is not a positive finite
+            number, an unknown hand mode, or a compliant hand too stiff for the physics step.
     """
     raw, w, p = wf.load_root(path, "tabletop.yaml")
     table, arm, grip, phys, push = (
@@ -202,6 +228,7 @@ def load_tabletop(path: Path | None = None) -> TabletopSpec:
         gripper=GripperSpec.read(f"{w}:gripper", grip, push_opening=opening),
         physics=PhysicsSpec.read(f"{w}:physics", phys),
         **TabletopSpec.read_fields(f"{w}:push", push, _PUSH_KEYS),
+        hand=read_hand(f"{w}:hand", raw.get("hand")),
     )
 
 

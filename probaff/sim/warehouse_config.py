@@ -15,11 +15,15 @@ from probaff.sim import world_files as wf
 from probaff.sim.camera import CameraSpec, load_camera
 from probaff.sim.world_files import CheckedSpec
 
-__all__ = ["SENSOR_KINDS", "WarehouseSpec", "load_warehouse"]
+__all__ = ["SENSOR_KINDS", "WALL_LAYOUTS", "WarehouseSpec", "load_warehouse"]
 
 SENSOR_KINDS: tuple[str, ...] = ("camera", "scanner")
 """The warehouse robot's depth sensors: the head's depth camera (`probaff.sim.camera`), panned
 round, or an idealised range scanner (Gaussian range noise only, 360 degrees)."""
+
+WALL_LAYOUTS: tuple[str, ...] = ("line", "corner")
+"""Shapes of a generated interior wall segment: a straight run of blocks along a row or a
+column, or a run that turns by 90 degrees once (an L)."""
 
 
 @dataclass(frozen=True)
@@ -30,6 +34,14 @@ class WarehouseSpec(CheckedSpec):
     "camera"`` the robot's sensor is `camera` (a `probaff.sim.camera.CameraSpec`) at
     ``sensor_height``, panned to ``camera_pans`` azimuths over 360 degrees and tilted down by
     ``camera_tilt_deg``; its returns below ``floor_band`` (m) count as floor.
+
+    Interior walls (section ``interior_walls``) are blocks of a box's footprint and height
+    standing in grid cells, which the sensor cannot tell from boxes: ``wall_segments`` is the
+    range of segments a generated map holds, each ``wall_length`` blocks long in one of
+    ``wall_layouts`` (`WALL_LAYOUTS`), and ``wall_blocks`` are ``(row, col)`` blocks standing
+    in every map. Section ``box_rows``: ``box_row_share`` of a map's boxes stand in rows of
+    ``box_row_length`` boxes along a row or a column, the rest anywhere free. The defaults
+    (no interior walls, no rows) are the border-only warehouse.
     """
 
     POSITIVE = (
@@ -82,6 +94,12 @@ class WarehouseSpec(CheckedSpec):
     camera_pans: int = 8
     camera_tilt_deg: float = 10.0
     floor_band: float = 0.15
+    wall_segments: tuple[int, int] = (0, 0)
+    wall_length: tuple[int, int] = (1, 1)
+    wall_layouts: tuple[str, ...] = ("line",)
+    wall_blocks: tuple[tuple[int, int], ...] = ()
+    box_row_share: float = 0.0
+    box_row_length: tuple[int, int] = (2, 2)
 
     def __post_init__(self) -> None:
         if self.sensor_kind not in SENSOR_KINDS:
@@ -106,8 +124,27 @@ class WarehouseSpec(CheckedSpec):
                 f"{self.camera_tilt_deg!r}."
             )
         super().__post_init__()
+        self._check_layout()
         if self.sensor_kind == "camera":
             self._check_camera_view()
+
+    def _check_layout(self) -> None:
+        """Raise `ConfigError` unless the interior walls and box rows are well formed."""
+        for name, low in (("wall_segments", 0), ("wall_length", 1), ("box_row_length", 1)):
+            value = getattr(self, name)
+            if wf.count_range(f"WarehouseSpec.{name}", value)[0] < low:
+                raise ConfigError(f"WarehouseSpec.{name} must hold counts >= {low}, got {value!r}.")
+        _wall_layouts("WarehouseSpec.wall_layouts", self.wall_layouts)
+        share = self.box_row_share
+        if isinstance(share, (bool, str, bytes)) or not isinstance(share, (int, float)):
+            raise ConfigError(
+                f"WarehouseSpec.box_row_share must be a share in [0, 1], got {share!r}."
+            )
+        if not 0.0 <= share <= 1.0:
+            raise ConfigError(
+                f"WarehouseSpec.box_row_share must be a share in [0, 1], got {share!r}."
+            )
+        _wall_blocks("WarehouseSpec.wall_blocks", self.wall_blocks, (self.rows, self.cols))
 
     def _check_elevations(self) -> None:
         """Raise `ConfigError` unless the scanner's elevations are angles in [-90, 90] deg."""
@@ -219,7 +256,9 @@ def load_warehouse(path: Path | None = None) -> WarehouseSpec:
         path: Another warehouse file; defaults to the one in `worlds_dir()`.
     """
     raw, w, p = wf.load_root(path, "warehouse.yaml")
-    wf.no_extra(w, raw, {"grid", "cell_size", "boxes", "sensor", *_SECTIONS})
+    wf.no_extra(
+        w, raw, {"grid", "cell_size", "boxes", "sensor", "interior_walls", "box_rows", *_SECTIONS}
+    )
     rows, cols, boxes = _grid_and_boxes(w, raw)
     cell = wf.number_field(w, raw, "cell_size", positive=True)
     values: dict[str, Any] = {}
@@ -230,8 +269,87 @@ def load_warehouse(path: Path | None = None) -> WarehouseSpec:
             f"{w}:box.size {values['box_size']} must be smaller than cell_size {cell}."
         )
     return WarehouseSpec(
-        rows=rows, cols=cols, cell_size=cell, boxes=boxes, **values, **_sensor(w, raw, p.parent)
+        rows=rows,
+        cols=cols,
+        cell_size=cell,
+        boxes=boxes,
+        **values,
+        **_sensor(w, raw, p.parent),
+        **_layout(w, raw, (rows, cols)),
     )
+
+
+def _layout(w: str, raw: dict[str, Any], shape: tuple[int, int]) -> dict[str, Any]:
+    """The optional ``interior_walls`` and ``box_rows`` sections' `WarehouseSpec` fields.
+
+    Raises:
+        ConfigError: Naming the entry, for a malformed count range, an unknown layout, or a
+            fixed wall block that is not a ``[row, col]`` cell inside the grid.
+    """
+    iw = f"{w}:interior_walls"
+    walls = wf.optional_section(
+        w, raw, "interior_walls", {"segments", "length", "layouts", "blocks"}
+    )
+    rows_ = wf.optional_section(w, raw, "box_rows", {"share", "length"})
+    out: dict[str, Any] = {}
+    if walls:
+        out["wall_segments"] = wf.count_range(f"{iw}.segments", wf.take(iw, walls, "segments"))
+        out["wall_length"] = wf.count_range(f"{iw}.length", wf.take(iw, walls, "length"))
+        if out["wall_length"][0] < 1:
+            raise ConfigError(f"{iw}.length must be at least 1 block, got {walls['length']!r}.")
+        out["wall_layouts"] = _wall_layouts(f"{iw}.layouts", wf.take(iw, walls, "layouts"))
+        out["wall_blocks"] = _wall_blocks(f"{iw}.blocks", walls.get("blocks") or [], shape)
+    if rows_:
+        br = f"{w}:box_rows"
+        out["box_row_share"] = wf.probability(f"{br}.share", wf.take(br, rows_, "share"))
+        out["box_row_length"] = wf.count_range(f"{br}.length", wf.take(br, rows_, "length"))
+        if out["box_row_length"][0] < 1:
+            raise ConfigError(f"{br}.length must be at least 1 box, got {rows_['length']!r}.")
+    return out
+
+
+def _wall_layouts(where: str, layouts: Any) -> tuple[str, ...]:
+    """`layouts` (named `where`) as a tuple of `WALL_LAYOUTS` names.
+
+    Raises:
+        ConfigError: For an empty list or an unknown name.
+    """
+    if (
+        not isinstance(layouts, (tuple, list))
+        or not layouts
+        or any(not isinstance(k, str) or k not in WALL_LAYOUTS for k in layouts)
+    ):
+        raise ConfigError(
+            f"{where} must be a non-empty list of {', '.join(WALL_LAYOUTS)}, got {layouts!r}."
+        )
+    return tuple(layouts)
+
+
+def _wall_blocks(where: str, blocks: Any, shape: tuple[int, int]) -> tuple[tuple[int, int], ...]:
+    """`blocks` (named `where`) as distinct ``(row, col)`` cells inside a `shape` grid.
+
+    Raises:
+        ConfigError: Naming the entry and the fix.
+    """
+    if not isinstance(blocks, (list, tuple)):
+        raise ConfigError(f"{where} must be a list of [row, col] cells, got {blocks!r}.")
+    rows, cols = shape
+    out: list[tuple[int, int]] = []
+    for i, cell in enumerate(blocks):
+        name = f"{where}[{i}]"
+        if not isinstance(cell, (list, tuple)) or len(cell) != 2:
+            raise ConfigError(f"{name} must be a [row, col] cell, got {cell!r}.")
+        r, c = (wf.count(f"{name}[{j}]", v, minimum=0) for j, v in enumerate(cell))
+        if r >= rows or c >= cols:
+            raise ConfigError(
+                f"{name} [{r}, {c}] lies outside the {rows} x {cols} grid (rows 0..{rows - 1}, "
+                f"columns 0..{cols - 1}; the border walls need no blocks): move it inside or "
+                "drop it."
+            )
+        if (r, c) in out:
+            raise ConfigError(f"{name} repeats the wall block [{r}, {c}]; list each block once.")
+        out.append((r, c))
+    return tuple(out)
 
 
 def _warehouse_camera(w: str, cam: dict[str, Any], folder: Path) -> CameraSpec:

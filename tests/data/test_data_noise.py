@@ -54,9 +54,9 @@ def noisy(tmp_path_factory):
     return out
 
 
-def test_default_is_noise_free_version_1(clean):
+def test_default_is_noise_free_version_6(clean):
     manifest = _manifest(clean)
-    assert manifest["schema_version"] == 1
+    assert manifest["schema_version"] == 6  # the reaction along the path (version 6)
     assert set(manifest["plan"]) == PLAN_KEYS
     ds = load_dataset(clean)
     assert not ds.has_pose_noise
@@ -130,7 +130,7 @@ def test_observe_poses_statistics_on_many_draws():
 
 def test_manifest_and_summary_record_the_noise(clean, noisy):
     manifest = _manifest(noisy)
-    assert manifest["schema_version"] == 2
+    assert manifest["schema_version"] == 6
     assert manifest["plan"]["pose_noise"] == {"position_std": 0.003, "yaw_std": math.radians(1.0)}
     assert set(manifest["plan"]) == PLAN_KEYS | {"pose_noise"}
     s, s0 = summarize(load_dataset(noisy)), summarize(load_dataset(clean))
@@ -171,6 +171,7 @@ def test_inconsistent_datasets_are_refused(clean, noisy, tmp_path):
     shutil.copytree(clean, out)
     manifest = _manifest(out)
     manifest["plan"]["pose_noise"] = NOISE.to_dict()
+    manifest["schema_version"] = 1
     (out / "manifest.json").write_text(json.dumps(manifest))
     with pytest.raises(DatasetError, match="schema version 1"):
         load_dataset(out)

@@ -86,7 +86,7 @@ def test_the_built_in_kinds():
     assert [k.name for k in dataset_kinds()][:2] == ["push", "skill"]
     assert dataset_kind("push").dataset_type is PushDataset and DEFAULT_KIND == "push"
     assert dataset_kind("skill").dataset_type is SkillDataset
-    assert readable_versions()["push"] == (1, 2) and readable_versions()["skill"] == (3,)
+    assert readable_versions()["push"] == (1, 2, 6) and readable_versions()["skill"] == (3,)
 
 
 def test_a_kind_with_its_own_dataset_class(dots, tmp_path):

@@ -84,7 +84,7 @@ def test_observations_are_what_a_robot_logs(chain):
     assert {"traj_time", "traj_hand", "traj_objects"} <= set(obs)  # observed too
     rebuilt = _rebuilt(chain, drop=("effect",))
     assert rebuilt.observation_only and not chain.observation_only
-    assert (rebuilt.schema_version, chain.schema_version) == (4, 1)
+    assert (rebuilt.schema_version, chain.schema_version) == (4, 6)
     assert rebuilt.missing_simulated == sorted(SIMULATOR_ARRAYS)
     # the effect is computed as the simulator computes it, to the bit
     assert np.array_equal(rebuilt["effect"], chain["effect"])
@@ -156,7 +156,7 @@ def test_reduced_picks_give_identical_rows(picks):
 
 
 def test_saved_observations_load_under_their_own_version(chain, picks, tmp_path):
-    assert readable_versions()["push"] == (1, 2)  # the simulated versions are unchanged
+    assert readable_versions()["push"] == (1, 2, 6)  # 6: the reaction along the path
     assert observation_versions() == {"push": 4, "skill": 5}
     save_dataset(_rebuilt(chain), tmp_path / "push", shard_size=5)
     manifest = read_manifest(tmp_path / "push")
@@ -177,7 +177,7 @@ def test_saved_observations_load_under_their_own_version(chain, picks, tmp_path)
     json.dumps(summary)
     # a simulated dataset saved this way keeps its version and loads as before
     save_dataset(chain, tmp_path / "full")
-    assert read_manifest(tmp_path / "full")["schema_version"] == 1
+    assert read_manifest(tmp_path / "full")["schema_version"] == 6
     assert not load_dataset(tmp_path / "full").observation_only
     ds = picks
     save_dataset(_rebuilt(ds), tmp_path / "picks")

@@ -222,7 +222,7 @@ def test_resume_with_other_options_is_refused(tiny, tmp_path):
         generate(replace(PUSH, n=4), out, workers=0, resume=True, progress=False)
 
 
-@pytest.mark.parametrize("noise,version", [(None, 1), (PoseNoise(), 2)])
+@pytest.mark.parametrize("noise,version", [(None, 6), (PoseNoise(), 6)])
 def test_push_datasets_are_written_and_read_as_before(tmp_path, tiny, noise, version):
     out = tmp_path / "push"
     ds = generate(replace(PUSH, pose_noise=noise), out, workers=0, progress=False)
@@ -241,7 +241,7 @@ def test_push_datasets_are_written_and_read_as_before(tmp_path, tiny, noise, ver
 
 
 def test_unknown_version_or_kind_is_refused(tiny, tmp_path):
-    readable = "push datasets of schema versions 1, 2 and skill datasets of schema version 3"
+    readable = "push datasets of schema versions 1, 2, 6 and skill datasets of schema version 3"
     cases = [
         ({"kind": "grasp"}, "kind 'grasp'"),
         ({"schema_version": 4}, "skill dataset of schema version 4"),

@@ -53,12 +53,17 @@ def test_script_smoke_and_resume(tmp_path):
         assert str(out / name) in files and (out / name).stat().st_size > 0
     text = (out / "summary.md").read_text()
     assert "5.8 cm without, 2.57 cm with" in text and "| monolithic | 2 | along |" in text
+    assert "Hand: compliant" in text  # the thesis's setting is the default
+    datasets = sorted(p.name for p in (out / "data").iterdir())
+    assert datasets and all("_compliant_" in name for name in datasets)
     tasks = sorted((out / "tasks").glob("*.json"))
     assert len(tasks) == 4 * 2  # (push, pick, place, chained) x 2 trials at one scale
     records = [json.loads(p.read_text()) for p in tasks]
     push = [r for r in records if r["part"] == "push"]
     assert {tuple(r["test_rows"]) for r in push} == {(0, 1), (2, 3)}  # disjoint test slices
     for r in push:
+        # the compliant hand deviates from its command along the path, more than at its end
+        assert 0.0 < r["reaction_mm"] < r["reaction_path_mm"] < 50.0
         assert np.asarray(r["two"]["modular"]["mean"]).shape == (2, 2, 3)
         assert np.asarray(r["chains"]["3"]["lo"]).shape == (2, 3, 3)
         lo, hi = np.asarray(r["chains"]["3"]["lo"]), np.asarray(r["chains"]["3"]["hi"])
@@ -158,6 +163,10 @@ def test_bad_config():
         TrialSettings(chain_samples=1)
     with pytest.raises(InputError, match="settings must be a TrialSettings"):
         run(ModularStudyConfig(settings="fast"))  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=r"hand must be one of \['stiff', 'compliant'\]"):
+        run(ModularStudyConfig(hand="rubber"))
+    with pytest.raises(InputError, match="reaction must be one of"):
+        TrialSettings(reaction="start")
 
 
 # --- figures

@@ -78,6 +78,7 @@ def test_the_studies_of_probaff():
         "planning",
         "point_cloud_labels",
         "push_models",
+        "pusht",
     ]
     for name in STUDIES:
         study = STUDIES[name]

@@ -34,6 +34,26 @@ def test_hand_rows_follow_the_push(chain):
     assert np.abs(rows.reaction).max() < 0.01
 
 
+def test_path_reaction_of_a_compliant_hand(tmp_path):
+    # a compliant hand pushing a row of three lags its command along the push
+    cfg = GenerateConfig("chain_3", 6, seed=2, hand="compliant")
+    ds = generate(cfg, tmp_path / "soft", workers=0, progress=False)
+    end = push_interactions(ds, "hand")
+    rows = push_interactions(ds, "hand", reaction="path")
+    r = ds["hand_reaction"].shape[1]
+    assert rows.reaction.shape == (len(ds), 4) and rows.reaction_path.shape == (len(ds), r, 2)
+    np.testing.assert_allclose(rows.reaction[:, :2], end.reaction)  # the end point first
+    np.testing.assert_allclose(rows.reaction[:, 2:], rows.reaction_path.mean(axis=1))
+    # along the action (y) the hand trails its command while it pushes three objects
+    assert (rows.reaction_path[:, 1:-1, 1].mean(axis=1) < -1e-3).all()
+    # the action frame's y is the pushing frame's z_p: the along components agree
+    np.testing.assert_allclose(rows.reaction_path[..., 1], ds["hand_reaction"][..., 1], atol=1e-9)
+    objects = push_interactions(ds, "objects", reaction="path")
+    assert objects.reaction.shape == (len(objects), 4) and not objects.reaction.any()
+    with pytest.raises(InputError, match="unknown reaction"):
+        push_interactions(ds, "hand", reaction="middle")
+
+
 def test_object_rows_chain_consecutive_pairs(chain):
     rows = push_interactions(chain, "objects")
     assert set(rows.target - rows.actor) == {1}

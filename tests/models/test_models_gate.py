@@ -216,3 +216,49 @@ def test_new_gate_errors():
         make_gate("rbf", 2, 2)
     with pytest.raises(InputError, match="n_random_features"):
         make_gate("linear", 2, 2, n_random_features=8)
+
+
+def _sparse_regimes(n: int, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
+    """Three classes set by two of 60 standard-normal columns."""
+    g = torch.Generator().manual_seed(seed)
+    x = torch.randn(n, 60, generator=g, dtype=torch.float64)
+    labels = torch.bucketize(x[:, 0] + 0.5 * x[:, 1], torch.tensor([-0.5, 0.5]).double())
+    return x, torch.nn.functional.one_hot(labels, 3).double()
+
+
+def test_lasso_gate_finds_the_few_relevant_columns():
+    x, r = _sparse_regimes(1200)
+    train, test = slice(0, 200), slice(200, None)
+    ridge = SoftmaxGate(60, 3, l2="cv").fit(x[train], r[train])
+    lasso = SoftmaxGate(60, 3, l2="cv", l1="cv").fit(x[train], r[train])
+
+    def accuracy(gate: SoftmaxGate) -> float:
+        return float((gate.predict_proba(x[test]).argmax(1) == r[test].argmax(1)).double().mean())
+
+    assert accuracy(lasso) > accuracy(ridge) + 0.05
+    assert lasso.l1_ > 0.0 and lasso.l2_ == 0.0
+    # most weights of the 58 irrelevant columns are (smoothed) zeros; the ridge has none
+    lasso_zeros = (lasso.weight.detach()[:, 2:].abs() < 1e-2).double().mean()
+    ridge_zeros = (ridge.weight.detach()[:, 2:].abs() < 1e-2).double().mean()
+    assert float(lasso_zeros) > 0.7 and float(ridge_zeros) < 0.3
+    assert lasso.cv_scores_ is not None
+    assert lasso.cv_scores_.shape == (1, len(lasso.penalties_))
+    assert len(lasso.penalties_) == len(lasso.l2_grid_) + len(lasso.l1_grid_)
+
+
+def test_fixed_l1_and_its_errors():
+    x, r = _sparse_regimes(300)
+    gate = SoftmaxGate(60, 3, l2=0.0, l1=0.02).fit(x, r)
+    assert gate.l1_ == 0.02 and gate.penalties_ == ((0.0, 0.02),)
+    with pytest.raises(InputError, match="l1"):
+        SoftmaxGate(60, 3, l1="lasso")
+    with pytest.raises(InputError, match="l1"):
+        SoftmaxGate(60, 3, l1=-1.0)
+    with pytest.raises(InputError, match="l1_grid"):
+        SoftmaxGate(60, 3, l1=0.1, l1_grid=[0.1])
+    with pytest.raises(NotFittedError, match="l1"):
+        _ = SoftmaxGate(60, 3, l1="cv").l1_
+    state = gate.state_dict()
+    copy = SoftmaxGate(60, 3, l2=0.0, l1=0.02)
+    copy.load_state_dict(state)
+    torch.testing.assert_close(copy.weight, gate.weight)

@@ -7,7 +7,17 @@ from torch.distributions import MixtureSameFamily
 
 from probaff._threads import torch_threads
 from probaff.errors import InputError
-from probaff.models import EMHistory, MixtureOfGPExperts, NotFittedError, fit_em
+from probaff.models import (
+    EMHistory,
+    GPExpert,
+    MixtureOfGPExperts,
+    NotFittedError,
+    fit_em,
+    fit_em_path,
+)
+from probaff.models import mixture as mixture_module
+from probaff.models.mixture import AUTO_SPARSE_ABOVE
+from probaff.models.sparse_expert import FitMemoryError, SparseGPExpert
 from probaff.models.synthetic import piecewise_1d
 
 
@@ -135,3 +145,95 @@ def test_bad_inputs_raise_clear_errors():
     fit_em(model, x, y, max_iter=1, min_size=1.0)
     with pytest.raises(InputError, match="shape"):
         model.predict(torch.zeros(3, 2, dtype=torch.float64))
+
+
+def test_expert_kind_is_chosen_by_training_size():
+    model = MixtureOfGPExperts(2)
+    assert model.config()["experts"] == "auto" and model.config()["n_inducing"] is None
+    model.build(3, 2, n_samples=AUTO_SPARSE_ABOVE)
+    assert all(isinstance(e, GPExpert) for e in model.experts)
+    model.build(3, 2, n_samples=AUTO_SPARSE_ABOVE + 1)
+    assert all(isinstance(e, SparseGPExpert) for e in model.experts)
+    model.build(3, 2)  # without a size, the last kind is kept
+    assert model.built_expert_kind == "sparse" and isinstance(model.experts[1], SparseGPExpert)
+    sparse = MixtureOfGPExperts(2, experts="sparse", n_inducing=7)
+    sparse.build(3, 2, n_samples=10)
+    assert isinstance(sparse.experts[0], SparseGPExpert)
+    assert sparse.experts[0].options.n_inducing == 7
+    rebuilt = MixtureOfGPExperts(**sparse.config())
+    assert rebuilt.config() == sparse.config()
+    exact = MixtureOfGPExperts(2, experts="exact")
+    exact.build(3, 2, n_samples=AUTO_SPARSE_ABOVE + 1)
+    assert isinstance(exact.experts[0], GPExpert)
+
+
+def test_sparse_experts_fit_by_em_and_the_path_never_falls():
+    (x, y, _), (xt, yt, _) = piecewise_1d(90, seed=0), piecewise_1d(300, seed=1)
+    template = MixtureOfGPExperts(1, experts="sparse", n_inducing=15, gp_max_iter=20)
+    quick = {"max_iter": 3, "n_restarts": 2, "split_merge": 1}
+    path = fit_em_path(template, x, y, (1, 2, 3), **quick)
+    best = [path[m][1].best for m in (1, 2, 3)]
+    assert best[0] <= best[1] + 1e-9 <= best[2] + 2e-9, best
+    model, _ = path[3]
+    assert all(isinstance(e, SparseGPExpert) for e in model.experts)
+    assert all(e.n_inducing <= 15 for e in model.experts)
+    loo = model.loo_log_lik(x, y)
+    assert loo.shape == (90, 3) and bool(torch.isfinite(loo).all())
+    sparse_lp = float(model.predict(xt).log_prob(yt).mean())
+    exact = MixtureOfGPExperts(3, experts="exact", gp_max_iter=20)
+    fit_em(exact, x, y, **quick)
+    exact_lp = float(exact.predict(xt).log_prob(yt).mean())
+    # 15 inducing points per output summarise a 1-D regime almost exactly
+    assert sparse_lp > exact_lp - 0.1, (sparse_lp, exact_lp)
+
+
+def test_bad_expert_settings_raise_clear_errors(monkeypatch):
+    x, y, _ = piecewise_1d(30, seed=6)
+    with pytest.raises(InputError, match=r"experts must be one of \['auto', 'exact', 'sparse'\]"):
+        MixtureOfGPExperts(2, experts="fitc")
+    for bad in (0, -2, 1.5, "64"):
+        with pytest.raises(InputError, match="n_inducing"):
+            MixtureOfGPExperts(2, n_inducing=bad)
+    with pytest.raises(InputError, match="n_inducing=31 exceeds the 30 training rows"):
+        fit_em(MixtureOfGPExperts(2, experts="sparse", n_inducing=31), x, y)
+    with pytest.raises(FitMemoryError, match="experts='sparse'"):
+        MixtureOfGPExperts(3, experts="exact").build(101, 6, n_samples=10**6)
+    monkeypatch.setattr(mixture_module, "available_memory_bytes", lambda: 10**5)
+    with pytest.raises(FitMemoryError, match="smaller n_inducing"):
+        fit_em(MixtureOfGPExperts(2, experts="sparse"), x, y)
+    with pytest.raises(FitMemoryError, match="GiB of memory is available"):
+        fit_em(MixtureOfGPExperts(2), x, y)
+
+
+def test_lasso_gate_is_the_default_and_chosen_by_cross_validation():
+    from probaff.models.synthetic import regime_features
+
+    x, y, _ = regime_features(160, 40, 2, seed=0)
+    model = MixtureOfGPExperts(3, gp_max_iter=10)
+    assert model.config()["gate_l1"] == "cv" and model.config()["gate_l2"] == "cv"
+    fit_em(model, x, y, seed=0, max_iter=3, n_restarts=1, split_merge=0)
+    gate = model.built_gate()
+    assert gate.l1 == "cv" and gate.l2 == "cv"
+    assert len(gate.penalties_) == len(gate.l2_grid_) + len(gate.l1_grid_)
+    ridge = MixtureOfGPExperts(3, gp_max_iter=10, gate_l1=0.0)
+    assert len(ridge.config()) == len(model.config())
+    with pytest.raises(InputError, match="gate_l1"):
+        MixtureOfGPExperts(3, gate_l1="lasso")
+    with pytest.raises(InputError, match="gate_l1"):
+        MixtureOfGPExperts(3, gate_l1=-0.5)
+
+
+def test_files_without_a_lasso_gate_load_as_ridge_gates(tmp_path):
+    from probaff.models import load, save
+    from probaff.models.em import _dump, _restore
+
+    x, y, _ = piecewise_1d(40, seed=2)
+    model = MixtureOfGPExperts(2, gate_l1=0.0, gp_max_iter=5)
+    fit_em(model, x, y, max_iter=2, n_restarts=1, split_merge=0)
+    payload = _dump(model)
+    del payload["config"]["gate_l1"]  # as written before the gate had a lasso penalty
+    restored = _restore(payload)
+    assert restored.gate_l1 == 0.0
+    torch.testing.assert_close(restored.predict(x).mean, model.predict(x).mean)
+    save(model, tmp_path / "m.pt")
+    assert load(tmp_path / "m.pt").config() == model.config()

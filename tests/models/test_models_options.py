@@ -15,7 +15,7 @@ from probaff.models import (
     fit_em,
     fit_em_path,
 )
-from probaff.models.options import resolve_options
+from probaff.models.options import SparseGPOptions, resolve_options
 
 
 def _data(n=40, seed=0):
@@ -60,6 +60,11 @@ def test_defaults_are_the_fits_defaults():
         "outputscale": 1.0,
         "noise": 0.1,
     }
+    assert dataclasses.asdict(SparseGPOptions()) == {
+        **dataclasses.asdict(GPOptions()),
+        "n_inducing": None,
+        "learn_inducing": False,
+    }
 
 
 @pytest.mark.parametrize(
@@ -81,6 +86,10 @@ def test_defaults_are_the_fits_defaults():
         (GPOptions, "noise_floor", -1.0),
         (GPOptions, "outputscale", 0.0),
         (GPOptions, "noise", 1e3),
+        (SparseGPOptions, "n_inducing", 0),
+        (SparseGPOptions, "n_inducing", 2.5),
+        (SparseGPOptions, "learn_inducing", "no"),
+        (SparseGPOptions, "noise", 0.0),
     ],
 )
 def test_a_bad_field_is_named(cls, field, bad):
@@ -97,6 +106,9 @@ def test_options_are_frozen_and_normalised():
         opts.max_iter = 5  # type: ignore[misc]
     assert GPOptions(noise_floor=torch.tensor([0.1, 0.2])).noise_floor == pytest.approx((0.1, 0.2))
     assert GPOptions(noise_floor=0.5).noise_floor == 0.5
+    sparse = SparseGPOptions(n_inducing=64.0, learn_inducing=1, noise_floor=[0.1])
+    assert sparse.n_inducing == 64 and type(sparse.n_inducing) is int
+    assert sparse.learn_inducing is True and sparse.noise_floor == pytest.approx((0.1,))
 
 
 def test_resolve_options_applies_overrides_and_refuses_unknown_names():

@@ -20,6 +20,7 @@ from probaff.models import (
     fit_transition,
 )
 from probaff.models.persistence import FORMATS, load, save
+from probaff.models.sparse_expert import SparseGPExpert
 from probaff.models.synthetic import piecewise_1d
 
 
@@ -288,3 +289,21 @@ def test_save_to_a_bad_path_names_it(tmp_path):
         save(model, tmp_path)
     save(model, tmp_path / "new" / "deeper" / "m.pt")  # missing folders are created
     assert isinstance(load(tmp_path / "new" / "deeper" / "m.pt"), MixtureOfGPExperts)
+
+
+def test_sparse_mixture_round_trip_is_bit_identical(tmp_path):
+    x, y, _ = piecewise_1d(60, seed=0)
+    xt, yt, _ = piecewise_1d(40, seed=1)
+    model = MixtureOfGPExperts(2, experts="sparse", n_inducing=12, gp_max_iter=10)
+    fit_em(model, x, y, max_iter=2, n_restarts=1, split_merge=0)
+    path = tmp_path / "sparse.pt"
+    save(model, path)
+    loaded = load(path)
+    assert loaded.config() == model.config() and loaded.built_expert_kind == "sparse"
+    assert all(isinstance(e, SparseGPExpert) for e in loaded.experts)
+    for a, b in zip(model.experts, loaded.experts, strict=True):
+        assert torch.equal(a.inducing, b.inducing)
+    pa, pb = model.predict(xt), loaded.predict(xt)
+    assert torch.equal(pa.mean, pb.mean) and torch.equal(pa.variance, pb.variance)
+    assert torch.equal(pa.log_prob(yt), pb.log_prob(yt))
+    assert torch.equal(model.loo_log_lik(x, y), loaded.loo_log_lik(x, y))

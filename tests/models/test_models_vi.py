@@ -3,6 +3,7 @@ import math
 import pyro
 import pytest
 import torch
+from pyro.infer import TraceEnum_ELBO
 from torch.distributions import MixtureSameFamily
 
 from probaff._threads import torch_threads
@@ -30,10 +31,10 @@ def test_svi_matches_em_on_held_out_nlpd():
     rng_state = torch.get_rng_state()
     store_keys = set(pyro.get_param_store().keys())
     vi = VariationalMixtureOfGPExperts(3, n_inducing=16)
-    history = fit_svi(vi, x, y, n_steps=300, batch_size=150, lr=0.01)
-    assert isinstance(history, SVIHistory) and len(history.loss) == 300
+    history = fit_svi(vi, x, y, n_steps=40, batch_size=150, lr=0.01)
+    assert isinstance(history, SVIHistory) and len(history.loss) == 40
     assert all(math.isfinite(v) for v in history.loss)
-    assert sum(history.loss[-30:]) < sum(history.loss[:30])
+    assert sum(history.loss[-10:]) < sum(history.loss[:10])
     # global state is left alone
     assert torch.equal(torch.get_rng_state(), rng_state)
     assert set(pyro.get_param_store().keys()) == store_keys
@@ -128,3 +129,69 @@ def test_expert_kl_is_closed_form_for_ill_conditioned_factor():
         chol.square().sum((-2, -1)) + mean.square().sum(-1) - k - diag.square().log().sum(-1)
     )
     torch.testing.assert_close(expert.kl_divergence(), expected, rtol=1e-10, atol=1e-8)
+
+
+def test_start_from_em_reproduces_em_predictions():
+    # With every training row an inducing point, q(u) set to the collapsed optimum given EM's
+    # weights and hyperparameters is EM's exact weighted posterior, and the gate is EM's.
+    x, y, _ = piecewise_1d(60, seed=0)
+    xt, yt, _ = piecewise_1d(50, seed=1)
+    em = MixtureOfGPExperts(2)
+    fit_em(em, x, y)
+    vi = VariationalMixtureOfGPExperts(2, n_inducing=60)
+    vi.build(x, y, em.train_weights, em)
+    vi.fitted = True
+    ours, exact = vi.expert_predictions(xt), em.expert_predictions(xt)
+    torch.testing.assert_close(ours.loc, exact.loc, rtol=0, atol=0.02 * float(exact.scale.min()))
+    torch.testing.assert_close(ours.scale, exact.scale, rtol=1e-3, atol=0)
+    torch.testing.assert_close(vi.gate_probs(xt), em.gate_probs(xt), rtol=0, atol=1e-12)
+
+    # SVI from the EM fit keeps its gate and hyperparameters and moves only q(u)
+    lengthscale = vi.experts[0].covar_module.base_kernel.lengthscale.detach().clone()
+    fit_svi(vi, x, y, n_steps=5, batch_size=20, init=em)
+    torch.testing.assert_close(vi.gate_probs(xt), em.gate_probs(xt), rtol=0, atol=1e-12)
+    torch.testing.assert_close(vi.experts[0].covar_module.base_kernel.lengthscale, lengthscale)
+    nlpd_vi, nlpd_em = (-float(m.predict(xt).log_prob(yt).mean()) for m in (vi, em))
+    assert abs(nlpd_vi - nlpd_em) < 0.05, (nlpd_vi, nlpd_em)
+
+
+def test_inducing_points_cover_the_weighted_samples():
+    x = torch.linspace(-3, 3, 40, dtype=torch.float64)[:, None]
+    weights = (x[:, 0] > 0).double()  # 20 samples with weight 1, 20 with weight 0
+    expert = SVGPExpert(torch.zeros(2, 8, 1, dtype=torch.float64)).double()
+    expert.covar_module.base_kernel.lengthscale = 0.5
+    expert.place_inducing(x, weights)
+    z = expert.variational_strategy.inducing_points.detach()[..., 0]  # (E, K)
+    assert bool((z > 0).all())  # only samples the expert holds
+    assert all(len(set(row.tolist())) == 8 for row in z)  # no repeats
+    # spread over the weighted half rather than bunched: the largest gap stays small
+    gaps = z.sort(-1).values.diff(dim=-1)
+    assert float(gaps.max()) < 1.0 and float(z.min()) < 0.5 and float(z.max()) > 2.5
+
+
+def test_full_natural_update_never_lowers_the_elbo():
+    x, y, _ = piecewise_1d(80, seed=4)
+    vi = VariationalMixtureOfGPExperts(2, n_inducing=12)
+    fit_svi(vi, x, y, n_steps=3, batch_size=20, lr=0.05, init="effects")
+    x_scaler, y_scaler = vi.scalers()
+    x_g, x_e, t = x[:, vi.gate_columns], x_scaler(x[:, vi.expert_columns]), y_scaler(y)
+    idx = torch.arange(x.shape[0])
+    elbo = TraceEnum_ELBO(max_plate_nesting=1)
+
+    def loss() -> float:
+        with pyro.get_param_store().scope(), torch.no_grad():
+            return float(elbo.loss(vi.model, vi.guide, x_g, x_e, t, idx))
+
+    expert = vi.experts[0]
+    variational = expert.variational_strategy._variational_distribution
+    with torch.no_grad():  # move q(u) away from its optimum
+        variational.variational_mean.add_(0.3)
+    before = loss()
+    vi.update_variational(x_g, x_e, t)
+    after = loss()
+    assert after < before - 1e-3, (before, after)
+    # a half step lands between the two in natural parameters and in the loss
+    with torch.no_grad():
+        variational.variational_mean.add_(0.3)
+    vi.update_variational(x_g, x_e, t, step=0.5)
+    assert after - 1e-3 <= loss() < before

@@ -21,18 +21,19 @@ def spec():
 
 def test_generated_maps(spec):
     rng = np.random.default_rng(0)
-    counts = [generate_map(spec, rng).occupancy.sum() for _ in range(50)]
+    counts = [generate_map(spec, rng).movable.sum() for _ in range(50)]  # boxes, not walls
     assert min(counts) >= 10 and max(counts) <= 30
     big = generate_map(spec, rng, shape=(100, 100))
-    assert big.shape == (100, 100) and 500 < big.occupancy.sum() < 2500
+    assert big.shape == (100, 100) and 500 < big.movable.sum() < 2500
     a = generate_map(spec, np.random.default_rng(3))
     b = generate_map(spec, np.random.default_rng(3))
     np.testing.assert_array_equal(a.occupancy, b.occupancy)
+    np.testing.assert_array_equal(a.walls, b.walls)
 
 
 def test_physics_ground_truth_follows_the_rule(spec):
     rng = np.random.default_rng(1)
-    for _ in range(3):
+    for _ in range(2):  # tests/sim/test_sim_warehouse_walls.py checks one more
         m = generate_map(spec, rng)
         np.testing.assert_array_equal(physics_affordances(spec, m), rule_affordances(m))
 

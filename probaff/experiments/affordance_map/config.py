@@ -131,7 +131,9 @@ class AffordanceMapConfig(StudyConfig):
 
     def fingerprint(self) -> str:
         """Short hash of every setting that changes a map's result (see `RUN_ONLY`)."""
-        return self.tag(version=3)  # 3: carried points, camera
+        # 4: interior wall blocks; the world files count too, so an edited world never reuses
+        # a stored map.
+        return self.tag(version=4, world=("warehouse.yaml", "camera.yaml"))
 
 
 def _mrf_property(name: str) -> property:

@@ -29,9 +29,11 @@ def demo(
 ) -> dict[str, Any]:
     """Explore one small map, push boxes by information gain, and report the entropy per step.
 
-    The map is 8 x 8 cells with 8 to 14 boxes, seen by the world file's sensor (the head
-    camera). The classifier is trained on only `train_maps` other maps of that size, so that
-    some of its predictions are unsure: that is what the loop's pushes are for. The loop
+    The map is 8 x 8 cells with 8 to 14 boxes and the world file's interior walls, their
+    segments scaled by area (wall blocks the sensor cannot tell from boxes), seen by the world
+    file's sensor (the head camera). The classifier is trained on only `train_maps` other maps
+    of that size, so that some of its predictions are unsure: that is what the loop's pushes
+    are for. The loop
     pushes its best candidate `steps` times even when no push is worth its travel (the study's
     ``stop_at_no_gain=False``), so that each step's effect on the map entropy shows; a push
     that moves a box gives the box fresh, unsure variables in its new cell.
@@ -44,9 +46,10 @@ def demo(
         sensor: One of `SENSOR_KINDS`; None keeps the world file's.
 
     Returns:
-        ``{"entropy", "accuracy", "pushes", "moved", "stop", "figure"}``: the map entropy
-        (nats) and the MAP accuracy at each step (``steps + 1`` values), the pushes
-        ``[row, col, direction]``, whether each moved its box, and the stop reason.
+        ``{"entropy", "accuracy", "pushes", "moved", "stop", "figure", "walls", "boxes"}``:
+        the map entropy (nats) and the MAP accuracy at each step (``steps + 1`` values), the
+        pushes ``[row, col, direction]``, whether each moved its box, the stop reason, and the
+        map's interior wall blocks and boxes ``[row, col]``.
 
     Raises:
         InputError: If `seed` or `steps` is not an integer >= 0, `train_maps` not a positive
@@ -55,7 +58,19 @@ def demo(
     seed = check_count("seed", seed, minimum=0)
     steps = check_count("steps", steps, minimum=0)
     train_maps = check_count("train_maps", train_maps)
-    spec = dataclasses.replace(world(sensor=sensor), rows=8, cols=8, boxes=(8, 14))
+    full = world(sensor=sensor)
+    scale = 64 / (full.rows * full.cols)
+    spec = dataclasses.replace(
+        full,
+        rows=8,
+        cols=8,
+        boxes=(8, 14),
+        wall_segments=(
+            round(full.wall_segments[0] * scale),
+            round(full.wall_segments[1] * scale),
+        ),
+        wall_blocks=(),
+    )
     classifier, _ = train_classifier(spec, train_maps, seed)
     rng = np.random.default_rng((seed, STREAM_TEST, 0))
     m = generate_map(spec, rng)
@@ -71,7 +86,9 @@ def demo(
     )
     result = loop.run(steps, snapshots=steps + 1)
     figure = Path(out_dir) / "loop_steps.png"
-    plot_loop_steps(result.snapshots, figure, title="information-gain loop on a small map")
+    plot_loop_steps(
+        result.snapshots, figure, title="information-gain loop on a small map", walls=m.walls
+    )
     entropy = [s.entropy for s in result.steps]
     accuracy = [s.accuracy for s in result.steps]
     done = [s for s in result.steps[1:] if s.push is not None]
@@ -80,7 +97,8 @@ def demo(
     trail = " -> ".join(f"{h:.2f}" for h in entropy)
     print(
         f"map entropy by step (nats, classifier trained on {train_maps} maps): {trail}; "
-        f"{len(pushes)} push(es), {sum(moved)} moved a box (stop: {result.stop})"
+        f"{len(pushes)} push(es), {sum(moved)} moved a box (stop: {result.stop}); the map "
+        f"holds {int(m.movable.sum())} boxes and {int(m.walls.sum())} interior wall blocks"
     )
     print(f"MAP accuracy: {accuracy[0]:.3f} -> {accuracy[-1]:.3f}; figure: {os.fspath(figure)}")
     return {
@@ -90,4 +108,6 @@ def demo(
         "moved": moved,
         "stop": result.stop,
         "figure": os.fspath(figure),
+        "walls": np.argwhere(m.walls).tolist(),
+        "boxes": np.argwhere(m.movable).tolist(),
     }

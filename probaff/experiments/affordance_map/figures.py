@@ -7,6 +7,7 @@ up the page. Pushability is coloured from blue (0, not pushable) to red (1, push
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -26,6 +27,7 @@ from probaff.planning import POLICIES
 from probaff.planning.manipulation.loop import LoopSnapshot
 
 __all__ = [
+    "plot_auc_difference",
     "plot_loop_steps",
     "plot_mrf_smoothing",
     "plot_step_curves",
@@ -139,7 +141,14 @@ def _triangles(r: int, c: int) -> list[list[tuple[float, float]]]:
     ]
 
 
-def _draw_snapshot(ax: Axes, shot: LoopSnapshot) -> None:
+def _draw_walls(ax: Axes, walls: np.ndarray) -> None:
+    """Cross out the true interior wall blocks (rows, cols) bool: the robot sees boxes there."""
+    for r, c in np.argwhere(walls).tolist():
+        ax.plot([c + 0.1, c + 0.9], [r + 0.1, r + 0.9], color="k", lw=1.2)
+        ax.plot([c + 0.1, c + 0.9], [r + 0.9, r + 0.1], color="k", lw=1.2)
+
+
+def _draw_snapshot(ax: Axes, shot: LoopSnapshot, walls: np.ndarray | None = None) -> None:
     occ = np.asarray(shot.occupancy, dtype=bool)
     cells = np.argwhere(occ)
     polys, values = [], []
@@ -157,6 +166,8 @@ def _draw_snapshot(ax: Axes, shot: LoopSnapshot) -> None:
         )
         ax.add_collection(coll)
     _draw_cells(ax, occ)
+    if walls is not None:
+        _draw_walls(ax, walls)
     ax.plot(shot.robot[1] + 0.5, shot.robot[0] + 0.5, "o", color="k", ms=6)
     if shot.push is not None:
         r, c, d = shot.push
@@ -173,26 +184,33 @@ def _draw_snapshot(ax: Axes, shot: LoopSnapshot) -> None:
 
 
 def plot_loop_steps(
-    snapshots: Sequence[LoopSnapshot], path: str | os.PathLike[str], title: str = ""
+    snapshots: Sequence[LoopSnapshot],
+    path: str | os.PathLike[str],
+    title: str = "",
+    walls: np.ndarray | None = None,
 ) -> None:
     """A few steps of the manipulation loop (Fig. 3.6).
 
     Each panel shows the belief before one push: every believed box split into four triangles
     (up, down, left, right) coloured by the marginal pushability of that direction, the robot
-    (black dot) and the chosen push (green arrow from the access cell across the box).
+    (black dot) and the chosen push (green arrow from the access cell across the box). With
+    `walls`, the true interior wall blocks are crossed out (black X): the robot believes them
+    boxes like the others, and only a push tells them apart.
 
     Args:
         snapshots: The states to draw, in order.
         path: Image file to write, atomically.
         title: Figure title.
+        walls: (rows, cols) bool, the true interior wall blocks, or None.
     """
     n = max(1, len(snapshots))
     cols = min(n, 4)
     rows = -(-n // cols)
     fig = Figure(figsize=(3.4 * cols + 0.8, 3.6 * rows + 0.3), layout="constrained")
     axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
+    wall_mask = None if walls is None else np.asarray(walls, dtype=bool)
     for k, (ax, shot) in enumerate(zip(axes, snapshots, strict=False)):
-        _draw_snapshot(ax, shot)
+        _draw_snapshot(ax, shot, wall_mask)
         what = (
             "stop"
             if shot.push is None
@@ -203,8 +221,42 @@ def plot_loop_steps(
         ax.axis("off")
     bar = fig.colorbar(ScalarMappable(Normalize(0.0, 1.0), _CMAP), ax=list(axes), shrink=0.7)
     bar.set_label("P(pushable)")
+    if wall_mask is not None and wall_mask.any():
+        title = (title + "\n" if title else "") + "X: interior wall block (seen as a box)"
     if title:
         fig.suptitle(title, fontsize=10)
+    atomic_save_figure(fig, path, dpi=120)
+
+
+def plot_auc_difference(
+    differences: Sequence[float], ci: float | None, path: str | os.PathLike[str]
+) -> None:
+    """Per-map paired differences of the entropy AUC (information gain minus exhaustive).
+
+    Fig. 3.7's finding (information gain lowers the map entropy faster) holds when the whole
+    95 % interval of the mean difference lies below zero.
+
+    Args:
+        differences: (n_maps,) AUC of the MRF entropy, information gain minus exhaustive.
+        ci: 95 % half-width of their mean, or None with fewer than two maps.
+        path: Image file to write, atomically.
+    """
+    d = np.asarray(differences, dtype=float)
+    fig = Figure(figsize=(6.0, 3.6), layout="constrained")
+    ax = fig.subplots()
+    ax.axhline(0.0, color="0.4", lw=1)
+    ax.plot(np.arange(len(d)), d, "o", color="tab:purple", ms=4, label="one map")
+    mean = float(np.mean(d)) if len(d) else math.nan
+    band = ci if ci is not None else 0.0
+    ax.axhline(mean, color="k", lw=1.5, label=f"mean {mean:.2f} ± {band:.2f} (95 %)")
+    ax.axhspan(mean - band, mean + band, color="k", alpha=0.12, lw=0)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_xlabel("test map")
+    ax.set_ylabel("AUC H (MRF): info gain - exhaustive")
+    verdict = "holds" if ci is not None and mean + ci < 0 else "does not hold"
+    ax.set_title(f"paired AUC difference; Fig. 3.7's finding {verdict}", fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
     atomic_save_figure(fig, path, dpi=120)
 
 
@@ -215,14 +267,19 @@ def _figure_map(results: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def study_figures(
-    results: list[dict[str, Any]], curves: dict[str, dict[str, np.ndarray]], out: Path
+    results: list[dict[str, Any]],
+    curves: dict[str, dict[str, np.ndarray]],
+    out: Path,
+    auc_difference: Mapping[str, Any] | None = None,
 ) -> dict[str, str]:
-    """Every figure of a study run: the curves over steps, Figs. 3.5 and 3.6.
+    """Every figure of a study run: the curves over steps, Figs. 3.5 and 3.6, the paired AUC.
 
     Args:
         results: The maps' results (`map_task`).
         curves: Policy -> quantity -> `(n_maps, steps + 1)` curves.
         out: Output folder.
+        auc_difference: The summary's ``auc_difference`` (``per_map`` and ``ci``), drawn as
+            ``auc_difference.png``; None leaves that figure out.
 
     Returns:
         Figure name -> written path.
@@ -230,6 +287,7 @@ def study_figures(
     files = {}
     for key, ylabel, name in (
         ("entropy", "average map entropy (nats)", "entropy_vs_step.png"),
+        ("entropy_mrf", "average map entropy under the MRF (nats)", "entropy_mrf_vs_step.png"),
         ("accuracy", "map accuracy (MAP estimate)", "accuracy_vs_step.png"),
         ("distance", "distance travelled (cells)", "distance_vs_step.png"),
     ):
@@ -254,8 +312,19 @@ def study_figures(
         )
         for s in fig["snapshots"]
     ]
+    walls = np.zeros(occ.shape, dtype=bool)
+    for r, c in chosen.get("walls", []):
+        walls[r, c] = True
     plot_loop_steps(
-        shots, out / "loop_steps.png", title=f"information-gain loop on test map {chosen['index']}"
+        shots,
+        out / "loop_steps.png",
+        title=f"information-gain loop on test map {chosen['index']}",
+        walls=walls,
     )
     files["loop_steps"] = os.fspath(out / "loop_steps.png")
+    if auc_difference is not None:
+        plot_auc_difference(
+            auc_difference["per_map"], auc_difference["ci"], out / "auc_difference.png"
+        )
+        files["auc_difference"] = os.fspath(out / "auc_difference.png")
     return files

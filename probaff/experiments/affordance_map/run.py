@@ -158,6 +158,7 @@ def map_task(
         out: dict[str, Any] = {
             "index": index,
             "boxes": m.boxes.tolist(),
+            "walls": np.argwhere(m.walls).tolist(),
             "shape": list(m.shape),
             "start": start.tolist(),
             "scans": len(run_ex.cells),
@@ -237,7 +238,7 @@ def run(config: AffordanceMapConfig) -> dict[str, Any]:
     )
     summary, csv, curves = summarise(config, results, training)
     entropy_csv = study.write("entropy.csv", csv)
-    figures = study_figures(results, curves, study.out)
+    figures = study_figures(results, curves, study.out, summary["auc_difference"])
     summary["runtime_s"] = time.perf_counter() - t0
     text = markdown(config, spec, summary, config.max_steps)
     files = {"entropy_csv": entropy_csv, "summary": study.write("summary.md", text), **figures}

@@ -14,6 +14,7 @@ from probaff._checks import check_count
 from probaff.errors import InputError
 from probaff.experiments.base import StudyConfig
 from probaff.experiments.modular.trials import TrialSettings
+from probaff.sim.pusher import HAND_MODES
 
 __all__ = ["DEMO", "SMOKE", "THESIS", "TRAININGS", "ModularStudyConfig"]
 
@@ -81,6 +82,12 @@ class ModularStudyConfig(StudyConfig):
             the extension part (``"chained"`` tasks: does a model that has seen packed rows
             of three predict rows of four and five?); 0 skips it.
         settings: Models, feature groups and sampling of every trial.
+        hand: How the simulated hand follows its command in every dataset
+            (`probaff.sim.pusher.HAND_MODES`): ``"compliant"`` (the default; a Cartesian
+            impedance, so that the hand lags and deflects against resistance as the thesis's
+            arm did: "the desired trajectory of the manipulator would not synchronize with
+            executed position due to the feedback force", section 6.5.2) or ``"stiff"``
+            (the hand held to its command within about 0.5 mm).
     """
 
     out: str = "results/modular"
@@ -93,6 +100,7 @@ class ModularStudyConfig(StudyConfig):
     chain_lengths: tuple[int, ...] = (3, 4, 5)
     chain_train: int = 60
     settings: TrialSettings = field(default_factory=TrialSettings)
+    hand: str = "compliant"
 
     SMOKE: ClassVar[Mapping[str, Any]] = SMOKE
 
@@ -111,6 +119,11 @@ class ModularStudyConfig(StudyConfig):
         bad = [k for k in self.chain_lengths if k not in (3, 4, 5)]
         if bad:
             raise InputError(f"chain_lengths may hold 3, 4 and 5 (the chain scenes), got {bad}.")
+        if self.hand not in HAND_MODES:
+            raise InputError(
+                f"hand must be one of {list(HAND_MODES)} (how the simulated hand follows its "
+                f"command), got {self.hand!r}."
+            )
         s = self.settings
         if not isinstance(s, TrialSettings):
             raise InputError(f"settings must be a TrialSettings, got {type(s).__name__}.")

@@ -40,6 +40,7 @@ _BACKWARD_COLUMNS = [
     "nlpd",
     "coverage90",
     "reaction_mm",
+    "reaction_path_mm",
 ]
 
 _TWO_COLUMNS = [
@@ -107,8 +108,9 @@ def summarise_backward(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     Returns:
         Rows with ``n_train``, ``model``, ``trials``, ``along_cm`` / ``off_cm`` (mean
         absolute error of dy and dx) and ``turn_rad`` with their ``*_ci`` half-widths,
-        ``nlpd`` (summed over the three effects), ``coverage90``, and
-        ``reaction_mm`` (the hand's mean deviation from its commanded end in training).
+        ``nlpd`` (summed over the three effects), ``coverage90``, ``reaction_mm`` (the
+        hand's mean deviation from its commanded end in training) and ``reaction_path_mm``
+        (the mean of its largest deviation along the push; NaN for records without it).
     """
     rows = []
     for n, rs in _by(records, "push").items():
@@ -134,6 +136,9 @@ def summarise_backward(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
                     "nlpd": float(np.mean([sum(r["hand"][model]["nlpd"]) for r in rs])),
                     "coverage90": float(np.mean([r["hand"][model]["coverage"] for r in rs])),
                     "reaction_mm": float(np.mean([r["reaction_mm"] for r in rs])),
+                    "reaction_path_mm": float(
+                        np.mean([r.get("reaction_path_mm", math.nan) for r in rs])
+                    ),
                 }
             )
     return rows
@@ -341,6 +346,7 @@ def report(
     md = [
         "# Chapter 6: modular transition models",
         "",
+        f"Hand: {config.hand} (how the simulated hand follows its command). "
         f"{config.trials} trials per training size; each trial fits on its own draw of the "
         f"training pool and predicts its own {config.test_scenes} test scenes per skill. "
         "`*_ci`: half-width of the 95 % Student-t interval of the mean over trials; "
@@ -349,8 +355,10 @@ def report(
         "## The backward component (o1 under the hand's push)",
         "",
         f"Thesis: push-along error {fwd} cm without, {bwd} cm with the backward component. "
-        "`reaction_mm`: the simulated hand's mean deviation from its commanded end point, "
-        "the signal the backward component learns.",
+        "`reaction_mm`: the simulated hand's mean deviation from its commanded end point; "
+        "`reaction_path_mm`: the mean of its largest deviation along the push; the backward "
+        f"component learns the reaction `{config.settings.reaction}` "
+        "(`end`: the end point; `path`: the end point and the mean along the push).",
         "",
         _fmt(backward, _BACKWARD_COLUMNS),
         "",

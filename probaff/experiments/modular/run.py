@@ -1,6 +1,9 @@
 """The chapter 6 study: modular transition models for push, pick and place, against a monolith.
 
-`run` generates (or resumes) the datasets under ``out/data/``: a pool of tabletop
+`run` generates (or resumes) the datasets under ``out/data/``, all with the hand of
+``config.hand`` (compliant by default: a Cartesian impedance that lags and deflects against
+resistance, whose deviation from its command, the reaction, the datasets record along the
+path; `probaff.sim.pusher`): a pool of tabletop
 ``modular_push`` pushes (two cuboids, a 35 cm push, the second up to 30 cm sideways), of
 side-view ``pick`` and ``place`` skills, and held-out test sets of each and of the
 ``chain_3`` .. ``chain_5`` rows of cuboids. Every (part, training-set scale, trial) is one
@@ -50,7 +53,7 @@ from probaff.experiments.modular.trials import (
 
 __all__ = ["modular_task", "run"]
 
-_VERSION = 1
+_VERSION = 2  # 2: the reaction along the path, the hand's mode
 _TEST_SEED_OFFSET = 1000  # test datasets use seed + this, so they never share a draw
 _WORLD = (
     "scenes/modular_push.yaml",
@@ -69,8 +72,9 @@ _WORLD = (
 def _dataset(study: StudyRun[ModularStudyConfig], scene: str, n: int, test: bool) -> str:
     """Generate (or resume) `n` samples of `scene` under ``out/data/``; return the folder."""
     seed = study.config.seed + (_TEST_SEED_OFFSET if test else 0)
-    name = f"{scene}_n{n}_s{seed}"
-    study.dataset(GenerateConfig(scene=scene, n=n, seed=seed), name)
+    hand = study.config.hand
+    name = f"{scene}_{hand}_n{n}_s{seed}"
+    study.dataset(GenerateConfig(scene=scene, n=n, seed=seed, hand=hand), name)
     return str(study.out / "data" / name)
 
 

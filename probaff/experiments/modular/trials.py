@@ -39,7 +39,12 @@ from probaff.eval.metrics import interval_coverage, nlpd
 from probaff.experiments.config_cli import option_flags
 from probaff.features import INTERACTION_GROUPS
 from probaff.features.ch6_pick import SIDEVIEW_EFFECT_COLUMNS, pick_interactions
-from probaff.features.ch6_push import PLANAR_EFFECT_COLUMNS, PushInteractions, push_interactions
+from probaff.features.ch6_push import (
+    PLANAR_EFFECT_COLUMNS,
+    REACTIONS,
+    PushInteractions,
+    push_interactions,
+)
 from probaff.features.ch6_scenes import push_scenes, scene_effects, scene_features
 from probaff.features.chain_geometry import Ch6Geometry
 from probaff.models import (
@@ -93,6 +98,10 @@ class TrialSettings:
         gp_max_iter: L-BFGS iterations of every GP fit.
         chain_backward: Chain with the push model with the backward component (else
             without).
+        reaction: What the push models' backward component predicts of the hand's
+            deviation from its command (`probaff.features.ch6_push.REACTIONS`): ``"path"``
+            (its end point and its mean along the push, the default) or ``"end"`` (the end
+            point alone).
     """
 
     push_groups: tuple[str, ...] = ("pose", "action")
@@ -105,10 +114,13 @@ class TrialSettings:
     )
     gp_max_iter: int = 50
     chain_backward: bool = True
+    reaction: str = "path"
 
     def __post_init__(self) -> None:
-        """Raise `InputError` for a count that is not a positive integer or a bad group list."""
+        """Raise `InputError` for a bad count, group list or reaction."""
         check_count("chain_samples", self.chain_samples, minimum=2)
+        if self.reaction not in REACTIONS:
+            raise InputError(f"reaction must be one of {list(REACTIONS)}, got {self.reaction!r}.")
         check_count("n_experts", self.n_experts)
         if not isinstance(self.em, EMOptions):
             raise InputError(f"em must be an EMOptions, got {type(self.em).__name__}.")
@@ -177,11 +189,21 @@ def _skill_dataset(path: str) -> SkillDataset:
 
 
 @cache
-def _push_rows(path: str, groups: tuple[str, ...]) -> tuple[PushInteractions, PushInteractions]:
+def _push_rows(
+    path: str, groups: tuple[str, ...], reaction: str
+) -> tuple[PushInteractions, PushInteractions]:
     ds, geo = _push_dataset(path), geometry_for(groups)
-    return push_interactions(ds, "hand", geometry=geo), push_interactions(
-        ds, "objects", geometry=geo
+    return push_interactions(ds, "hand", geometry=geo, reaction=reaction), push_interactions(
+        ds, "objects", geometry=geo, reaction=reaction
     )
+
+
+def _reaction_mm(rows: PushInteractions, use: np.ndarray) -> dict[str, float]:
+    """Mean over the used hand rows of the end deviation and of the largest along the path."""
+    end = 1000 * float(np.linalg.norm(rows.reaction[use][:, :2], axis=1).mean())
+    path = rows.reaction_path[use]
+    peak = 1000 * float(np.linalg.norm(path, axis=2).max(axis=1).mean()) if path.size else 0.0
+    return {"reaction_mm": end, "reaction_path_mm": peak}
 
 
 @cache
@@ -323,13 +345,15 @@ def push_trial(data: TrialData, settings: TrialSettings, keep: int = 2) -> dict[
         NLPD and coverage, and the truth), ``"two"`` (both objects' displacement in the hand's
         frame: ``"true"``, ``"modular"`` and ``"monolithic"`` means and intervals),
         ``"chains"`` (per K: truth and modular means and intervals), ``"fit_seconds"``,
-        ``"reaction_mm"`` (mean ``|deviation|`` of the hand in the training rows) and the counts.
+        ``"reaction_mm"`` (mean ``|deviation|`` of the hand at its commanded end in the
+        training rows), ``"reaction_path_mm"`` (mean of its largest ``|deviation|`` along the
+        path) and the counts.
     """
     train, test, train_rows, test_rows = data.train, data.test, data.train_rows, data.test_rows
     seed = data.seed
     with torch_threads(1):
-        X, Y, R = _push_training_rows(train, train_rows, settings.push_groups)
-        hand, objects = _push_rows(train, settings.push_groups)
+        X, Y, R = _push_training_rows(train, train_rows, settings)
+        hand, objects = _push_rows(train, settings.push_groups, settings.reaction)
         use = np.isin(hand.push, train_rows)
         use_o = np.isin(objects.push, train_rows)
         cols = list(PLANAR_EFFECT_COLUMNS)
@@ -344,7 +368,7 @@ def push_trial(data: TrialData, settings: TrialSettings, keep: int = 2) -> dict[
         fit_transition(mono, scene_features(ds_train)[rows], scene_effects(ds_train)[rows])
         seconds["monolithic"] = time.perf_counter() - t0
 
-        test_hand, _ = _push_rows(test, settings.push_groups)
+        test_hand, _ = _push_rows(test, settings.push_groups, settings.reaction)
         t_rows = np.asarray(test_rows)
         pick = np.flatnonzero(np.isin(test_hand.push, t_rows))
         y_hand = test_hand.effect[pick][:, cols]
@@ -358,7 +382,7 @@ def push_trial(data: TrialData, settings: TrialSettings, keep: int = 2) -> dict[
                 },
             },
             "fit_seconds": seconds,
-            "reaction_mm": 1000 * float(np.linalg.norm(hand.reaction[use], axis=1).mean()),
+            **_reaction_mm(hand, use),
             "n_rows": {"hand": int(use.sum()), "objects": int(use_o.sum())},
         }
 
@@ -428,10 +452,10 @@ def skill_trial(skill: str, data: TrialData, settings: TrialSettings) -> dict[st
 
 
 def _push_training_rows(
-    path: str, rows: list[int] | None, groups: tuple[str, ...]
+    path: str, rows: list[int] | None, settings: TrialSettings
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Features, planar effects and reactions of the hand and object rows of pushes `rows`."""
-    hand, objects = _push_rows(path, groups)
+    hand, objects = _push_rows(path, settings.push_groups, settings.reaction)
     use = np.ones(len(hand), bool) if rows is None else np.isin(hand.push, rows)
     use_o = np.ones(len(objects), bool) if rows is None else np.isin(objects.push, rows)
     cols = list(PLANAR_EFFECT_COLUMNS)
@@ -463,8 +487,8 @@ def chain_trained_trial(data: TrialData, settings: TrialSettings) -> dict[str, A
     train, extra, train_rows = data.train, data.test, data.train_rows
     with torch_threads(1):
         parts = [
-            _push_training_rows(train, train_rows, settings.push_groups),
-            _push_training_rows(extra, None, settings.push_groups),
+            _push_training_rows(train, train_rows, settings),
+            _push_training_rows(extra, None, settings),
         ]
         X, Y, R = (np.concatenate(a) for a in zip(*parts, strict=True))
         backward = settings.chain_backward

@@ -124,7 +124,7 @@ class PushModelStudyConfig(StudyConfig):
         default=SVIOptions(n_steps=400),
         metadata=option_flags(("n_steps",), {"vi_steps": "n_steps"}),
     )
-    vi_inducing: int = 32
+    vi_inducing: int = 128
     gp: GPOptions = field(
         default=GPOptions(max_iter=50, lengthscale_prior=True),
         metadata=option_flags(

@@ -39,8 +39,8 @@ confirmation of "not pushable".
 Per step the loop records the map entropy under the policy's own model (the MRF for
 information gain; independent unaries, i.e. coupling 0, for the exhaustive baseline, as in the
 thesis) and under the MRF, the accuracy of the MAP estimate (marginal > 0.5) against the current
-ground truth `rule_affordances` over the believed boxes that truly are boxes, and the distance
-travelled (cells).
+ground truth `rule_affordances` over the believed boxes that truly are blocks (boxes or wall
+blocks), and the distance travelled (cells).
 
 Covered by tests/planning/manipulation/test_manipulation_loop.py.
 """

@@ -1,0 +1,25 @@
+"""The Push-T study: learn push models in the unmodified gym-pusht environment, then plan.
+
+gym-pusht runs in its own virtual environment (``python -m probaff.experiments.pusht.env``
+creates ``.venv-pusht``), behind a worker process that probaff speaks JSON lines with.
+
+Modules:
+    config: `PushTStudyConfig`, the planners, the diffusion policy's result, the smoke sizes.
+    env: creating the Push-T environment, and `PushTWorker`, the process that runs it.
+    geometry: the T, its frames, distances and the vertex cost.
+    primitives: push primitives (contact, direction, length) as agent targets.
+    data: random pushes recorded as an observation-only probaff push dataset.
+    models: features, the mixture and the single GP, the analytic quasi-static model.
+    planner: beam search over primitives on a model or the environment, closed-loop episodes.
+    run: the pushes, fits and episodes as resumable tasks, and `run`.
+    report: success rates with their intervals, model scores, blame, the summary.
+    figures: episodes over the goal, success and model scores against training pushes.
+"""
+
+from probaff.experiments.pusht.config import PLANNERS, SMOKE, PushTStudyConfig
+from probaff.experiments.pusht.run import run
+
+Config = PushTStudyConfig
+"""The study's config class (the registry's name for it)."""
+
+__all__ = ["PLANNERS", "SMOKE", "Config", "PushTStudyConfig", "run"]

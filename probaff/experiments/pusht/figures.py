@@ -1,0 +1,122 @@
+"""Figures of the Push-T study: episodes over the goal, success and model scores against data.
+
+`plot_episodes` draws the T's outline after every push of a few episodes of each planner
+against the goal; `plot_success_curve` the learned-model planner's success (95 % Wilson
+intervals) against the number of training pushes, with the diffusion policy's rate;
+`plot_models` the held-out RMSE and NLPD of each model against the number of training pushes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.patches import Polygon
+
+from probaff._io import atomic_save_figure
+from probaff.experiments.pusht.config import DIFFUSION_POLICY
+from probaff.experiments.pusht.geometry import (
+    GOAL_ORIGIN_POSE,
+    OUTLINE,
+    cog_pose,
+    to_world,
+)
+
+__all__ = ["plot_episodes", "plot_models", "plot_success_curve"]
+
+
+def plot_episodes(records: Sequence[dict[str, Any]], path: str | Path, per_planner: int = 3) -> str:
+    """Draw the T after every push of the first kept episodes of each planner.
+
+    Args:
+        records: Episode records; those with ``poses`` are drawn.
+        path: The PNG to write.
+        per_planner: Episodes drawn per planner.
+
+    Returns:
+        `path` as a string.
+    """
+    kept: dict[str, list[dict[str, Any]]] = {}
+    for r in records:
+        if "poses" in r and len(kept.setdefault(r["planner"], [])) < per_planner:
+            kept[r["planner"]].append(r)
+    planners = list(kept) or ["(none)"]
+    cols = max([len(v) for v in kept.values()] + [1])
+    fig, axes = plt.subplots(
+        len(planners), cols, figsize=(2.6 * cols, 2.6 * len(planners)), squeeze=False
+    )
+    goal = to_world(cog_pose(GOAL_ORIGIN_POSE), OUTLINE)
+    for i, planner in enumerate(planners):
+        for j in range(cols):
+            ax = axes[i][j]
+            ax.set_xlim(0, 512)
+            ax.set_ylim(0, 512)
+            ax.set_aspect("equal")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            ax.add_patch(Polygon(goal, closed=True, color="lightgreen", alpha=0.7))
+            if j >= len(kept.get(planner, [])):
+                continue
+            r = kept[planner][j]
+            poses = np.asarray(r["poses"], dtype=float)
+            shades = plt.get_cmap("Greys")(np.linspace(0.3, 1.0, len(poses)))
+            for pose, shade in zip(poses, shades, strict=True):
+                ax.add_patch(Polygon(to_world(pose, OUTLINE), closed=True, fill=False, ec=shade))
+            verdict = "success" if r["success"] else "failure"
+            ax.set_title(
+                f"{planner} ep {r['episode']}: {verdict}\n{r['pushes']} pushes, cov "
+                f"{r['max_coverage']:.2f}",
+                fontsize=7,
+            )
+    fig.suptitle("Push-T episodes: the T after every push (dark: later) and the goal (green)")
+    fig.tight_layout()
+    atomic_save_figure(fig, path, dpi=110)
+    plt.close(fig)
+    return str(path)
+
+
+def plot_success_curve(rows: Sequence[dict[str, Any]], path: str | Path) -> str:
+    """Success of the learned-model planner against training pushes (95 % Wilson intervals)."""
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    n = np.array([r["train_pushes"] for r in rows], dtype=float)
+    rate = np.array([r["success_rate"] for r in rows])
+    lo = np.maximum(rate - np.array([r["success_low"] for r in rows]), 0.0)  # rounding
+    hi = np.maximum(np.array([r["success_high"] for r in rows]) - rate, 0.0)
+    ax.errorbar(n, rate, yerr=[lo, hi], marker="o", capsize=3, label="beam search, mixture")
+    ax.axhline(DIFFUSION_POLICY["success_rate"], color="tab:red", ls="--", label="diffusion policy")
+    ax.set_xscale("log")
+    ax.set_ylim(0, 1.02)
+    ax.set_xlabel("training pushes")
+    ax.set_ylabel("success rate")
+    ax.legend(fontsize=8)
+    ax.set_title("Push-T success against training pushes")
+    fig.tight_layout()
+    atomic_save_figure(fig, path, dpi=110)
+    plt.close(fig)
+    return str(path)
+
+
+def plot_models(rows: Sequence[dict[str, Any]], path: str | Path) -> str:
+    """Held-out RMSE (along the push) and NLPD of each model against training pushes."""
+    fig, axes = plt.subplots(1, 2, figsize=(8, 3.3))
+    for model in dict.fromkeys(r["model"] for r in rows):
+        rs = sorted((r for r in rows if r["model"] == model), key=lambda r: r["train_pushes"])
+        n = [r["train_pushes"] for r in rs]
+        axes[0].plot(n, [r["rmse_z"] for r in rs], marker="o", label=model)
+        axes[1].plot(n, [r["nlpd"] for r in rs], marker="o", label=model)
+    for ax, label in zip(axes, ("RMSE along the push (px)", "NLPD (nats)"), strict=True):
+        ax.set_xscale("log")
+        ax.set_xlabel("training pushes")
+        ax.set_ylabel(label)
+        ax.legend(fontsize=8)
+    fig.suptitle("Push-T push models on held-out pushes")
+    fig.tight_layout()
+    atomic_save_figure(fig, path, dpi=110)
+    plt.close(fig)
+    return str(path)

@@ -1,0 +1,186 @@
+"""Tables and summary of the Push-T study: models against data, planners against the target.
+
+`model_rows` orders the held-out scores, `planner_rows` gives one row per planner (success
+rate with its 95 % Wilson interval, mean maximum coverage, pushes, control steps and planning
+time per push), `curve_rows` the learned-model planner's success at every training size, and
+`summary_lines` the Markdown summary: the goal (the diffusion policy's 63.8 % and 0.959), where
+the learned-model planner stands, and whether a shortfall is its model's or its search's (the
+planner over the environment itself, on the same episodes).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from probaff.eval.metrics import wilson_interval
+from probaff.eval.tables import markdown_table
+from probaff.experiments.pusht.config import DIFFUSION_POLICY, PushTStudyConfig
+
+__all__ = ["blame", "curve_rows", "model_rows", "planner_rows", "summary_lines"]
+
+_MODEL_COLUMNS = [
+    "model",
+    "train_pushes",
+    "rmse_y",
+    "rmse_z",
+    "rmse_theta",
+    "nlpd",
+    "coverage90",
+]
+_PLANNER_COLUMNS = [
+    "planner",
+    "episodes",
+    "successes",
+    "success_rate",
+    "success_low",
+    "success_high",
+    "max_coverage",
+    "pushes",
+    "steps",
+    "plan_seconds",
+    "error_px",
+]
+_CURVE_COLUMNS = ["train_pushes", "episodes", "success_rate", "success_low", "success_high"]
+
+
+def model_rows(scored: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The held-out scores, by model then training size."""
+    order = {"moe": 0, "gp": 1, "analytic": 2}
+    return sorted(scored, key=lambda r: (order.get(r["model"], 9), r["train_pushes"]))
+
+
+def _rate(rs: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    k = sum(bool(r["success"]) for r in rs)
+    lo, hi = wilson_interval(k, len(rs))
+    return {
+        "episodes": len(rs),
+        "successes": k,
+        "success_rate": k / len(rs),
+        "success_low": lo,
+        "success_high": hi,
+    }
+
+
+def planner_rows(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per planner, in the order planners first appear.
+
+    Args:
+        records: Episode records (`probaff.experiments.pusht.planner.run_episode` with
+            ``planner``).
+
+    Returns:
+        Rows with `_PLANNER_COLUMNS`: success with its 95 % Wilson interval, and the means of
+        the maximum coverage, pushes, control steps, planning seconds per push and the
+        distance (px) between predicted and executed vertices.
+    """
+    by: dict[str, list[dict[str, Any]]] = {}
+    for r in records:
+        by.setdefault(r["planner"], []).append(r)
+    rows = []
+    for planner, rs in by.items():
+        errors = [r["error_px"] for r in rs if np.isfinite(r["error_px"])]
+        rows.append(
+            {
+                "planner": planner,
+                **_rate(rs),
+                "max_coverage": float(np.mean([r["max_coverage"] for r in rs])),
+                "pushes": float(np.mean([r["pushes"] for r in rs])),
+                "steps": float(np.mean([r["steps"] for r in rs])),
+                "plan_seconds": float(np.mean([r["plan_seconds"] for r in rs])),
+                "error_px": float(np.mean(errors)) if errors else float("nan"),
+            }
+        )
+    return rows
+
+
+def curve_rows(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The learned-model planner's success at each training size (95 % Wilson intervals)."""
+    by: dict[int, list[dict[str, Any]]] = {}
+    for r in records:
+        by.setdefault(int(r["train_pushes"]), []).append(r)
+    return [{"train_pushes": n, **_rate(rs)} for n, rs in sorted(by.items())]
+
+
+def blame(records: Sequence[dict[str, Any]], planner: str = "beam-moe") -> dict[str, int]:
+    """Failures of `planner` on episodes the environment-as-model planner also ran.
+
+    Returns:
+        ``shared`` (episodes both ran), ``failures`` of `planner` among them, ``model`` (those
+        the environment-as-model planner solved: the model's fault) and ``search`` (those it
+        failed too: the search's, or the budget's).
+    """
+    env = {r["episode"]: bool(r["success"]) for r in records if r["planner"] == "beam-env"}
+    mine = [r for r in records if r["planner"] == planner and r["episode"] in env]
+    failed = [r for r in mine if not r["success"]]
+    model = sum(env[r["episode"]] for r in failed)
+    return {
+        "shared": len(mine),
+        "failures": len(failed),
+        "model": model,
+        "search": len(failed) - model,
+    }
+
+
+def _verdict(rows: Sequence[dict[str, Any]]) -> list[str]:
+    mine = next((r for r in rows if r["planner"] == "beam-moe"), None)
+    if mine is None:
+        return []
+    rate, cov = DIFFUSION_POLICY["success_rate"], DIFFUSION_POLICY["max_coverage"]
+    above = mine["success_low"] > rate
+    return [
+        f"The learned-model planner (beam-moe) succeeds in {mine['successes']}/{mine['episodes']} "
+        f"episodes ({100 * mine['success_rate']:.1f} %, 95 % interval "
+        f"{100 * mine['success_low']:.1f}-{100 * mine['success_high']:.1f} %), mean maximum "
+        f"coverage {mine['max_coverage']:.3f}. Goal: interval above {100 * rate:.1f} % "
+        f"({'met' if above else 'not met'}), coverage above {cov} "
+        f"({'met' if mine['max_coverage'] > cov else 'not met'}).",
+    ]
+
+
+def summary_lines(
+    config: PushTStudyConfig,
+    models: Sequence[dict[str, Any]],
+    planners: Sequence[dict[str, Any]],
+    curve: Sequence[dict[str, Any]],
+    records: Sequence[dict[str, Any]],
+    moved: np.ndarray,
+) -> list[str]:
+    """The study's Markdown summary."""
+    b = blame(records)
+    lines = [
+        "# Push-T: learned push models and a planner in gym-pusht 0.1.8",
+        "",
+        f"Goal (LeRobot's diffusion policy, {DIFFUSION_POLICY['episodes']} episodes): success "
+        f"{100 * DIFFUSION_POLICY['success_rate']:.1f} %, mean maximum coverage "
+        f"{DIFFUSION_POLICY['max_coverage']}. Episodes reset with seeds {config.seed}.. "
+        f"(the same for every planner); the environment's own rule (coverage > 95 %) and limit "
+        "(300 control steps).",
+        "",
+        *_verdict(planners),
+        "",
+        "## Planners",
+        "",
+        markdown_table(planners, _PLANNER_COLUMNS, digits=3),
+        f"On the {b['shared']} episodes beam-env also ran, beam-moe failed {b['failures']}: "
+        f"{b['model']} that the environment-as-model planner solved (the model's fault), "
+        f"{b['search']} that it failed too (the search's or the budget's).",
+        "",
+        "## Models (held-out pushes)",
+        "",
+        markdown_table(models, _MODEL_COLUMNS, digits=3),
+        "RMSE in px (dy_p across, dz_p along the push) and rad; NLPD in nats summed over the "
+        "three effects; coverage of the central 90 % intervals, averaged over them.",
+        "",
+    ]
+    if curve:
+        lines += ["## Success against training pushes (beam-moe)", ""]
+        lines += [markdown_table(curve, _CURVE_COLUMNS, digits=3)]
+    if moved.size:
+        lines.append(
+            f"The block moved more than 1 px while the pusher went around it in "
+            f"{100 * float((moved > 1).mean()):.1f} % of {moved.size} recorded pushes."
+        )
+    return lines

@@ -1,0 +1,581 @@
+r"""Exact GP experts fitted and evaluated together, as one batch of shape `(M, E)`.
+
+A mixture's M-step refits `M` exact `GPExpert`\ s, each `E` independent GPs. At the sizes
+of the push-model studies one evaluation of an expert's marginal likelihood is mostly fixed
+per-call overhead, so evaluating the `M` experts one by one costs about `M` times one batched
+evaluation. `fit_exact_experts` runs every expert's own L-BFGS (exactly the optimiser of
+`GPExpert.fit`, with its jitter fallback) in lock step: each optimiser waits at its
+evaluations, and all the pending evaluations are computed as one batched marginal likelihood
+(`stacked_log_likelihood`). The iterates are those of separate fits, up to the rounding of
+batched arithmetic, so the fitted hyperparameters and everything downstream are the same.
+`predict_exact_experts` computes every expert's predictive distribution in one batch.
+
+Experts hold different numbers of samples (samples of weight 0 are removed). Their training
+sets are padded to the longest with rows that are cut out of the problem exactly: a padded
+row has no covariance with any other row, unit variance and a zero residual, and it is left
+out of the weight correction and the normalisation, so each expert's value is that of
+`GPExpert.marginal_log_likelihood`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import threading
+import warnings
+from collections.abc import Iterator, Sequence
+from contextvars import ContextVar
+from dataclasses import dataclass
+from typing import Any
+
+import torch
+from linear_operator.utils.errors import NanError, NotPSDError
+from torch import Tensor
+from torch.distributions import Normal
+
+from probaff.errors import NotFittedError
+from probaff.models.gp_expert import GPExpert
+
+__all__ = [
+    "ExpertStack",
+    "batching_enabled",
+    "fit_exact_experts",
+    "per_expert_fits",
+    "predict_exact_experts",
+    "stacked_log_likelihood",
+]
+
+# Whether `fit_exact_experts` and `predict_exact_experts` batch the experts (see
+# `per_expert_fits`).
+_BATCHED: ContextVar[bool] = ContextVar("probaff_batched_experts", default=True)
+
+# Jitter levels tried after the plain factorisation (as `psd_cholesky`).
+_MAX_TRIES = 3
+# Floor on predictive variances (in standardised output units), as `GPExpert.predict`.
+_MIN_VARIANCE = 1e-12
+# Most entries of one block of cross-covariances when predicting (bounds the memory).
+_PREDICT_BLOCK = 2**24
+# An expert is batched with larger ones only if it holds this share of their samples...
+_GROUP_RATIO = 0.75
+# ... or if the largest holds at most this many (then fixed per-call costs dominate).
+_GROUP_SMALL = 64
+
+
+@contextlib.contextmanager
+def per_expert_fits() -> Iterator[None]:
+    """Fit and predict the experts one at a time inside the block (the reference path).
+
+    `MixtureOfGPExperts.fit_experts` and `expert_predictions` then call `GPExpert.fit` and
+    `GPExpert.predict` expert by expert, as before batching; benchmarks compare the two.
+    """
+    token = _BATCHED.set(False)
+    try:
+        yield
+    finally:
+        _BATCHED.reset(token)
+
+
+def batching_enabled() -> bool:
+    """Whether experts are batched here (False inside `per_expert_fits`)."""
+    return _BATCHED.get()
+
+
+@dataclass(frozen=True)
+class ExpertStack:
+    """The standardised training sets of `B` experts, padded to the longest, `n` rows.
+
+    Attributes:
+        x: Inputs, `(B, n, D)`; padded rows are 0.
+        y: Targets, `(B, E, n)`; padded entries are 0.
+        weights: Sample weights, `(B, n)`; padded rows have weight 1.
+        mask: 1 for real rows, 0 for padded ones, `(B, n)`.
+        counts: Real rows per expert, `(B,)`.
+    """
+
+    x: Tensor
+    y: Tensor
+    weights: Tensor
+    mask: Tensor
+    counts: Tensor
+
+    @classmethod
+    def of(cls, experts: Sequence[GPExpert]) -> ExpertStack:
+        """Stack the training data that the fitted `experts` hold.
+
+        Raises:
+            NotFittedError: If an expert has no training data.
+        """
+        for expert in experts:
+            if not expert.is_fitted:
+                raise NotFittedError("GPExpert has no training data; call fit first.")
+        sizes = [expert.n_train for expert in experts]
+        n, ref = max(sizes), experts[0]
+        b, e, d = len(experts), ref.n_outputs, ref.n_features
+        x = ref.jitter.new_zeros(b, n, d)
+        y = ref.jitter.new_zeros(b, e, n)
+        weights = ref.jitter.new_ones(b, n)
+        mask = ref.jitter.new_zeros(b, n)
+        for i, (expert, size) in enumerate(zip(experts, sizes, strict=True)):
+            x[i, :size] = expert.gp.train_inputs[0]
+            y[i, :, :size] = expert.gp.train_targets
+            weights[i, :size] = expert.likelihood.weights
+            mask[i, :size] = 1.0
+        counts = ref.jitter.new_tensor(sizes)
+        return cls(x, y, weights, mask, counts)
+
+    def select(self, rows: Sequence[int]) -> ExpertStack:
+        """The stack of the experts `rows` only, padded to the longest of them."""
+        n = int(self.counts[list(rows)].max())
+        if list(rows) == list(range(self.x.shape[0])) and n == self.x.shape[1]:
+            return self
+        idx = torch.as_tensor(list(rows), device=self.x.device)
+        return ExpertStack(
+            self.x[idx, :n],
+            self.y[idx, :, :n],
+            self.weights[idx, :n],
+            self.mask[idx, :n],
+            self.counts[idx],
+        )
+
+    def groups(self, rows: Sequence[int] | None = None) -> list[list[int]]:
+        """Experts `rows` (all if None) in groups of similar size, largest first.
+
+        A batch costs its longest member's size for every member, so an expert joins a
+        group only if it holds at least `_GROUP_RATIO` of the group's largest size (or the
+        group is small enough for fixed per-call costs to dominate).
+        """
+        order = sorted(
+            range(self.x.shape[0]) if rows is None else rows,
+            key=lambda j: -int(self.counts[j]),
+        )
+        out: list[list[int]] = []
+        for j in order:
+            size = int(self.counts[j])
+            if out:
+                top = int(self.counts[out[-1][0]])
+                if size >= _GROUP_RATIO * top or top <= _GROUP_SMALL:
+                    out[-1].append(j)
+                    continue
+            out.append([j])
+        return out
+
+    @property
+    def noise_scale(self) -> Tensor:
+        """``1 / w_i`` on real rows and 0 on padded ones, `(B, 1, n)`."""
+        return (self.mask / self.weights)[:, None, :]
+
+    @property
+    def pair(self) -> Tensor:
+        """1 where both rows are real, `(B, 1, n, n)`."""
+        m = self.mask[:, None, :]
+        return m[..., :, None] * m[..., None, :]
+
+
+def _hyperparameters(experts: Sequence[GPExpert]) -> tuple[Tensor, Tensor, Tensor, Tensor]:
+    """Length scales `(B, E, D)`, amplitudes `(B, E)`, noise `(B, E)`, means `(B, E)`.
+
+    Differentiable in each expert's own raw parameters.
+    """
+    ref = experts[0]
+    kernel, noise_model = ref.gp.covar_module, ref.likelihood.noise_covar
+    raw_ls = torch.stack(
+        [e.gp.covar_module.base_kernel.raw_lengthscale[..., 0, :] for e in experts]
+    )
+    raw_os = torch.stack([e.gp.covar_module.raw_outputscale for e in experts])
+    raw_noise = torch.stack([e.likelihood.noise_covar.raw_noise[..., 0] for e in experts])
+    floor = torch.stack([e.likelihood.noise_covar.floor[..., 0] for e in experts])
+    lengthscale = kernel.base_kernel.raw_lengthscale_constraint.transform(raw_ls)
+    outputscale = kernel.raw_outputscale_constraint.transform(raw_os)
+    noise = noise_model.raw_noise_constraint.transform(raw_noise) + floor
+    constant = torch.stack([e.gp.mean_module.constant for e in experts])
+    return lengthscale, outputscale, noise, constant
+
+
+def _se_kernel(x1: Tensor, x2: Tensor, u: Tensor) -> Tensor:
+    """``exp(-sum_d u_d (x1_id - x2_jd)^2 / 2)`` for `x1: (B, n, D)`, `x2: (B, k, D)`.
+
+    `u` holds the inverse squared length scales, `(B, E, D)`; the result is `(B, E, n, k)`,
+    by the quadratic expansion that gpytorch's ``sq_dist`` uses.
+    """
+    a1 = u @ x1.square().mT  # (B, E, n)
+    a2 = a1 if x2 is x1 else u @ x2.square().mT
+    cross = (x1[:, None] * u[:, :, None, :]) @ x2[:, None].mT  # (B, E, n, k)
+    sq = (a1[..., :, None] + a2[..., None, :]).sub_(cross, alpha=2.0).clamp_min_(0.0)
+    if x2 is x1:
+        sq.diagonal(dim1=-2, dim2=-1).zero_()
+    return sq.mul_(-0.5).exp_()
+
+
+def _cholesky_per_member(a: Tensor, jitter: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+    """Lower Cholesky factors of `a: (B, E, n, n)` with the jitter policy of `psd_cholesky`.
+
+    Expert `b` (all `E` of its matrices together, as one call of `psd_cholesky` would) is
+    factorised as it is, then with ``jitter[b] * 10**k`` added for ``k < 3`` until it works.
+
+    Returns:
+        The factors `(B, E, n, n)` (identity for failed experts), and per expert `(B,)`
+        whether its matrix held NaN and whether it failed at every jitter.
+    """
+    nan = torch.isnan(a.diagonal(dim1=-2, dim2=-1).sum(-1) + a.sum((-2, -1))).any(-1)
+    eye = torch.eye(a.shape[-1], dtype=a.dtype, device=a.device)
+    if bool(nan.any()):
+        a = torch.where(nan[:, None, None, None], eye, a)
+    chol, info = torch.linalg.cholesky_ex(a)
+    failed = (info != 0).any(-1)
+    for k in range(_MAX_TRIES):
+        if not bool(failed.any()):
+            break
+        idx = failed.nonzero()[:, 0]
+        shift = (jitter[idx] * 10.0**k)[:, None, None, None] * eye
+        chol_k, info_k = torch.linalg.cholesky_ex(a[idx] + shift)
+        chol = chol.index_copy(0, idx, chol_k)
+        failed = failed.index_copy(0, idx, (info_k != 0).any(-1))
+    if bool(failed.any()):
+        chol = torch.where(failed[:, None, None, None], eye, chol)
+    return chol, nan, failed & ~nan
+
+
+def _train_factor(
+    stack: ExpertStack,
+    hyper: tuple[Tensor, Tensor, Tensor, Tensor],
+    jitter: Tensor,
+) -> tuple[Tensor, Tensor, Tensor, Tensor, Tensor, Tensor]:
+    """Factorise the padded training covariances ``K + sigma^2 W^{-1}``, `(B, E, n, n)`.
+
+    A padded row has no covariance with any other row, unit variance and a zero residual.
+
+    Returns:
+        The SE kernel without amplitude (0 at padded rows) `(B, E, n, n)`, the Cholesky
+        factors, the residuals `(B, E, n)`, `alpha = A^{-1} r` `(B, E, n)`, and the NaN and
+        failure flags `(B,)` of `_cholesky_per_member`.
+    """
+    lengthscale, outputscale, noise, constant = hyper
+    kse = _se_kernel(stack.x, stack.x, lengthscale.square().reciprocal()).mul_(stack.pair)
+    a = kse * outputscale[..., None, None]
+    diag = noise[..., None] * stack.noise_scale + (1.0 - stack.mask)[:, None, :]
+    a.diagonal(dim1=-2, dim2=-1).add_(diag)
+    chol, nan, failed = _cholesky_per_member(a, jitter)
+    resid = (stack.y - constant[..., None]) * stack.mask[:, None, :]
+    half = torch.linalg.solve_triangular(chol, resid[..., None], upper=False)
+    alpha = torch.linalg.solve_triangular(chol.mT, half, upper=True)[..., 0]
+    return kse, chol, resid, alpha, nan, failed
+
+
+class _StackedLogDensity(torch.autograd.Function):
+    r"""``log N(y; c, os K_se(u) + noise W^{-1})`` per expert and output, fused.
+
+    Inputs are the inverse squared length scales `u: (B, E, D)`, the amplitudes, noise
+    variances and means `(B, E)`, the per-expert jitters `(B,)` and the `ExpertStack`. The
+    gradient is the closed form of `probaff.models.gaussian_density` carried through the
+    SE kernel by hand: with :math:`G = \tfrac12(\alpha\alpha^\top - A^{-1})` and
+    :math:`H = G \circ K`, :math:`\partial/\partial u_d = -\sum_i (H 1)_i x_{id}^2 +
+    \sum_i x_{id} (H x)_{id}`. Experts that cannot be factorised get the value 0 and are
+    named by the two returned flags instead of raising.
+    """
+
+    @staticmethod
+    def forward(
+        ctx: Any,
+        u: Tensor,
+        outputscale: Tensor,
+        noise: Tensor,
+        constant: Tensor,
+        jitter: Tensor,
+        stack: ExpertStack,
+    ) -> tuple[Tensor, Tensor, Tensor]:
+        hyper = (u.rsqrt(), outputscale, noise, constant)
+        kse, chol, resid, alpha, nan, failed = _train_factor(stack, hyper, jitter)
+        ctx.save_for_backward(kse, chol, alpha, outputscale)
+        ctx.stack = stack
+        logdet = 2.0 * chol.diagonal(dim1=-2, dim2=-1).log().sum(-1)
+        n = resid.shape[-1]
+        out = -0.5 * ((resid * alpha).sum(-1) + logdet + n * math.log(2.0 * math.pi))
+        ctx.mark_non_differentiable(nan, failed)
+        return out, nan, failed
+
+    @staticmethod
+    def backward(ctx: Any, grad: Tensor, *_: Tensor) -> tuple[Tensor | None, ...]:
+        kse, chol, alpha, outputscale = ctx.saved_tensors
+        stack: ExpertStack = ctx.stack
+        half = 0.5 * grad
+        ainv = torch.cholesky_inverse(chol)
+        diag_g = half[..., None] * (alpha.square() - ainv.diagonal(dim1=-2, dim2=-1))
+        grad_noise = (diag_g * stack.noise_scale).sum(-1)
+        g = ainv.neg_().add_(alpha[..., :, None] * alpha[..., None, :])
+        h = g.mul_(half[..., None, None]).mul_(kse)  # G o K_se, (B, E, n, n)
+        grad_os = h.sum((-2, -1))
+        h.mul_(outputscale[..., None, None])  # G o K
+        x = stack.x
+        grad_u = ((h @ x[:, None]) * x[:, None]).sum(-2) - h.sum(-1) @ x.square()
+        grad_c = grad * alpha.sum(-1)
+        return grad_u, grad_os, grad_noise, grad_c, None, None
+
+
+def stacked_log_likelihood(
+    experts: Sequence[GPExpert], stack: ExpertStack | None = None, jitter: Tensor | None = None
+) -> tuple[Tensor, Tensor, Tensor]:
+    """Every expert's `GPExpert.marginal_log_likelihood`, computed as one batch.
+
+    Args:
+        experts: `B` fitted experts with the same `D`, `E` and options.
+        stack: Their training data (`ExpertStack.of(experts)` if None).
+        jitter: First fallback jitter of each expert, `(B,)`; their current ones if None.
+
+    Returns:
+        The weighted log marginal likelihood plus log prior over `n` per expert and output,
+        `(B, E)`, differentiable in every expert's hyperparameters (0 for an expert that
+        failed), and per expert `(B,)` whether its covariance held NaN and whether it could
+        not be factorised at any jitter.
+    """
+    stack = ExpertStack.of(experts) if stack is None else stack
+    if jitter is None:
+        jitter = torch.stack([e.jitter for e in experts])
+    lengthscale, outputscale, noise, constant = _hyperparameters(experts)
+    u = lengthscale.square().reciprocal()
+    value, nan, failed = _StackedLogDensity.apply(u, outputscale, noise, constant, jitter, stack)
+    n = stack.counts[:, None]  # (B, 1)
+    padded = stack.mask.shape[-1] - n
+    value = value + 0.5 * padded * math.log(2.0 * math.pi)
+    w_real = stack.weights.log().mul(stack.mask).sum(-1, keepdim=True)  # (B, 1)
+    unused = (stack.mask * (1.0 - stack.weights)).sum(-1, keepdim=True)  # (B, 1)
+    value = value + 0.5 * (unused * torch.log(2 * math.pi * noise) - w_real)
+    prior = getattr(experts[0].gp.covar_module.base_kernel, "lengthscale_prior", None)
+    if prior is not None:
+        value = value + prior.log_prob(lengthscale).sum(-1)
+    bad = nan | failed
+    if bool(bad.any()):
+        value = torch.where(bad[:, None], torch.zeros_like(value), value)
+    return value / n, nan, failed
+
+
+class _Lockstep:
+    """Runs the L-BFGS of every expert in its own thread, evaluating them as one batch.
+
+    Each worker blocks in `evaluate` until every worker still running is waiting or
+    finished; the main thread then computes all pending evaluations at once (so the
+    numbers cannot depend on the threads' timing) and wakes the workers.
+    """
+
+    def __init__(self, experts: Sequence[GPExpert]) -> None:
+        self.experts = list(experts)
+        self.stack = ExpertStack.of(self.experts)
+        self.cond = threading.Condition()
+        self.pending: dict[int, tuple[float, bool]] = {}
+        self.results: dict[int, Tensor | Exception] = {}
+        self.active = set(range(len(self.experts)))
+
+    def evaluate(self, j: int, jitter: float, grad: bool) -> Tensor:
+        """Called by worker `j`: its loss (setting the gradients if `grad`)."""
+        with self.cond:
+            self.pending[j] = (jitter, grad)
+            self.cond.notify_all()
+            while j not in self.results:
+                self.cond.wait()
+            result = self.results.pop(j)
+        if isinstance(result, Exception):
+            raise result
+        return result
+
+    def finish(self, j: int) -> None:
+        """Called by worker `j` when its fit is over."""
+        with self.cond:
+            self.active.discard(j)
+            self.cond.notify_all()
+
+    def serve(self) -> None:
+        """Main thread: answer batches of evaluations until every worker has finished."""
+        while True:
+            with self.cond:
+                while self.active and len(self.pending) < len(self.active):
+                    self.cond.wait()
+                if not self.active:
+                    return
+                batch = dict(sorted(self.pending.items()))
+                self.pending.clear()
+            try:
+                results = self._compute(batch)
+            except Exception as exc:  # deliver to the workers, which re-raise it
+                results = dict.fromkeys(batch, exc)
+            with self.cond:
+                self.results.update(results)
+                self.cond.notify_all()
+
+    def _compute(self, batch: dict[int, tuple[float, bool]]) -> dict[int, Tensor | Exception]:
+        grad = any(g for _, g in batch.values())
+        out: dict[int, Tensor | Exception] = {}
+        with torch.set_grad_enabled(grad):
+            losses = []
+            for rows in self.stack.groups(list(batch)):
+                experts = [self.experts[j] for j in rows]
+                jitter = self.stack.x.new_tensor([batch[j][0] for j in rows])
+                value, nan, failed = stacked_log_likelihood(
+                    experts, self.stack.select(rows), jitter
+                )
+                loss = -value.sum(-1)  # (B,)
+                losses.append(loss.sum())
+                for i, j in enumerate(rows):
+                    if bool(nan[i]):
+                        out[j] = NanError("the covariance matrix holds NaN.")
+                    elif bool(failed[i]):
+                        out[j] = NotPSDError(
+                            f"the covariance matrix is not positive definite even with jitter "
+                            f"{batch[j][0]}."
+                        )
+                    else:
+                        out[j] = loss[i].detach()
+            if grad:
+                for j in batch:
+                    for p in self.experts[j].parameters():
+                        p.grad = None
+                torch.stack(losses).sum().backward()
+        return out
+
+
+def fit_exact_experts(
+    experts: Sequence[GPExpert],
+    X: Tensor,
+    Y: Tensor,
+    weights: Tensor,
+    *,
+    max_iter: int | None = None,
+) -> None:
+    """Fit every expert on its weighted data, as `GPExpert.fit` would one by one.
+
+    Each expert runs its own L-BFGS with its own jitter fallback; their evaluations are
+    batched (see the module docstring). Inside `per_expert_fits` the experts are fitted one
+    after another by `GPExpert.fit`.
+
+    Args:
+        experts: `M` experts with the same `D`, `E` and options.
+        X: Expert features, `(N, D)`.
+        Y: Targets, `(N, E)`.
+        weights: Non-negative weight of each sample for each expert, `(N, M)`.
+        max_iter: L-BFGS iterations per expert; defaults to each expert's `max_iter`.
+
+    Raises:
+        InputError: On malformed inputs, or an expert whose weights are all zero.
+    """
+    if not batching_enabled():
+        for j, expert in enumerate(experts):
+            expert.fit(X, Y, weights[:, j], max_iter=max_iter)
+        return
+    for j, expert in enumerate(experts):
+        expert.condition(X, Y, weights[:, j])
+    lockstep = _Lockstep(experts)
+    ok = [False] * len(experts)
+    errors: list[BaseException | None] = [None] * len(experts)
+
+    def work(j: int, expert: GPExpert) -> None:
+        def evaluate(jitter: float, grad: bool) -> Tensor:
+            return lockstep.evaluate(j, jitter, grad)
+
+        try:
+            iters = expert.max_iter if max_iter is None else int(max_iter)
+            ok[j] = expert.optimise(iters, evaluate)
+        except BaseException as exc:  # re-raised in the calling thread
+            errors[j] = exc
+        finally:
+            lockstep.finish(j)
+
+    threads = [
+        threading.Thread(target=work, args=(j, e), daemon=True) for j, e in enumerate(experts)
+    ]
+    for thread in threads:
+        thread.start()
+    lockstep.serve()
+    for thread in threads:
+        thread.join()
+    for error in errors:
+        if error is not None:
+            raise error
+    if not all(ok):
+        warnings.warn(
+            "GP hyperparameter optimisation failed at every jitter level; the previous "
+            "hyperparameters are kept.",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+
+
+def _predict_block(
+    stack: ExpertStack,
+    z_test: Tensor,
+    hyper: tuple[Tensor, Tensor, Tensor, Tensor],
+    alpha: Tensor,
+    chol: Tensor,
+) -> tuple[Tensor, Tensor]:
+    """Latent mean and variance `(B, E, k)` at standardised inputs `z_test: (B, k, D)`.
+
+    `hyper` is `_hyperparameters`' result, `chol` the training factors `(B, E, n, n)` and
+    `alpha` the training residuals solved against them, `(B, E, n)`.
+    """
+    lengthscale, outputscale, _, constant = hyper
+    u = lengthscale.square().reciprocal()
+    cross = _se_kernel(stack.x, z_test, u).mul_(stack.mask[:, None, :, None])
+    cross.mul_(outputscale[..., None, None])  # (B, E, n, k)
+    mean = constant[..., None] + (alpha[..., None, :] @ cross)[..., 0, :]
+    v = torch.linalg.solve_triangular(chol, cross, upper=False)
+    var = outputscale[..., None] - v.square().sum(-2)
+    return mean, var
+
+
+def predict_exact_experts(
+    experts: Sequence[GPExpert], X: Tensor, *, include_noise: bool = True
+) -> Normal:
+    """Every expert's `GPExpert.predict` at the same inputs, computed as one batch.
+
+    Args:
+        experts: `M` fitted experts with the same `D`, `E` and options.
+        X: Expert features, `(N, D)`, on the experts' device.
+        include_noise: Add each expert's observation noise (weight 1).
+
+    Returns:
+        Normals with loc and scale `(N, M, E)`, in output units.
+
+    Raises:
+        NotFittedError: If an expert has no training data.
+        NotPSDError: If a training covariance cannot be factorised at any jitter.
+    """
+    if not batching_enabled():
+        preds = [e.predict(X, include_noise=include_noise) for e in experts]
+        return Normal(
+            torch.stack([p.loc for p in preds], dim=1), torch.stack([p.scale for p in preds], dim=1)
+        )
+    stack = ExpertStack.of(experts)
+    n_test, e = X.shape[0], stack.y.shape[1]
+    loc = X.new_empty(n_test, len(experts), e)
+    scale = X.new_empty(n_test, len(experts), e)
+    with torch.no_grad():
+        for rows in stack.groups():
+            group = [experts[j] for j in rows]
+            mean, std = _predict_group(group, stack.select(rows), X, include_noise)
+            loc[:, rows], scale[:, rows] = mean, std
+    return Normal(loc, scale)
+
+
+def _predict_group(
+    experts: Sequence[GPExpert], stack: ExpertStack, X: Tensor, include_noise: bool
+) -> tuple[Tensor, Tensor]:
+    """Predictive means and standard deviations `(N, B, E)` of a batch of experts."""
+    hyper = _hyperparameters(experts)
+    jitter = torch.stack([e.jitter for e in experts])
+    _, chol, _, alpha, nan, failed = _train_factor(stack, hyper, jitter)
+    if bool((nan | failed).any()):
+        raise NotPSDError("a GP expert's training covariance is not positive definite.")
+    mean_x = torch.stack([e.x_scaler.mean for e in experts])[:, None, :]
+    std_x = torch.stack([e.x_scaler.std for e in experts])[:, None, :]
+    b, e, n = stack.y.shape
+    step = max(1, _PREDICT_BLOCK // max(1, b * e * n))
+    means, variances = [], []
+    for start in range(0, X.shape[0], step):
+        z = (X[None, start : start + step] - mean_x) / std_x
+        mean, var = _predict_block(stack, z, hyper, alpha, chol)
+        means.append(mean)
+        variances.append(var)
+    mean, var = torch.cat(means, -1), torch.cat(variances, -1)  # (B, E, N)
+    if include_noise:
+        var = var + hyper[2][..., None]
+    var = var.clamp_min(_MIN_VARIANCE)
+    y_mean = torch.stack([e.y_scaler.mean for e in experts])[..., None]
+    y_std = torch.stack([e.y_scaler.std for e in experts])[..., None]
+    return (mean * y_std + y_mean).permute(2, 0, 1), (var.sqrt() * y_std).permute(2, 0, 1)

@@ -1,0 +1,99 @@
+"""Models fit and predict on the device of their data; unknown devices are refused."""
+
+import numpy as np
+import pytest
+import torch
+
+from probaff.errors import InputError
+from probaff.models import GPExpert, MixtureOfGPExperts, fit_em
+from probaff.models.gate import make_gate
+from probaff.models.initialization import initial_responsibilities, split_responsibilities
+from probaff.models.synthetic import regime_features
+from probaff.models.tensors import as_matrix, as_vector, resolve_device, training_rows
+
+DEVICES = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
+
+
+@pytest.mark.parametrize("bad", ["cuda:7", "gpu", "cuda:x", 7])
+def test_a_device_that_does_not_exist_is_refused_by_name(bad: object) -> None:
+    if torch.cuda.device_count() > 7:
+        pytest.skip("this machine has a CUDA device 7")
+    with pytest.raises(InputError, match="device"):
+        resolve_device("device", bad)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="device"):
+        GPExpert(2, 1).to(bad)
+    with pytest.raises(InputError, match="device"):
+        MixtureOfGPExperts(2).to(device=bad)
+
+
+def test_resolve_device_accepts_the_cpu_in_every_spelling() -> None:
+    for spelling in (None, "cpu", torch.device("cpu")):
+        assert resolve_device("device", spelling) == torch.device("cpu")
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_arrays_keep_or_take_the_device(device: str) -> None:
+    dev = torch.device(device)
+    t = torch.ones(3, 2, device=dev)
+    assert as_matrix("x", t).device.type == dev.type  # a tensor keeps its device
+    assert as_matrix("x", np.ones((3, 2))).device.type == "cpu"
+    assert as_matrix("x", np.ones((3, 2)), device=dev).device.type == dev.type
+    assert as_vector("w", [1.0, 2.0], n=2, device=dev).device.type == dev.type
+    x, y = training_rows(t, np.zeros((3, 1)), "push")
+    assert x.device == y.device and x.device.type == dev.type
+    with pytest.raises(InputError, match="NaN"):
+        as_matrix("x", torch.tensor([[float("nan")]], device=dev))
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_gp_expert_fits_and_predicts_on_its_device(device: str) -> None:
+    g = torch.Generator().manual_seed(0)
+    x = torch.rand(40, 3, generator=g, dtype=torch.float64)
+    y = torch.sin(3 * x[:, :1]) + 0.01 * torch.randn(40, 1, generator=g, dtype=torch.float64)
+    w = torch.rand(40, generator=g, dtype=torch.float64)
+    ref = GPExpert(3, 1, max_iter=10).fit(x, y, w)
+    expert = GPExpert(3, 1, max_iter=10).to(device)
+    assert expert.device.type == torch.device(device).type
+    expert.fit(x.to(device), y.to(device), w.to(device))
+    pred = expert.predict(x[:5].numpy())  # arrays go to the expert's device
+    assert pred.loc.device.type == torch.device(device).type
+    torch.testing.assert_close(pred.loc.cpu(), ref.predict(x[:5]).loc, rtol=1e-6, atol=1e-8)
+    loo = expert.loo_predict()
+    assert loo.loc.device.type == torch.device(device).type
+    torch.testing.assert_close(loo.scale.cpu(), ref.loo_predict().scale, rtol=1e-6, atol=1e-8)
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_gate_and_starts_follow_the_data(device: str) -> None:
+    g = torch.Generator().manual_seed(1)
+    x = torch.randn(60, 2, generator=g, dtype=torch.float64).to(device)
+    r = torch.softmax(torch.stack([x[:, 0], -x[:, 0]], 1) * 3, 1)
+    gate = make_gate("fourier", 2, 2, l2="cv", n_random_features=8)
+    gate.fit(x, r)
+    assert gate.weight.device.type == torch.device(device).type
+    assert gate.predict_proba(x).device.type == torch.device(device).type
+    start = initial_responsibilities("joint", x, x, 2, n_init=1)
+    assert start.device.type == torch.device(device).type
+    split = split_responsibilities(start, 0, x, x, seed=0, n_init=1)
+    assert split.shape == (60, 3) and split.device.type == torch.device(device).type
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
+@pytest.mark.parametrize("device", DEVICES)
+def test_mixture_fits_on_the_device_of_its_data_with_the_cpu_result(device: str) -> None:
+    x, y, _ = regime_features(90, 16, 2, seed=0)
+    kwargs = {"groups": {"f_x": slice(0, 3)}, "gate_features": ("f_x",), "gp_max_iter": 8}
+    opts = {"max_iter": 2, "n_restarts": 1, "init": "joint", "seed": 0}
+    ref = MixtureOfGPExperts(2, **kwargs)
+    ref_hist = fit_em(ref, x, y, **opts)
+    model = MixtureOfGPExperts(2, **kwargs).to(device)
+    hist = fit_em(model, x.to(device), y.to(device), **opts)
+    dev = torch.device(device).type
+    assert model.device.type == dev
+    assert all(p.device.type == dev for p in model.parameters())
+    pred = model.predict(x[:10].numpy())  # inputs move to the model's device
+    assert pred.mean.device.type == dev
+    torch.testing.assert_close(
+        torch.tensor(hist.objective), torch.tensor(ref_hist.objective), rtol=1e-6, atol=1e-6
+    )
+    torch.testing.assert_close(pred.mean.cpu(), ref.predict(x[:10]).mean, rtol=1e-5, atol=1e-6)

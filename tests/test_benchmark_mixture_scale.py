@@ -1,0 +1,107 @@
+"""Smoke test of benchmarks/mixture_scale.py: every method on both data sets, resume, bad flags."""
+
+import csv
+import importlib.util
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import statsmodels.api as sm
+import torch
+
+pytestmark = pytest.mark.slow
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPT = ROOT / "benchmarks/mixture_scale.py"
+METHODS = ["exact-em", "sparse-em", "vi", "svgp", "ccr"]
+
+
+@pytest.fixture(scope="module")
+def scale():
+    spec = importlib.util.spec_from_file_location("mixture_scale", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["mixture_scale"] = module
+    spec.loader.exec_module(module)
+    yield module
+    sys.modules.pop("mixture_scale", None)
+
+
+@pytest.mark.parametrize("data", ["regimes", "randhie"])
+def test_smoke_run_scores_every_method_and_resumes(scale, tmp_path, data):
+    argv = ["--smoke", "--data", data, "--methods", ",".join(METHODS), "--out", str(tmp_path)]
+    assert scale.main(argv) == 0
+    out = tmp_path / data
+    cells = sorted(out.glob("*_N*.json"))
+    assert {p.name for p in cells} == {f"{m}_N{n}.json" for m in METHODS for n in (60, 120)}
+    e = 2 if data == "regimes" else 1
+    for p in cells:
+        cell = json.loads(p.read_text())
+        assert cell["data"] == data and "skipped" not in cell
+        assert math.isfinite(cell["nlpd"]) and cell["rmse"] > 0, p.name
+        assert len(cell["nlpd_per_output"]) == cell["e"] == e
+        assert cell["fit_cpu_s"] > 0 and cell["n_test"] == 50
+        assert math.isclose(sum(cell["nlpd_per_output"]), cell["nlpd"])
+
+    with open(out / "scaling.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert {(r["method"], int(r["n"])) for r in rows} == {
+        (m, n) for m in METHODS for n in (60, 120)
+    }
+    assert all(math.isfinite(float(r["nlpd"])) for r in rows)
+    md = (out / "scaling.md").read_text()
+    assert all(f"| {m} | 120 |" in md for m in METHODS)
+    assert (out / "scaling.png").stat().st_size > 10_000
+
+    # a rerun finds every cell and fits nothing
+    mtimes = {p: p.stat().st_mtime_ns for p in cells}
+    assert scale.main(argv) == 0
+    assert {p: p.stat().st_mtime_ns for p in cells} == mtimes
+
+
+def test_randhie_split_is_fixed_and_disjoint(scale):
+    args = scale.parse_args(["--data", "randhie", "--seed", "3"])
+    a = scale.load_randhie(500, 100, args)
+    b = scale.load_randhie(800, 100, args)
+    assert a.x.shape == (500, 9) and a.y.shape == (500, 1) and a.x_test.shape == (100, 9)
+    assert a.x_test.equal(b.x_test) and a.x.equal(b.x[:500])  # same held-out rows, nested pools
+    assert (a.y >= 0).all() and a.labels is None
+    # the held-out rows and the full pool are a shuffle of every row: column sums agree
+    full = scale.load_randhie(scale.RANDHIE_ROWS - 100, 100, args)
+    assert full.x.shape[0] + full.x_test.shape[0] == scale.RANDHIE_ROWS
+    frame = sm.datasets.randhie.load_pandas().data
+    x_all = torch.cat([full.x_test, full.x])
+    assert torch.allclose(x_all.sum(0), torch.as_tensor(frame.drop(columns="mdvis").sum().values))
+    y_all = torch.cat([full.y_test, full.y])
+    assert torch.allclose(y_all.sum(), torch.as_tensor(np.log1p(frame["mdvis"]).sum()))
+    assert not x_all.equal(torch.as_tensor(frame.drop(columns="mdvis").values))  # shuffled
+    other = scale.load_randhie(500, 100, scale.parse_args(["--data", "randhie", "--seed", "4"]))
+    assert not other.x_test.equal(a.x_test)
+
+
+def test_ccr_is_skipped_above_its_limit(scale):
+    args = scale.parse_args(["--data", "randhie", "--methods", "ccr"])
+    scale._complete(args)
+    data = scale.load_randhie(scale.CCR_MAX_N + 1, 10, args)
+    cell = scale.run_cell("ccr", scale.CCR_MAX_N + 1, data, args)
+    assert cell["skipped"].startswith("too large") and "nlpd" not in cell
+
+
+@pytest.mark.parametrize(
+    ("flags", "word"),
+    [
+        (["--sizes", "100,-5"], "-5"),
+        (["--sizes", "100,1.5"], "1.5"),
+        (["--sizes", "0"], "0"),
+        (["--methods", "exact-em,nope"], "nope"),
+        (["--data", "mnist"], "mnist"),
+        (["--data", "randhie", "--init", "oracle"], "oracle"),
+    ],
+)
+def test_bad_flags_exit_2_with_one_line(scale, tmp_path, capsys, flags, word):
+    assert scale.main([*flags, "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and word in err and err.startswith("mixture_scale: error:")
+    assert not any(tmp_path.iterdir())
