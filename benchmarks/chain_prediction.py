@@ -19,10 +19,10 @@ Usage: python benchmarks/chain_prediction.py [--objects 5] [--samples 256] [--re
 
 import argparse
 import time
-from collections.abc import Callable
 
 import numpy as np
 import torch
+from _timing import best_times
 from threadpoolctl import threadpool_limits
 
 from probaff.features import (
@@ -80,16 +80,6 @@ class _TimedGeometry(Ch6Geometry):
         return out
 
 
-def _best(fn: Callable[[], object], repeats: int) -> tuple[float, float]:
-    wall, cpu = np.inf, np.inf
-    for _ in range(repeats):
-        t, c = time.perf_counter(), time.process_time()
-        fn()
-        wall = min(wall, time.perf_counter() - t)
-        cpu = min(cpu, time.process_time() - c)
-    return wall, cpu
-
-
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--objects", type=int, default=5)
@@ -120,7 +110,7 @@ def main() -> None:
         t = time.perf_counter()
         chain.predict_chain(scene, n_samples=args.samples, seed=0)
         share = geometry.seconds / (time.perf_counter() - t)
-        chain_wall, chain_cpu = _best(
+        chain_wall, chain_cpu = best_times(
             lambda: chain.predict_chain(scene, n_samples=args.samples, seed=0), args.repeats
         )
 
@@ -132,7 +122,7 @@ def main() -> None:
         T_e = T_s.copy()
         T_e[:, 1, 3] += np.linspace(0.02, 0.2, s)
         T_e[:, 0, 3] += np.random.default_rng(1).normal(0.0, 0.003, s)  # as sampled motions
-        feat_wall, feat_cpu = _best(
+        feat_wall, feat_cpu = best_times(
             lambda: interaction_features(
                 t_pts, t_nrm, a_pts, a_nrm, T_s, T_e, config, chunk=geometry.chunk
             ),

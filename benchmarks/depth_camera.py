@@ -13,12 +13,10 @@ Usage: python benchmarks/depth_camera.py [--repeats 5] [--width 320] [--height 2
 """
 
 import argparse
-import time
-from collections.abc import Callable
-from dataclasses import replace
 
 import numpy as np
 import torch
+from _timing import best_times
 from threadpoolctl import threadpool_limits
 
 from probaff._checks import check_count
@@ -59,16 +57,6 @@ def _office() -> PrimitiveScene:
     )
 
 
-def _best(fn: Callable[[], object], repeats: int) -> tuple[float, float]:
-    wall, cpu = np.inf, np.inf
-    for _ in range(repeats):
-        t, c = time.perf_counter(), time.process_time()
-        fn()
-        wall = min(wall, time.perf_counter() - t)
-        cpu = min(cpu, time.process_time() - c)
-    return wall, cpu
-
-
 def _plane(o: np.ndarray, d: np.ndarray) -> np.ndarray:
     """Hit points (N, 3) of the rays o + t d with the floor plane z = 0 (NaN behind)."""
     n, h = np.array([0.0, 0.0, 1.0]), 0.0
@@ -86,9 +74,7 @@ def main() -> None:
     args = ap.parse_args()
     try:
         args.repeats = check_count("--repeats", args.repeats)
-        spec = load_camera()
-        size = {k: v for k, v in (("width", args.width), ("height", args.height)) if v is not None}
-        spec = replace(spec, **size)
+        spec = load_camera(width=args.width, height=args.height)
     except ProbaffError as exc:
         ap.error(str(exc))
     torch.set_num_threads(1)
@@ -99,13 +85,15 @@ def main() -> None:
         head[:3, 3] = [0.0, 0.0, 1.2]
         pose = head_views(head, [0.0], [20.0])[0]
         image = camera.render(scene, pose, rng=np.random.default_rng(0))  # warm up
-        exact_wall, exact_cpu = _best(lambda: camera.render(scene, pose, noise=False), args.repeats)
-        noisy_wall, noisy_cpu = _best(
+        exact_wall, exact_cpu = best_times(
+            lambda: camera.render(scene, pose, noise=False), args.repeats
+        )
+        noisy_wall, noisy_cpu = best_times(
             lambda: camera.render(scene, pose, rng=np.random.default_rng(0)), args.repeats
         )
         rays = spec.pixel_rays().reshape(-1, 3) @ pose[:3, :3].T
         origin = pose[:3, 3]
-        plane_wall, plane_cpu = _best(lambda: _plane(origin, rays), args.repeats)
+        plane_wall, plane_cpu = best_times(lambda: _plane(origin, rays), args.repeats)
 
     n = len(rays)
     k = len(scene.boxes) + len(scene.cylinders)

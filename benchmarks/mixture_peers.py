@@ -86,7 +86,7 @@ import warnings
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 import torch
@@ -137,8 +137,41 @@ SMOKE = Budget(gp_iter=5, em_iter=2, svi_steps=20, sk_restarts=0)
 
 
 # ------------------------------------------------------------------------------- models
-class FitPredict(Protocol):
-    """Fit on a training fold and return the predictive distribution at the test inputs."""
+@dataclass(frozen=True)
+class Fold:
+    """What a model sees of one fold.
+
+    Attributes:
+        X_train: Training features, `(N, D)`.
+        Y_train: Training targets, `(N, E)`.
+        X_test: Held-out features to predict at, `(N_test, D)`.
+        seed: Seed of the fit.
+        n_experts: M of the mixture models.
+        budget: Optimiser effort.
+        noise_floor: Known noise standard deviation per output, or ``None``.
+    """
+
+    X_train: np.ndarray
+    Y_train: np.ndarray
+    X_test: np.ndarray
+    seed: int
+    n_experts: int = 3
+    budget: Budget = FULL
+    noise_floor: list[float] | None = None
+
+
+@dataclass(frozen=True)
+class FitPredict:
+    """Fit on a training fold and return the predictive distribution at the test inputs.
+
+    Called as ``model(X_train, Y_train, X_test, seed, *, n_experts, budget, noise_floor)``;
+    the distribution has batch shape ``(N_test,)`` and event shape ``(E,)``.
+
+    Attributes:
+        fit_predict: The model, on a `Fold`.
+    """
+
+    fit_predict: Callable[[Fold], Distribution]
 
     def __call__(
         self,
@@ -150,40 +183,27 @@ class FitPredict(Protocol):
         n_experts: int = 3,
         budget: Budget = FULL,
         noise_floor: list[float] | None = None,
-    ) -> Distribution: ...
+    ) -> Distribution:
+        return self.fit_predict(
+            Fold(X_train, Y_train, X_test, seed, n_experts, budget, noise_floor)
+        )
 
 
-def single_gp(
-    X_train: np.ndarray,
-    Y_train: np.ndarray,
-    X_test: np.ndarray,
-    seed: int,
-    *,
-    n_experts: int = 3,
-    budget: Budget = FULL,
-    noise_floor: list[float] | None = None,
-) -> Distribution:
+@FitPredict
+def single_gp(fold: Fold) -> Distribution:
     """One probaff GP expert over all the data (`seed` and `n_experts` are unused)."""
     gp = GPExpert(
-        X_train.shape[1],
-        Y_train.shape[1],
-        max_iter=budget.gp_iter,
+        fold.X_train.shape[1],
+        fold.Y_train.shape[1],
+        max_iter=fold.budget.gp_iter,
         lengthscale_prior=True,
-        noise_floor=noise_floor,
-    ).fit(X_train, Y_train)
-    return Independent(gp.predict(X_test), 1)
+        noise_floor=fold.noise_floor,
+    ).fit(fold.X_train, fold.Y_train)
+    return Independent(gp.predict(fold.X_test), 1)
 
 
-def ccr(
-    X_train: np.ndarray,
-    Y_train: np.ndarray,
-    X_test: np.ndarray,
-    seed: int,
-    *,
-    n_experts: int = 3,
-    budget: Budget = FULL,
-    noise_floor: list[float] | None = None,
-) -> Distribution:
+@FitPredict
+def ccr(fold: Fold) -> Distribution:
     """Cluster [X, Y] with a GMM, gate with logistic regression, one sklearn GP per cluster."""
     from sklearn.gaussian_process import GaussianProcessRegressor
     from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
@@ -191,23 +211,27 @@ def ccr(
     from sklearn.mixture import GaussianMixture
     from sklearn.preprocessing import StandardScaler
 
-    n, d = X_train.shape
-    e = Y_train.shape[1]
-    joint = StandardScaler().fit_transform(np.hstack([X_train, Y_train]))
-    covariance = "full" if n >= 2 * n_experts * (d + e) else "diag"
+    n, d = fold.X_train.shape
+    e = fold.Y_train.shape[1]
+    joint = StandardScaler().fit_transform(np.hstack([fold.X_train, fold.Y_train]))
+    covariance = "full" if n >= 2 * fold.n_experts * (d + e) else "diag"
     gmm = GaussianMixture(
-        n_experts, covariance_type=covariance, n_init=10, random_state=seed, reg_covar=1e-6
+        fold.n_experts,
+        covariance_type=covariance,
+        n_init=10,
+        random_state=fold.seed,
+        reg_covar=1e-6,
     )
     labels = gmm.fit_predict(joint)
     classes = np.unique(labels)
-    x_scaler = StandardScaler().fit(X_train)
-    xs, xt = x_scaler.transform(X_train), x_scaler.transform(X_test)
+    x_scaler = StandardScaler().fit(fold.X_train)
+    xs, xt = x_scaler.transform(fold.X_train), x_scaler.transform(fold.X_test)
     if len(classes) > 1:
         gate = LogisticRegression(C=1.0, max_iter=1000).fit(xs, labels)
         probs = gate.predict_proba(xt)  # columns in the order of `classes`
     else:
-        probs = np.ones((len(X_test), 1))
-    loc = np.empty((len(X_test), len(classes), e))
+        probs = np.ones((len(fold.X_test), 1))
+    loc = np.empty((len(fold.X_test), len(classes), e))
     scale = np.empty_like(loc)
     for k, c in enumerate(classes):
         rows = labels == c
@@ -216,9 +240,12 @@ def ccr(
                 np.ones(d), length_scale_bounds=(1e-3, 1e5)
             ) + WhiteKernel(0.1, noise_level_bounds=(1e-6, 1e1))
             gpr = GaussianProcessRegressor(
-                kernel, normalize_y=True, random_state=seed, n_restarts_optimizer=budget.sk_restarts
+                kernel,
+                normalize_y=True,
+                random_state=fold.seed,
+                n_restarts_optimizer=fold.budget.sk_restarts,
             )
-            gpr.fit(xs[rows], Y_train[rows, j])
+            gpr.fit(xs[rows], fold.Y_train[rows, j])
             mean, std = gpr.predict(xt, return_std=True)
             loc[:, k, j], scale[:, k, j] = mean, np.maximum(std, 1e-9)
     return mixture_distribution(
@@ -227,68 +254,45 @@ def ccr(
     )
 
 
-def clustered(
-    X_train: np.ndarray,
-    Y_train: np.ndarray,
-    X_test: np.ndarray,
-    seed: int,
-    *,
-    n_experts: int = 3,
-    budget: Budget = FULL,
-    noise_floor: list[float] | None = None,
-) -> Distribution:
+@FitPredict
+def clustered(fold: Fold) -> Distribution:
     """Chapter 4's GMM-clustered GP experts with a soft (calibrated SVM) gate."""
-    dims = (0, 1) if Y_train.shape[1] > 1 else (0,)
+    dims = (0, 1) if fold.Y_train.shape[1] > 1 else (0,)
     model = ClusteredGPModel(
-        n_experts,
+        fold.n_experts,
         cluster_dims=dims,
-        seed=seed,
+        seed=fold.seed,
         soft_gate=True,
         expert_kwargs={
             "lengthscale_prior": True,
-            "max_iter": budget.gp_iter,
-            "noise_floor": noise_floor,
+            "max_iter": fold.budget.gp_iter,
+            "noise_floor": fold.noise_floor,
         },
     )
-    return model.fit(X_train, Y_train).predict(X_test)
+    return model.fit(fold.X_train, fold.Y_train).predict(fold.X_test)
 
 
-def em(
-    X_train: np.ndarray,
-    Y_train: np.ndarray,
-    X_test: np.ndarray,
-    seed: int,
-    *,
-    n_experts: int = 3,
-    budget: Budget = FULL,
-    noise_floor: list[float] | None = None,
-    fit: Callable[..., Any] = fit_em,
-) -> Distribution:
+def _em(fold: Fold, fit: Callable[..., Any] = fit_em) -> Distribution:
     """probaff's mixture of GP experts fitted by EM (`fit` is `fit_em` or a partial of it)."""
     model = MixtureOfGPExperts(
-        n_experts,
-        gp_max_iter=budget.gp_iter,
+        fold.n_experts,
+        gp_max_iter=fold.budget.gp_iter,
         lengthscale_prior=True,
-        noise_floor="auto" if noise_floor is None else noise_floor,
+        noise_floor="auto" if fold.noise_floor is None else fold.noise_floor,
     )
-    fit(model, X_train, Y_train, seed=seed, max_iter=budget.em_iter)
-    return model.predict(X_test)
+    fit(model, fold.X_train, fold.Y_train, seed=fold.seed, max_iter=fold.budget.em_iter)
+    return model.predict(fold.X_test)
 
 
-def vi(
-    X_train: np.ndarray,
-    Y_train: np.ndarray,
-    X_test: np.ndarray,
-    seed: int,
-    *,
-    n_experts: int = 3,
-    budget: Budget = FULL,
-    noise_floor: list[float] | None = None,
-) -> Distribution:
+em = FitPredict(_em)
+
+
+@FitPredict
+def vi(fold: Fold) -> Distribution:
     """probaff's mixture of sparse variational GP experts fitted by Pyro SVI."""
-    model = VariationalMixtureOfGPExperts(n_experts, n_inducing=min(32, len(X_train)))
-    fit_svi(model, X_train, Y_train, seed=seed, n_steps=budget.svi_steps)
-    return model.predict(X_test)
+    model = VariationalMixtureOfGPExperts(fold.n_experts, n_inducing=min(32, len(fold.X_train)))
+    fit_svi(model, fold.X_train, fold.Y_train, seed=fold.seed, n_steps=fold.budget.svi_steps)
+    return model.predict(fold.X_test)
 
 
 def fit_em_accepts(name: str) -> bool:
@@ -312,9 +316,13 @@ MODELS: dict[str, FitPredict] = {
 }
 if fit_em_accepts("init"):
     for _init in EM_INITS:
-        MODELS[f"em_{_init}"] = functools.partial(em, fit=functools.partial(fit_em, init=_init))
+        MODELS[f"em_{_init}"] = FitPredict(
+            functools.partial(_em, fit=functools.partial(fit_em, init=_init))
+        )
 if fit_em_accepts("n_finish"):
-    MODELS["em_finish2"] = functools.partial(em, fit=functools.partial(fit_em, n_finish=2))
+    MODELS["em_finish2"] = FitPredict(
+        functools.partial(_em, fit=functools.partial(fit_em, n_finish=2))
+    )
 MODELS["vi"] = vi
 
 
@@ -354,20 +362,28 @@ def _subsample(X: np.ndarray, Y: np.ndarray, rows: int | None) -> tuple[np.ndarr
     return X[keep], Y[keep]
 
 
-def load_ch5(data_root: Path, rows: int | None, progress: bool) -> Dataset:
-    """Chapter 5 two-object pushes: f_o & f_c features, (dy, dz, dth) of both objects."""
+def _noisy_pushes(kind: str, n: int, data_root: Path, progress: bool) -> Any:
+    """`n` simulated pushes of scene `kind` (seed 0, poses observed with `PoseNoise()`),
+    generated under `data_root` on first use and read back afterwards."""
     from probaff.data.generation import GenerateConfig, generate
     from probaff.data.noise import PoseNoise
-    from probaff.features import chapter5_features
 
-    n = rows or 321
-    ds = generate(
-        GenerateConfig("two_objects", n, seed=0, pose_noise=PoseNoise()),
-        data_root / f"two_objects-noisy-n{n}",
+    return generate(
+        GenerateConfig(kind, n, seed=0, pose_noise=PoseNoise()),
+        data_root / f"{kind}-noisy-n{n}",
         workers=0,
         resume=True,
         progress=progress,
     )
+
+
+def load_ch5(data_root: Path, rows: int | None, progress: bool) -> Dataset:
+    """Chapter 5 two-object pushes: f_o & f_c features, (dy, dz, dth) of both objects."""
+    from probaff.data.noise import PoseNoise
+    from probaff.features import chapter5_features
+
+    n = rows or 321
+    ds = _noisy_pushes("two_objects", n, data_root, progress)
     X = chapter5_features(ds).select("f_o", "f_c")
     Y = ds["effect"][:, :2].reshape(len(ds), 6)
     return Dataset(
@@ -381,18 +397,11 @@ def load_ch5(data_root: Path, rows: int | None, progress: bool) -> Dataset:
 
 def load_ch4(data_root: Path, rows: int | None, progress: bool) -> Dataset:
     """Chapter 4 single-object pushes near an obstacle: f_o & f_c, (dy, dz, dth)."""
-    from probaff.data.generation import GenerateConfig, generate
     from probaff.data.noise import PoseNoise
     from probaff.features import chapter4_features
 
     n = rows or 120
-    ds = generate(
-        GenerateConfig("near_obstacle", n, seed=0, pose_noise=PoseNoise()),
-        data_root / f"near_obstacle-noisy-n{n}",
-        workers=0,
-        resume=True,
-        progress=progress,
-    )
+    ds = _noisy_pushes("near_obstacle", n, data_root, progress)
     X = chapter4_features(ds).select("f_o", "f_c")
     return Dataset(
         "ch4",
@@ -752,18 +761,26 @@ def plot(
 
 
 # ---------------------------------------------------------------------------------- CLI
-def _names(text: str | None, known: dict[str, Any], what: str) -> list[str]:
-    """Comma-separated names (all of `known` if None); ValueError names an unknown one."""
-    if text is None:
-        return list(known)
+def comma_names(text: str, known: dict[str, Any], unknown: str) -> list[str]:
+    """The distinct comma-separated names in `text`, each a key of `known`, in order.
+
+    Raises:
+        ValueError: ``"<unknown> 'a', 'b'; choose from <known>"`` for names not in `known`,
+            or with ``(none given)`` for no name at all.
+    """
     names = [t.strip() for t in text.split(",") if t.strip()]
-    unknown = [n for n in names if n not in known]
-    if unknown or not names:
+    bad = [n for n in names if n not in known]
+    if bad or not names:
         raise ValueError(
-            f"unknown {what} {', '.join(map(repr, unknown)) or '(none given)'}; "
+            f"{unknown} {', '.join(map(repr, bad)) or '(none given)'}; "
             f"choose from {', '.join(known)}"
         )
     return list(dict.fromkeys(names))
+
+
+def _names(text: str | None, known: dict[str, Any], what: str) -> list[str]:
+    """Comma-separated names (all of `known` if None); ValueError names an unknown one."""
+    return list(known) if text is None else comma_names(text, known, f"unknown {what}")
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:

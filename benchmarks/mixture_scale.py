@@ -541,14 +541,7 @@ def _sizes(text: str) -> list[int]:
 
 def _names(text: str, known: dict[str, Any], flag: str) -> list[str]:
     """Comma-separated names from `known`; ValueError names an unknown one."""
-    names = [t.strip() for t in text.split(",") if t.strip()]
-    unknown = [n for n in names if n not in known]
-    if unknown or not names:
-        raise ValueError(
-            f"{flag}: unknown {', '.join(map(repr, unknown)) or '(none given)'}; "
-            f"choose from {', '.join(known)}"
-        )
-    return list(dict.fromkeys(names))
+    return load_peers().comma_names(text, known, f"{flag}: unknown")
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:

@@ -18,7 +18,6 @@ Usage: python benchmarks/perception.py [--repeats 3] [--seed 0] [--train 4]
 import argparse
 import time
 from collections.abc import Callable
-from dataclasses import replace
 from typing import TypeVar
 
 import numpy as np
@@ -29,8 +28,13 @@ from probaff._checks import check_count
 from probaff.errors import ProbaffError
 from probaff.perception.labels import LabelClassifier
 from probaff.perception.normals import Normals, estimate_normals
-from probaff.perception.region_growing import Segmentation, region_growing
-from probaff.perception.scan_labels import PerceptionConfig, head_pose, scenes_dataset
+from probaff.perception.region_growing import Segmentation
+from probaff.perception.scan_labels import (
+    PerceptionConfig,
+    grow_regions,
+    head_pose,
+    scenes_dataset,
+)
 from probaff.perception.segment_features import SegmentFeatures, segment_features
 from probaff.sim import load_office, sample_office_scenes
 from probaff.sim.camera import DepthCamera, DepthImage, head_views, load_camera
@@ -63,9 +67,7 @@ def main() -> None:
         args.repeats = check_count("--repeats", args.repeats)
         args.seed = check_count("--seed", args.seed, minimum=0)
         args.train = check_count("--train", args.train)
-        spec = load_camera()
-        size = {k: v for k, v in (("width", args.width), ("height", args.height)) if v is not None}
-        spec = replace(spec, **size)
+        spec = load_camera(width=args.width, height=args.height)
     except ProbaffError as exc:
         ap.error(str(exc))
     torch.set_num_threads(1)
@@ -93,16 +95,7 @@ def main() -> None:
         n_wall, n_cpu, nrm = _best(normals, args.repeats)
 
         def segments() -> Segmentation:
-            return region_growing(
-                pts,
-                nrm.normals,
-                nrm.curvature,
-                k=cfg.k,
-                smoothness_deg=cfg.smoothness_deg,
-                curvature_threshold=cfg.curvature_threshold,
-                min_size=cfg.min_size,
-                neighbours=nrm.neighbours,
-            )
+            return grow_regions(pts, nrm, cfg)
 
         s_wall, s_cpu, seg = _best(segments, args.repeats)
 

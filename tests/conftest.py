@@ -1,3 +1,11 @@
+import contextlib
+import importlib.util
+import os
+import sys
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from types import ModuleType
+
 import numpy as np
 import pytest
 import torch
@@ -15,3 +23,47 @@ def _deterministic_threads():
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)
+
+
+@pytest.fixture
+def generate_cli() -> Callable[..., int]:
+    """Run ``probaff generate`` serially and quietly.
+
+    Returns:
+        ``run(scene, n, out, *flags)``: the exit status of ``probaff generate --scene SCENE
+        --n N --out OUT --workers 0 --quiet FLAGS...``.
+    """
+
+    def run(scene: str, n: int, out: str | os.PathLike[str], *flags: str) -> int:
+        from probaff.cli import main
+
+        argv = ["generate", "--scene", scene, "--n", str(n), "--out", str(out)]
+        return main([*argv, "--workers", "0", "--quiet", *flags])
+
+    return run
+
+
+@contextlib.contextmanager
+def _benchmark_script(name: str) -> Iterator[ModuleType]:
+    """Import ``benchmarks/<name>.py`` as the module `name`; it leaves `sys.modules` after."""
+    script = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, script)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+        yield module
+    finally:
+        sys.modules.pop(name, None)
+
+
+@pytest.fixture(scope="session")
+def benchmark_script() -> Callable[[str], contextlib.AbstractContextManager[ModuleType]]:
+    """Import a benchmark script as a module.
+
+    Returns:
+        ``benchmark_script(name)``: a context manager that imports ``benchmarks/<name>.py`` as
+        the module `name`, registered in `sys.modules` (its dataclasses need it) until it exits.
+    """
+    return _benchmark_script

@@ -1,27 +1,17 @@
 """Smoke test of benchmarks/mixture_peers.py: same folds for every model, tables and figure."""
 
 import csv
-import importlib.util
 import math
-import sys
-from pathlib import Path
 
 import pytest
 
 pytestmark = pytest.mark.slow
 
-ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = ROOT / "benchmarks/mixture_peers.py"
-
 
 @pytest.fixture(scope="module")
-def peers():
-    spec = importlib.util.spec_from_file_location("mixture_peers", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["mixture_peers"] = module
-    spec.loader.exec_module(module)
-    yield module
-    sys.modules.pop("mixture_peers", None)
+def peers(benchmark_script):
+    with benchmark_script("mixture_peers") as module:
+        yield module
 
 
 def test_smoke_run_writes_rows_tables_and_figure(peers, tmp_path):

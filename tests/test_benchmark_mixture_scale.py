@@ -1,11 +1,8 @@
 """Smoke test of benchmarks/mixture_scale.py: every method on both data sets, resume, bad flags."""
 
 import csv
-import importlib.util
 import json
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,19 +11,13 @@ import torch
 
 pytestmark = pytest.mark.slow
 
-ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = ROOT / "benchmarks/mixture_scale.py"
 METHODS = ["exact-em", "sparse-em", "vi", "svgp", "ccr"]
 
 
 @pytest.fixture(scope="module")
-def scale():
-    spec = importlib.util.spec_from_file_location("mixture_scale", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["mixture_scale"] = module
-    spec.loader.exec_module(module)
-    yield module
-    sys.modules.pop("mixture_scale", None)
+def scale(benchmark_script):
+    with benchmark_script("mixture_scale") as module:
+        yield module
 
 
 @pytest.mark.parametrize("data", ["regimes", "randhie"])

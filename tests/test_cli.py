@@ -5,29 +5,9 @@ import json
 from probaff.cli import main
 
 
-def test_generate_and_describe(tmp_path, capsys):
+def test_generate_and_describe(tmp_path, capsys, generate_cli):
     out = tmp_path / "ds"
-    assert (
-        main(
-            [
-                "generate",
-                "--scene",
-                "near_obstacle",
-                "--n",
-                "6",
-                "--seed",
-                "2",
-                "--out",
-                str(out),
-                "--workers",
-                "0",
-                "--shard-size",
-                "4",
-                "--quiet",
-            ]
-        )
-        == 0
-    )
+    assert generate_cli("near_obstacle", 6, out, "--seed", "2", "--shard-size", "4") == 0
     capsys.readouterr()
     assert main(["describe", str(out)]) == 0
     summary = json.loads(capsys.readouterr().out)
@@ -38,69 +18,24 @@ def test_generate_and_describe(tmp_path, capsys):
         assert key in summary["objects"]["o1"]
 
 
-def test_existing_output_needs_resume(tmp_path, capsys):
+def test_existing_output_needs_resume(tmp_path, capsys, generate_cli):
     out = tmp_path / "ds"
     out.mkdir()
     (out / "something").write_text("x")
-    code = main(
-        [
-            "generate",
-            "--scene",
-            "two_objects",
-            "--n",
-            "2",
-            "--out",
-            str(out),
-            "--workers",
-            "0",
-            "--quiet",
-        ]
-    )
+    code = generate_cli("two_objects", 2, out)
     assert code == 2
     assert "--resume" in capsys.readouterr().err
 
 
-def test_unknown_scene_and_corrupt_dataset(tmp_path, capsys):
-    assert (
-        main(
-            [
-                "generate",
-                "--scene",
-                "garage",
-                "--n",
-                "2",
-                "--out",
-                str(tmp_path / "a"),
-                "--workers",
-                "0",
-                "--quiet",
-            ]
-        )
-        == 2
-    )
+def test_unknown_scene_and_corrupt_dataset(tmp_path, capsys, generate_cli):
+    assert generate_cli("garage", 2, tmp_path / "a") == 2
     assert "unknown scene 'garage'" in capsys.readouterr().err
     assert main(["describe", str(tmp_path)]) == 2
     assert "not a probaff dataset" in capsys.readouterr().err
 
 
-def test_negative_count(tmp_path, capsys):
-    assert (
-        main(
-            [
-                "generate",
-                "--scene",
-                "two_objects",
-                "--n",
-                "-3",
-                "--out",
-                str(tmp_path / "a"),
-                "--workers",
-                "0",
-                "--quiet",
-            ]
-        )
-        == 2
-    )
+def test_negative_count(tmp_path, capsys, generate_cli):
+    assert generate_cli("two_objects", -3, tmp_path / "a") == 2
     assert "n must be a positive integer" in capsys.readouterr().err
 
 

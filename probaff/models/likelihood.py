@@ -18,7 +18,7 @@ from gpytorch.mlls import AddedLossTerm
 from linear_operator.operators import DiagLinearOperator
 from torch import Tensor
 
-__all__ = ["WeightCorrection", "WeightedGaussianLikelihood", "WeightedNoise"]
+__all__ = ["WeightCorrection", "WeightedGaussianLikelihood", "WeightedNoise", "weight_correction"]
 
 _SCALAR = torch.Size()
 
@@ -101,6 +101,19 @@ class WeightedNoise(Noise):
         return DiagLinearOperator(diag.expand(*batch, n))
 
 
+def weight_correction(weights: Tensor, noise: Tensor) -> Tensor:
+    r"""The `WeightCorrection` term for sample weights and noise variances.
+
+    Args:
+        weights: Positive sample weights :math:`w_i`, `(n,)`.
+        noise: Noise variances :math:`\sigma^2`, `(*batch)`.
+
+    Returns:
+        :math:`\tfrac12 \sum_i [(1 - w_i) \log(2\pi\sigma^2) - \log w_i]`, `(*batch)`.
+    """
+    return 0.5 * ((1.0 - weights).sum() * torch.log(2 * math.pi * noise) - weights.log().sum())
+
+
 class WeightCorrection(AddedLossTerm):
     r"""Loss term making the marginal likelihood under :math:`K + \sigma^2 W^{-1}` a weighted one.
 
@@ -124,9 +137,7 @@ class WeightCorrection(AddedLossTerm):
 
     def loss(self, *params: Any) -> Tensor:
         """Return the correction per batch member, `(*batch_shape,)`."""
-        w = self.noise_model.weights
-        log_two_pi_noise = torch.log(2 * math.pi * self.noise_model.noise[..., 0])
-        return 0.5 * ((1.0 - w).sum() * log_two_pi_noise - w.log().sum())
+        return weight_correction(self.noise_model.weights, self.noise_model.noise[..., 0])
 
 
 class WeightedGaussianLikelihood(_GaussianLikelihoodBase):

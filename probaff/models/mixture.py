@@ -120,12 +120,16 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         n_inducing: Inducing points per output of sparse experts; None for
             ``min(DEFAULT_N_INDUCING, N)``. A value above the `N` training rows is refused
             when the model is fitted.
+        hyper_rows: Sparse experts holding more samples than this choose their inducing
+            inputs and hyperparameters on a uniform random subset of this many, then condition
+            on all of them (`probaff.models.options.SparseGPOptions`); None uses every sample.
         **columns: The column selection of `GatedMixture`: ``groups`` (named column groups),
             ``gate_features`` and ``expert_features``.
 
     Raises:
         InputError: If a selection names an unknown group, `n_experts` is not positive,
-            `experts` is not a known kind or `n_inducing` is not a positive integer.
+            `experts` is not a known kind or `n_inducing` or `hyper_rows` is not a
+            positive integer.
     """
 
     not_fitted_message = _NOT_FITTED
@@ -142,6 +146,7 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         noise_floor: float | Sequence[float] | str | None = "auto",
         experts: str = "auto",
         n_inducing: int | None = None,
+        hyper_rows: int | None = 4096,
         **columns: Any,
     ) -> None:
         super().__init__(n_experts, gate_l2=gate_l2, **columns)
@@ -170,6 +175,7 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
             )
         self.expert_kind = experts
         self.n_inducing = None if n_inducing is None else check_count("n_inducing", n_inducing)
+        self.hyper_rows = None if hyper_rows is None else check_count("hyper_rows", hyper_rows)
         self.built_expert_kind: str | None = None
         self.gp_max_iter = int(gp_max_iter)
         self.lengthscale_prior = bool(lengthscale_prior)
@@ -194,6 +200,7 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
             "noise_floor": self.noise_floor,
             "experts": self.expert_kind,
             "n_inducing": self.n_inducing,
+            "hyper_rows": self.hyper_rows,
         }
 
     @property
@@ -265,7 +272,9 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         d_e = len(self.expert_columns)
         self.built_expert_kind = kind
         self.experts = ExpertList(
-            SparseGPExpert(d_e, n_outputs, n_inducing=self.n_inducing, **settings)
+            SparseGPExpert(
+                d_e, n_outputs, n_inducing=self.n_inducing, hyper_rows=self.hyper_rows, **settings
+            )
             if kind == "sparse"
             else GPExpert(d_e, n_outputs, **settings)
             for _ in range(self.n_experts)
@@ -484,13 +493,22 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         self.check_fitted()
         if self._train_weights is None or self._train_weights.shape[0] != X.shape[0]:
             raise InputError("loo_log_lik needs the training set the mixture was fitted on.")
-        pred = self.expert_predictions(X)
-        loc, scale = pred.loc.clone(), pred.scale.clone()
+        if all(isinstance(e, GPExpert) for e in self.experts):  # one batched prediction
+            pred = self.expert_predictions(X)
+            loc, scale = pred.loc.clone(), pred.scale.clone()
+        else:  # sparse experts predict only the rows they do not hold
+            x_e = self.features(X)[:, self.expert_columns]
+            loc = X.new_empty(X.shape[0], self.n_experts, Y.shape[1])
+            scale = torch.empty_like(loc)
         for j, expert in enumerate(self.experts):
             held = self.train_weights[:, j] > 0
             loo = expert.loo_predict()
             loc[held, j] = loo.loc
             scale[held, j] = loo.scale
+            if not isinstance(expert, GPExpert) and not bool(held.all()):
+                out = expert.predict(x_e[~held])
+                loc[~held, j] = out.loc
+                scale[~held, j] = out.scale
         return Normal(loc, scale).log_prob(Y[:, None, :]).sum(-1)
 
     def lengthscales(self) -> list[Tensor]:

@@ -187,7 +187,16 @@ class SVIOptions:
         seed: Seed of the initialisation and the minibatches (an integer >= 0).
         init: ``"auto"``, ``"grow"``, ``"effects"``, ``"joint"``, a fitted
             `MixtureOfGPExperts`, or responsibilities `(N, M)` (see `fit_svi`).
-        init_rows: Rows of the exact EM fit behind ``"grow"`` and ``"auto"``.
+        init_rows: Rows of the exact EM fit behind ``"grow"`` and ``"auto"`` (a seeded
+            random subset when `N` is larger). At `N` = 1,000 on
+            `probaff.models.synthetic.regime_features` a start from 400 rows left VI's RMSE
+            10.5 % above EM's, a start from every row 1.4 % below it.
+        natural_step: Natural-gradient step of every q(u) per minibatch, in (0, 1] (a
+            full-batch step takes 1, the exact update).
+        gate_lr_scale: Adam step of the gate, relative to `lr`, when an exact mixture gave
+            it (0 keeps it; without such a start the gate takes `lr`).
+        hyper_lr_scale: Adam step of the kernels, means, noise and inducing inputs,
+            relative to `lr`, when an exact mixture gave them (0 keeps them).
 
     Raises:
         InputError: On construction, naming the first field out of range.
@@ -199,7 +208,10 @@ class SVIOptions:
     n_init: int = 5
     seed: int = 0
     init: Any = "auto"
-    init_rows: int = 400
+    init_rows: int = 2000
+    natural_step: float = 0.1
+    gate_lr_scale: float = 0.0
+    hyper_lr_scale: float = 0.0
 
     def __post_init__(self) -> None:
         """Validate every field and store counts and numbers as builtin types."""
@@ -207,6 +219,13 @@ class SVIOptions:
             _set(self, name, check_count(name, getattr(self, name)))
         check_positive("lr", self.lr)
         _set(self, "lr", float(self.lr))
+        check_positive("natural_step", self.natural_step)
+        if float(self.natural_step) > 1.0:
+            raise InputError(f"natural_step must lie in (0, 1], got {self.natural_step!r}.")
+        _set(self, "natural_step", float(self.natural_step))
+        for name in ("gate_lr_scale", "hyper_lr_scale"):
+            check_positive(name, getattr(self, name), allow_zero=True)
+            _set(self, name, float(getattr(self, name)))
         _set(self, "seed", check_count("seed", self.seed, minimum=0))
         _check_init(self.init, extra=(torch.nn.Module,))
 
@@ -283,7 +302,7 @@ class SparseGPOptions(GPOptions):
     """Settings of an inducing-point `SparseGPExpert` and its fit.
 
     The fields of `GPOptions` (`max_iter`, `lengthscale_prior`, `noise_floor`, `outputscale`,
-    `noise`) mean the same here; two are added.
+    `noise`) mean the same here; three are added.
 
     Attributes:
         n_inducing: Inducing points `m` per output; None for 256. At most the number of
@@ -292,6 +311,13 @@ class SparseGPOptions(GPOptions):
         learn_inducing: Optimise the inducing inputs with the hyperparameters (each fit
             still starts them from the greedy selection on the expert's weighted samples);
             False keeps the selection fixed, which is faster.
+        hyper_rows: Rows the hyperparameters and the inducing inputs are chosen on: an
+            expert holding more samples of non-zero weight maximises the bound of a uniform
+            random subset of this many of them (with their weights; the same subset for the
+            same data), then conditions on all of them. This is Chalupka, Williams & Murray's
+            (2013) "subset of data for the hyperparameters, all data for the predictions",
+            which makes a fit's cost :math:`O(N m^2)` with a constant independent of `N`.
+            None optimises on every sample.
 
     Raises:
         InputError: On construction, naming the first field out of range.
@@ -299,10 +325,12 @@ class SparseGPOptions(GPOptions):
 
     n_inducing: int | None = None
     learn_inducing: bool = False
+    hyper_rows: int | None = 4096
 
     def __post_init__(self) -> None:
         """Validate every field and store it as builtin types."""
         super().__post_init__()
-        if self.n_inducing is not None:
-            _set(self, "n_inducing", check_count("n_inducing", self.n_inducing))
+        for name in ("n_inducing", "hyper_rows"):
+            if getattr(self, name) is not None:
+                _set(self, name, check_count(name, getattr(self, name)))
         _set(self, "learn_inducing", _check_bool("learn_inducing", self.learn_inducing))

@@ -35,7 +35,7 @@ from probaff.errors import InputError, NotFittedError
 from probaff.models._scaling import Standardizer
 from probaff.models.gp_expert import noise_floor_vector
 from probaff.models.kernels import ard_se_kernel, lengthscale_prior
-from probaff.models.likelihood import WeightedGaussianLikelihood
+from probaff.models.likelihood import WeightedGaussianLikelihood, weight_correction
 from probaff.models.options import (
     NOISE_BOUNDS,
     OUTPUTSCALE_BOUNDS,
@@ -232,7 +232,11 @@ class SparseGPExpert(torch.nn.Module):
 
     Inducing inputs are chosen from the expert's weighted samples by `select_inducing`
     (greedy pivoted Cholesky on the current kernel, deterministic) at every `fit`, and are
-    optimised with the hyperparameters when `learn_inducing` is set. Predictions are the
+    optimised with the hyperparameters when `learn_inducing` is set. An expert holding more
+    than `hyper_rows` samples chooses its inducing inputs and hyperparameters on a uniform
+    random subset of that many (with their weights), then conditions on every sample (the
+    predictive, the leave-one-out densities): the cost of a fit then grows as :math:`N m^2`
+    from the no-gradient passes only. Predictions are the
     SGPR predictive (latent mean and variance of the collapsed posterior, with the
     diagonal correction :math:`k_{**} - q_{**}`, plus the noise).
 
@@ -335,7 +339,20 @@ class SparseGPExpert(torch.nn.Module):
     def _target_inducing(self, n_kept: int) -> int:
         """The `m` of `n_inducing` for `n_kept` samples of non-zero weight."""
         asked = self.options.n_inducing
-        return min(DEFAULT_N_INDUCING if asked is None else asked, n_kept)
+        rows = self.options.hyper_rows
+        return min(DEFAULT_N_INDUCING if asked is None else asked, n_kept, rows or n_kept)
+
+    def _hyper_subset(self) -> Tensor | None:
+        """Rows the bound is maximised on (`hyper_rows` of them, uniformly), None for all.
+
+        The subset is a function of the number of samples only, so the same data gives the
+        same subset.
+        """
+        k, n = self.options.hyper_rows, self.n_train
+        if k is None or n <= k:
+            return None
+        g = torch.Generator().manual_seed(n)
+        return torch.randperm(n, generator=g)[:k].sort().values.to(self.train_x.device)
 
     def condition(self, X: Any, Y: Any, weights: Any | None = None) -> SparseGPExpert:
         """Set the training data without changing the hyperparameters.
@@ -376,15 +393,18 @@ class SparseGPExpert(torch.nn.Module):
         self.train_x = self.x_scaler(x).to(self.jitter)
         self.train_y = self.y_scaler(y).T.contiguous().to(self.jitter)
         if self.n_inducing != m:
-            self._select(m)
+            self._select(m, self._hyper_subset())
         return self
 
-    def _select(self, m: int) -> None:
+    def _select(self, m: int, rows: Tensor | None) -> None:
         kernel = self.covar_module
+        x, w = self.train_x, self.likelihood.weights
+        if rows is not None:
+            x, w = x[rows], w[rows]
         with torch.no_grad():
             z = select_inducing(
-                self.train_x,
-                self.likelihood.weights,
+                x,
+                w,
                 kernel.base_kernel.lengthscale.reshape(self.n_outputs, self.n_features),
                 kernel.outputscale,
                 m,
@@ -407,8 +427,9 @@ class SparseGPExpert(torch.nn.Module):
             This expert.
         """
         self.condition(X, Y, weights)
-        self._select(self._target_inducing(self.n_train))
-        self._optimise(self.max_iter if max_iter is None else int(max_iter))
+        rows = self._hyper_subset()
+        self._select(self._target_inducing(self.n_train), rows)
+        self._optimise(self.max_iter if max_iter is None else int(max_iter), rows)
         return self
 
     def _kernel_parts(self) -> tuple[Tensor, Tensor, Tensor]:
@@ -441,7 +462,10 @@ class SparseGPExpert(torch.nn.Module):
         if not self.is_fitted:
             raise NotFittedError("SparseGPExpert has no training data; call fit first.")
         eps = float(self.jitter) if jitter is None else float(jitter)
-        x, y, w = self.train_x, self.train_y, self.likelihood.weights
+        return self._bound(self.train_x, self.train_y, self.likelihood.weights, eps)
+
+    def _bound(self, x: Tensor, y: Tensor, w: Tensor, eps: float) -> Tensor:
+        """The bound of `marginal_log_likelihood` on the rows `x (n, D)`, `y (E, n)`, `w (n,)`."""
         n = y.shape[-1]
         inv_l2, s, kuu = self._kernel_parts()
         eye = torch.eye(kuu.shape[-1], dtype=kuu.dtype, device=kuu.device)
@@ -456,19 +480,20 @@ class SparseGPExpert(torch.nn.Module):
         logdet = n * noise.log() - w.log().sum() + logdet_b
         trace = (s * w.sum() - (a_w * a).sum((-2, -1))) / noise
         res = -0.5 * (n * math.log(2 * math.pi) + logdet + quad + trace)
-        for term in self.likelihood.added_loss_terms():
-            res = res + term.loss()
+        res = res + weight_correction(w, noise)
         for _, module, prior, closure, _ in self.covar_module.named_priors():
             log_p = prior.log_prob(closure(module))
             res = res + log_p.reshape(self.n_outputs, -1).sum(-1)
         return res / n
 
-    def _optimise(self, max_iter: int) -> None:
+    def _optimise(self, max_iter: int, rows: Tensor | None) -> None:
         params = [p for p in self.parameters() if p.requires_grad]
         start = [p.detach().clone() for p in params]
+        x, y, w = self.train_x, self.train_y, self.likelihood.weights
+        data = (x, y, w) if rows is None else (x[rows], y[:, rows], w[rows])
         for jitter in _JITTERS:
             try:
-                ok = self._lbfgs(params, max_iter, jitter)
+                ok = self._lbfgs(params, max_iter, jitter, data)
             except (torch.linalg.LinAlgError, RuntimeError):
                 ok = False
             if ok:
@@ -485,8 +510,14 @@ class SparseGPExpert(torch.nn.Module):
             stacklevel=3,
         )
 
-    def _lbfgs(self, params: list[torch.nn.Parameter], max_iter: int, jitter: float) -> bool:
-        """Minimise the negative bound; return whether everything stayed finite."""
+    def _lbfgs(
+        self,
+        params: list[torch.nn.Parameter],
+        max_iter: int,
+        jitter: float,
+        data: tuple[Tensor, Tensor, Tensor],
+    ) -> bool:
+        """Minimise the negative bound on `data`; return whether everything stayed finite."""
         optimiser = torch.optim.LBFGS(
             params,
             lr=1.0,
@@ -498,20 +529,44 @@ class SparseGPExpert(torch.nn.Module):
 
         def closure() -> Tensor:
             optimiser.zero_grad()
-            loss = -self.marginal_log_likelihood(jitter).sum()
+            loss = -self._bound(*data, jitter).sum()
             loss.backward()
             return loss
 
         optimiser.step(closure)
         with torch.no_grad():
-            final = -self.marginal_log_likelihood(jitter).sum()
+            final = -self._bound(*data, jitter).sum()
         return bool(torch.isfinite(final)) and all(bool(torch.isfinite(p).all()) for p in params)
 
     # ------------------------------------------------------------- prediction
+    def _state_key(self) -> tuple[tuple[Tensor, int, int], ...]:
+        """Every tensor the posterior depends on, its storage and its version.
+
+        Any write changes the key: in place (the version), by ``.data =`` (the storage, as
+        the old one is alive when the new one is made) or by assignment (the tensor).
+        """
+        tensors = [*self.parameters(), *self.buffers(), self.likelihood.weights]
+        return tuple((t, t.data_ptr(), t._version) for t in tensors)
+
     def _posterior(self) -> tuple[_Factors, Tensor, Tensor]:
-        """The posterior factors, `1 / l^2` and the signal variances (no gradient)."""
+        """The posterior factors, `1 / l^2` and the signal variances (no gradient).
+
+        Kept until a parameter, buffer or the training data changes: the E-step of EM
+        predicts and leaves one out with the same posterior.
+        """
         if not self.is_fitted:
             raise NotFittedError("SparseGPExpert has no training data; call fit first.")
+        key = self._state_key()
+        cached = self.__dict__.get("_cached_posterior")
+        if cached is not None and len(cached[0]) == len(key):
+            same = all(a[0] is b[0] and a[1:] == b[1:] for a, b in zip(cached[0], key, strict=True))
+            if same:
+                return cached[1]
+        result = self._compute_posterior()
+        self.__dict__["_cached_posterior"] = (key, result)
+        return result
+
+    def _compute_posterior(self) -> tuple[_Factors, Tensor, Tensor]:
         with torch.no_grad():
             inv_l2, s, kuu = self._kernel_parts()
             m = kuu.shape[-1]

@@ -33,13 +33,6 @@ from probaff.models.vi import VariationalMixtureOfGPExperts
 
 __all__ = ["SVIHistory", "fit_svi"]
 
-# Natural-gradient step of q(u) per minibatch (full-batch steps take 1, the exact update).
-NATURAL_STEP = 0.1
-# Adam steps, relative to `lr`, of the gate and of the kernels, means, noise and inducing
-# inputs when an exact mixture gave them (0 keeps them); without such a start both take `lr`.
-GATE_LR_SCALE = 0.0
-HYPER_LR_SCALE = 0.0
-
 
 @contextlib.contextmanager
 def _default_dtype(dtype: torch.dtype) -> Iterator[None]:
@@ -157,14 +150,14 @@ def fit_svi(
     )
     model.fitted = False
     model.build(x, y, resp, exact)
-    history = _train(model, x, y, opts, _param_groups(model, opts.lr, exact is not None))
+    history = _train(model, x, y, opts, _param_groups(model, opts, exact is not None))
     model.eval()
     model.fitted = True
     return history
 
 
 def _param_groups(
-    model: VariationalMixtureOfGPExperts, lr: float, from_exact: bool
+    model: VariationalMixtureOfGPExperts, opts: SVIOptions, from_exact: bool
 ) -> list[dict[str, Any]]:
     """Adam's parameter groups: the gate, then everything else but q(u); none with step 0."""
     variational = {
@@ -175,8 +168,8 @@ def _param_groups(
     gate = list(model.built_gate().parameters())
     skip = variational | {id(p) for p in gate}
     rest = [p for p in model.parameters() if id(p) not in skip]
-    scales = (GATE_LR_SCALE, HYPER_LR_SCALE) if from_exact else (1.0, 1.0)
-    steps = (lr * scales[0], lr * scales[1])
+    scales = (opts.gate_lr_scale, opts.hyper_lr_scale) if from_exact else (1.0, 1.0)
+    steps = (opts.lr * scales[0], opts.lr * scales[1])
     return [
         {"params": params, "lr": step}
         for params, step in zip((gate, rest), steps, strict=True)
@@ -198,7 +191,7 @@ def _train(
     t = y_scaler(y)
     n = x.shape[0]
     b = min(opts.batch_size, n)
-    step = 1.0 if b >= n else NATURAL_STEP
+    step = 1.0 if b >= n else opts.natural_step
     trained = {id(p) for g in groups for p in g["params"]}
     history = SVIHistory()
     generator = torch.Generator().manual_seed(opts.seed)

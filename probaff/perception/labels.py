@@ -57,6 +57,7 @@ __all__ = [
     "THESIS_PR",
     "LabelCVResult",
     "LabelClassifier",
+    "PerColumnLogistic",
     "Reliability",
     "cross_validate_labels",
     "label_index",
@@ -97,7 +98,64 @@ def _check_labels(name: str, y: Any, n: int) -> np.ndarray:
     return arr.astype(bool)
 
 
-class LabelClassifier:
+class PerColumnLogistic:
+    """One standardised logistic regression per column of a bool target, over feature rows.
+
+    The common part of the per-label (`LabelClassifier`) and per-direction
+    (`probaff.planning.manipulation.AffordanceClassifier`) classifiers; a subclass checks its
+    inputs and names its columns. A column that is constant in training needs no regression:
+    it predicts that constant (0 or 1) for every row, so no solver runs and no warning is
+    raised.
+
+    Args:
+        C: Inverse L2 regularisation strength of each logistic regression (> 0).
+        max_iter: Iteration limit of the solver (a positive integer).
+
+    Raises:
+        InputError: For a non-positive `C` or a `max_iter` that is not a positive integer.
+    """
+
+    C_NAME = "C"
+    """How the error for a bad `C` names it."""
+
+    def __init__(self, C: float = 1.0, max_iter: int = 2000) -> None:
+        check_positive(self.C_NAME, C)
+        self.C = float(C)
+        self.max_iter = check_count("max_iter", max_iter)
+        self._models: list[Pipeline | float] | None = None
+        self._width: int | None = None
+
+    @property
+    def is_fitted(self) -> bool:
+        """Whether `fit` has run."""
+        return self._models is not None
+
+    def _fit_columns(self, x: np.ndarray, y: np.ndarray) -> None:
+        """Fit one regression per column of checked targets `y` (N, K) bool on `x` (N, D)."""
+        models: list[Pipeline | float] = []
+        for k in range(y.shape[1]):
+            column = y[:, k]
+            if column.all() or not column.any():
+                models.append(float(column[0]))
+                continue
+            model = make_pipeline(
+                StandardScaler(), LogisticRegression(C=self.C, max_iter=self.max_iter)
+            )
+            models.append(model.fit(x, column))
+        self._models = models
+        self._width = x.shape[1]
+
+    def _predict_columns(self, x: np.ndarray) -> np.ndarray:
+        """(N, K) probability of each column at checked features `x` (N, D)."""
+        if self._models is None:
+            raise NotFittedError("the classifier is not trained; call fit first.")
+        out = np.empty((x.shape[0], len(self._models)))
+        for k, model in enumerate(self._models):
+            out[:, k] = model if isinstance(model, float) else model.predict_proba(x)[:, 1]
+        return out
+
+
+class LabelClassifier(PerColumnLogistic):
     """One standardised logistic regression per label in `LABELS`.
 
     A label whose training column is constant needs no regression: it predicts that constant
@@ -110,18 +168,6 @@ class LabelClassifier:
     Raises:
         InputError: For a non-positive `C` or a `max_iter` that is not a positive integer.
     """
-
-    def __init__(self, C: float = 1.0, max_iter: int = 2000) -> None:
-        check_positive("C", C)
-        self.C = float(C)
-        self.max_iter = check_count("max_iter", max_iter)
-        self._models: list[Pipeline | float] | None = None
-        self._width: int | None = None
-
-    @property
-    def is_fitted(self) -> bool:
-        """Whether `fit` has run."""
-        return self._models is not None
 
     def fit(self, X: np.ndarray, Y: np.ndarray) -> LabelClassifier:
         """Train the six regressions.
@@ -139,19 +185,8 @@ class LabelClassifier:
         """
         x = _check_features("X", X)
         y = _check_labels("Y", Y, x.shape[0])
-        models: list[Pipeline | float] = []
-        for k in range(len(LABELS)):
-            column = y[:, k]
-            if column.all() or not column.any():
-                models.append(float(column[0]))
-                continue
-            model = make_pipeline(
-                StandardScaler(), LogisticRegression(C=self.C, max_iter=self.max_iter)
-            )
-            with threadpool_limits(limits=1):
-                models.append(model.fit(x, column))
-        self._models = models
-        self._width = x.shape[1]
+        with threadpool_limits(limits=1):
+            self._fit_columns(x, y)
         return self
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
@@ -169,11 +204,7 @@ class LabelClassifier:
         """
         if self._models is None:
             raise NotFittedError("the classifier is not trained; call fit(X, Y) first.")
-        x = _check_features("X", X, self._width)
-        out = np.empty((x.shape[0], len(LABELS)))
-        for k, model in enumerate(self._models):
-            out[:, k] = model if isinstance(model, float) else model.predict_proba(x)[:, 1]
-        return out
+        return self._predict_columns(_check_features("X", X, self._width))
 
 
 class Reliability(NamedTuple):

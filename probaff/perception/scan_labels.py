@@ -80,8 +80,8 @@ import numpy as np
 from probaff._checks import check_count, check_positive
 from probaff.errors import InputError
 from probaff.perception.labels import LABELS, label_index
-from probaff.perception.normals import estimate_normals
-from probaff.perception.region_growing import region_growing
+from probaff.perception.normals import Normals, estimate_normals
+from probaff.perception.region_growing import Segmentation, region_growing
 from probaff.perception.segment_features import FEATURE_NAMES, segment_features
 from probaff.sim.camera import (
     CameraSpec,
@@ -99,6 +99,7 @@ __all__ = [
     "PerceptionConfig",
     "ScanSegments",
     "ViewSegments",
+    "grow_regions",
     "head_pose",
     "label_dataset",
     "scan_segments",
@@ -442,6 +443,34 @@ def _majority(point_ids: np.ndarray, seg: np.ndarray, n: int) -> tuple[np.ndarra
     return ids[top].astype(np.int64), share
 
 
+def grow_regions(points: np.ndarray, normals: Normals, config: PerceptionConfig) -> Segmentation:
+    """Cut a view's points into smooth segments by region growing with `config`'s settings.
+
+    Step 3 of the module docstring: `region_growing` with ``k``, ``smoothness_deg``,
+    ``curvature_threshold`` and ``min_size`` of `config`, over the neighbours that
+    `estimate_normals` found.
+
+    Args:
+        points: (N, 3) points (m).
+        normals: Their normals, curvature and neighbours, from
+            ``estimate_normals(points, config.k)``.
+        config: The settings.
+
+    Returns:
+        The `Segmentation` of the N points.
+    """
+    return region_growing(
+        points,
+        normals.normals,
+        normals.curvature,
+        k=config.k,
+        smoothness_deg=config.smoothness_deg,
+        curvature_threshold=config.curvature_threshold,
+        min_size=config.min_size,
+        neighbours=normals.neighbours,
+    )
+
+
 def _view_segments(
     view: DepthImage,
     scene: OfficeScene,
@@ -463,16 +492,7 @@ def _view_segments(
             "at the scene (pans_deg, tilts_deg, head_height) or lower k."
         )
     nrm = estimate_normals(pts, config.k, viewpoint=viewpoint)
-    seg = region_growing(
-        pts,
-        nrm.normals,
-        nrm.curvature,
-        k=config.k,
-        smoothness_deg=config.smoothness_deg,
-        curvature_threshold=config.curvature_threshold,
-        min_size=config.min_size,
-        neighbours=nrm.neighbours,
-    )
+    seg = grow_regions(pts, nrm, config)
     feats = segment_features(
         pts, seg.labels, neighbour_distance=config.neighbour_distance, viewpoint=viewpoint
     )

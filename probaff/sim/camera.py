@@ -290,14 +290,19 @@ _CAMERA_FILE: dict[str, dict[str, str]] = {
 """The sections of ``worlds/camera.yaml`` besides ``image`` and ``range``: key -> field."""
 
 
-def load_camera(path: Path | None = None) -> CameraSpec:
+def load_camera(
+    path: Path | None = None, *, width: int | None = None, height: int | None = None
+) -> CameraSpec:
     """Load and validate the depth camera (``worlds/camera.yaml``).
 
     Args:
         path: Another camera file; defaults to the one in `probaff.sim.world_files.worlds_dir()`.
+        width: Image width in pixels in place of the file's, or None to keep the file's.
+        height: Image height in pixels in place of the file's, or None to keep the file's.
 
     Raises:
-        ConfigError: Naming the file and field of a missing, unknown or malformed entry.
+        ConfigError: Naming the file and field of a missing, unknown or malformed entry, or
+            for a `width` or `height` that is not a positive integer.
     """
     raw, w, _ = wf.load_root(path, "camera.yaml")
     wf.no_extra(w, raw, {"image", "range", "noise", "quantisation", "dropout", "registration"})
@@ -308,7 +313,7 @@ def load_camera(path: Path | None = None) -> CameraSpec:
     for key, names in _CAMERA_FILE.items():
         table = wf.section(w, raw, key, set(names))
         values.update(CameraSpec.read_fields(f"{w}:{key}", table, names))
-    return CameraSpec(
+    spec = CameraSpec(
         width=wf.count_field(f"{w}:image", img, "width"),
         height=wf.count_field(f"{w}:image", img, "height"),
         hfov_deg=hfov,
@@ -317,6 +322,8 @@ def load_camera(path: Path | None = None) -> CameraSpec:
         max_range=hi,
         **values,
     )
+    size = {k: v for k, v in (("width", width), ("height", height)) if v is not None}
+    return dataclasses.replace(spec, **size) if size else spec
 
 
 @dataclass(frozen=True, eq=False)

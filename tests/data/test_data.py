@@ -25,10 +25,8 @@ def _files(root: Path) -> dict[str, bytes]:
 
 
 @pytest.fixture(scope="module")
-def reference(tmp_path_factory):
-    out = tmp_path_factory.mktemp("ref") / "ds"
-    generate(CFG, out, workers=0, progress=False)
-    return out
+def reference(generated):
+    return generated(CFG, "ref")
 
 
 def test_schema_and_contents(reference):
@@ -123,14 +121,8 @@ def test_truncated_shard_is_detected(reference, tmp_path):
         load_dataset(out)
 
 
-def test_corrupt_manifest_and_wrong_version(reference, tmp_path):
-    import shutil
-
-    out = tmp_path / "ver"
-    shutil.copytree(reference, out)
-    m = json.loads((out / "manifest.json").read_text())
-    m["schema_version"] = SCHEMA_VERSION + 1
-    (out / "manifest.json").write_text(json.dumps(m))
+def test_corrupt_manifest_and_wrong_version(reference, tmp_path, copy_dataset):
+    out = copy_dataset(reference, tmp_path / "ver", schema_version=SCHEMA_VERSION + 1)
     with pytest.raises(DatasetError, match="schema version"):
         load_dataset(out)
     (out / "manifest.json").write_text('{"format": "probaff-push-dat')

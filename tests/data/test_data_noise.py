@@ -41,17 +41,13 @@ def _manifest(root: Path) -> dict:
 
 
 @pytest.fixture(scope="module")
-def clean(tmp_path_factory):
-    out = tmp_path_factory.mktemp("clean") / "ds"
-    generate(CLEAN, out, workers=0, progress=False)
-    return out
+def clean(generated):
+    return generated(CLEAN, "clean")
 
 
 @pytest.fixture(scope="module")
-def noisy(tmp_path_factory):
-    out = tmp_path_factory.mktemp("noisy") / "ds"
-    generate(NOISY, out, workers=0, progress=False)
-    return out
+def noisy(generated):
+    return generated(NOISY, "noisy")
 
 
 def test_default_is_noise_free_version_6(clean):
@@ -210,31 +206,10 @@ def test_pose_noise_must_be_a_pose_noise(tmp_path):
         generate(replace(CLEAN, pose_noise=(0.003, 1.0)), tmp_path / "x", workers=0, progress=False)
 
 
-def test_cli_pose_noise(tmp_path, capsys):
+def test_cli_pose_noise(tmp_path, capsys, generate_cli):
     out = tmp_path / "ds"
-    assert (
-        main(
-            [
-                "generate",
-                "--scene",
-                "near_obstacle",
-                "--n",
-                "4",
-                "--seed",
-                "2",
-                "--out",
-                str(out),
-                "--workers",
-                "0",
-                "--shard-size",
-                "4",
-                "--quiet",
-                "--pose-noise",
-                "0.002,0.5",
-            ]
-        )
-        == 0
-    )
+    flags = ("--seed", "2", "--shard-size", "4", "--pose-noise", "0.002,0.5")
+    assert generate_cli("near_obstacle", 4, out, *flags) == 0
     capsys.readouterr()
     assert _manifest(out)["plan"]["pose_noise"] == {
         "position_std": 0.002,
@@ -246,22 +221,8 @@ def test_cli_pose_noise(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("value", ["abc", "0.003", "0.003,1,2", "-1,1", "0.003,nan", ","])
-def test_cli_bad_pose_noise(tmp_path, capsys, value):
-    code = main(
-        [
-            "generate",
-            "--scene",
-            "two_objects",
-            "--n",
-            "2",
-            "--out",
-            str(tmp_path / "x"),
-            "--workers",
-            "0",
-            "--quiet",
-            f"--pose-noise={value}",
-        ]
-    )
+def test_cli_bad_pose_noise(tmp_path, capsys, value, generate_cli):
+    code = generate_cli("two_objects", 2, tmp_path / "x", f"--pose-noise={value}")
     assert code == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--pose-noise" in err

@@ -1,6 +1,5 @@
 """Push schema version 6: the hand's reaction along the path, and older versions still read."""
 
-import json
 from dataclasses import replace
 
 import numpy as np
@@ -23,10 +22,8 @@ CONFIG = GenerateConfig(scene="modular_push", n=6, seed=3, shard_size=3, hand="c
 
 
 @pytest.fixture(scope="module")
-def compliant(tmp_path_factory):
-    out = tmp_path_factory.mktemp("compliant") / "ds"
-    generate(CONFIG, out, workers=0, progress=False)
-    return out
+def compliant(generated):
+    return generated(CONFIG, "compliant")
 
 
 def test_a_new_dataset_records_the_reaction_along_the_path(compliant):
@@ -84,14 +81,8 @@ def test_versions_1_and_2_are_still_read(compliant, tmp_path):
     assert schema_version_for(True) == 2 and schema_version_for(False, reaction=True) == 6
 
 
-def test_a_newer_version_is_refused_by_name(compliant, tmp_path):
-    import shutil
-
-    out = tmp_path / "v7"
-    shutil.copytree(compliant, out)
-    m = json.loads((out / "manifest.json").read_text())
-    m["schema_version"] = SCHEMA_VERSION + 1
-    (out / "manifest.json").write_text(json.dumps(m))
+def test_a_newer_version_is_refused_by_name(compliant, tmp_path, copy_dataset):
+    out = copy_dataset(compliant, tmp_path / "v7", schema_version=SCHEMA_VERSION + 1)
     with pytest.raises(DatasetError, match="schema version 7"):
         load_dataset(out)
 

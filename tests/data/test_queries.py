@@ -54,45 +54,22 @@ def test_from_states_moves_one_sensed_cloud_rigidly(shard):
 def test_bad_queries_name_the_array():
     world = load_tabletop()
     obj = [load_catalogue()["book"]]
-    with pytest.raises(InputError, match="poses contains 1 NaN"):
-        PushQueries.from_states(
-            obj,
-            np.array([[0, np.nan, 0]]),
-            np.zeros((1, 2)),
-            np.zeros(1),
-            0.1,
-            world,
-            np.random.default_rng(0),
-        )
-    with pytest.raises(InputError, match="push_distance must be a finite number > 0"):
-        PushQueries.from_states(
-            obj,
+    cases = [  # (message, poses, push origins, push yaws, push distance)
+        ("poses contains 1 NaN", np.array([[0, np.nan, 0]]), np.zeros((1, 2)), np.zeros(1), 0.1),
+        (
+            "push_distance must be a finite number > 0",
             np.zeros((1, 3)),
             np.zeros((1, 2)),
             np.zeros(1),
             0.0,
-            world,
-            np.random.default_rng(0),
-        )
-    with pytest.raises(InputError, match="push_yaw has shape"):
-        PushQueries.from_states(
-            obj,
-            np.zeros((1, 3)),
-            np.zeros((2, 2)),
-            np.zeros(3),
-            0.1,
-            world,
-            np.random.default_rng(0),
-        )
-    with pytest.raises(InputError, match="hold no pushes"):
-        PushQueries.from_states(
-            obj,
-            np.zeros((1, 3)),
-            np.zeros((0, 2)),
-            np.zeros(0),
-            0.1,
-            world,
-            np.random.default_rng(0),
-        )
+        ),
+        ("push_yaw has shape", np.zeros((1, 3)), np.zeros((2, 2)), np.zeros(3), 0.1),
+        ("hold no pushes", np.zeros((1, 3)), np.zeros((0, 2)), np.zeros(0), 0.1),
+    ]
+    for match, poses, origins, yaws, distance in cases:
+        with pytest.raises(InputError, match=match):
+            PushQueries.from_states(
+                obj, poses, origins, yaws, distance, world, np.random.default_rng(0)
+            )
     with pytest.raises(InputError, match="lack arrays"):
         PushQueries({"push_yaw": np.zeros(1)})

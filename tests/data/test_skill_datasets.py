@@ -60,17 +60,13 @@ def _edit_manifest(root: Path, **changes) -> None:
 
 
 @pytest.fixture(scope="module")
-def pick(tmp_path_factory):
-    out = tmp_path_factory.mktemp("pick") / "ds"
-    generate_skills(PICK, out, workers=0, progress=False)
-    return out
+def pick(generated):
+    return generated(PICK, "pick", kind="skill")
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
-    out = tmp_path_factory.mktemp("tiny") / "ds"
-    generate_skills(TINY, out, workers=0, progress=False)
-    return out
+def tiny(generated):
+    return generated(TINY, "tiny", kind="skill")
 
 
 def test_pick_dataset_shapes_and_manifest(pick):

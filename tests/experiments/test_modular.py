@@ -9,14 +9,12 @@ probaff.experiments.modular.run, probaff.experiments.modular.trials.
 
 import json
 import math
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from matplotlib.container import BarContainer
 from matplotlib.patches import Polygon
+from study_helpers import assert_resumes, assert_wrote, is_png, record_saved_figures, run_smoke
 
 import probaff.eval.plots as plots
 import probaff.experiments.modular.charts as charts
@@ -29,28 +27,15 @@ from probaff.experiments.modular.report import (
     summarise_two_objects,
 )
 
-ROOT = Path(__file__).resolve().parents[2]
-
 
 @pytest.mark.slow
 def test_script_smoke_and_resume(tmp_path):
     out = tmp_path / "modular"
-    cmd = [sys.executable, str(ROOT / "inference/modular.py"), "--smoke", "--out", str(out)]
-    proc = subprocess.run(cmd, capture_output=True, text=True, check=True)
-    files = json.loads(proc.stdout)["files"]
-    for name in (
-        "backward.csv",
-        "two_objects.csv",
-        "pick_place.csv",
-        "chains.csv",
-        "summary.md",
-        "tabletop_predictions.png",
-        "sideview_predictions.png",
-        "chain_errors.png",
-        "modular_vs_monolithic.png",
-        "learning_curves.png",
-    ):
-        assert str(out / name) in files and (out / name).stat().st_size > 0
+    files = run_smoke("modular", out)
+    tables = ("backward.csv", "two_objects.csv", "pick_place.csv", "chains.csv", "summary.md")
+    figures = ("tabletop_predictions.png", "sideview_predictions.png", "chain_errors.png")
+    more = ("modular_vs_monolithic.png", "learning_curves.png")
+    assert_wrote(files, out, tables + figures + more)
     text = (out / "summary.md").read_text()
     assert "5.8 cm without, 2.57 cm with" in text and "| monolithic | 2 | along |" in text
     assert "Hand: compliant" in text  # the thesis's setting is the default
@@ -68,9 +53,7 @@ def test_script_smoke_and_resume(tmp_path):
         assert np.asarray(r["chains"]["3"]["lo"]).shape == (2, 3, 3)
         lo, hi = np.asarray(r["chains"]["3"]["lo"]), np.asarray(r["chains"]["3"]["hi"])
         assert np.all(lo <= hi)
-    stamp = [p.stat().st_mtime_ns for p in tasks]
-    subprocess.run(cmd, capture_output=True, text=True, check=True)  # resumes: no reruns
-    assert [p.stat().st_mtime_ns for p in tasks] == stamp
+    assert_resumes(lambda: run_smoke("modular", out), tasks)  # resumes: no reruns
 
 
 def _push_record(trial, true, modular, mono):
@@ -171,26 +154,11 @@ def test_bad_config():
 
 # --- figures
 
-PNG = b"\x89PNG\r\n\x1a\n"
-
 
 @pytest.fixture
 def saved(monkeypatch):
     """The figures the module saves, in order (the files are still written)."""
-    figures = []
-    real = plots.atomic_save_figure
-
-    def save(fig, path, **kw):
-        figures.append(fig)
-        real(fig, path, **kw)
-
-    monkeypatch.setattr(plots, "atomic_save_figure", save)
-    return figures
-
-
-def _is_png(path):
-    data = Path(path).read_bytes()
-    return len(data) > 1000 and data.startswith(PNG)
+    return record_saved_figures(monkeypatch, plots)
 
 
 def _json(value):
@@ -302,7 +270,7 @@ def test_tabletop_panels_boxes_and_legend(tmp_path, saved):
     scenes = [_scene(2, 0), _scene(3, 1, monolithic=False), _scene(2, 2), _scene(2, 3)]
     scenes.append(_scene(1, 4, monolithic=False, path=False))
     out = drawing.plot_tabletop_predictions(scenes, tmp_path / "top.png", title="pushes")
-    assert out == str(tmp_path / "top.png") and _is_png(out)
+    assert out == str(tmp_path / "top.png") and is_png(out)
     (fig,) = saved
     axes = [ax for ax in fig.axes if ax.axison]
     assert len(axes) == 5
@@ -342,7 +310,7 @@ def test_tabletop_reads_json_lists(tmp_path, saved):
     scenes = _json([_scene(2, 5), _scene(4, 6, monolithic=False)])
     scenes[1]["true_path"] = []
     del scenes[1]["monolithic_final"]
-    assert _is_png(drawing.plot_tabletop_predictions(scenes, tmp_path / "json.png"))
+    assert is_png(drawing.plot_tabletop_predictions(scenes, tmp_path / "json.png"))
     (fig,) = saved
     assert "2 scenes" in fig.get_suptitle()
     # four objects: the title gives the mean and largest error, not every object
@@ -382,7 +350,7 @@ def test_sideview_panels(tmp_path, saved):
     cases = [_case("pick", True), _case("pick", False), _case("place", True, k=1)]
     cases += [_case("place", False)] * 3
     out = drawing.plot_sideview_predictions(_json(cases), tmp_path / "side.png")
-    assert _is_png(out)
+    assert is_png(out)
     (fig,) = saved
     axes = [ax for ax in fig.axes if ax.axison]
     assert len(axes) == 6
@@ -439,7 +407,7 @@ def test_sideview_bad_input(tmp_path):
 def test_chain_errors(tmp_path, saved):
     rows = _chain_rows()
     out = charts.plot_chain_errors(_json(rows), tmp_path / "chain.png", title="chains")
-    assert _is_png(out)
+    assert is_png(out)
     (fig,) = saved
     err_ax, cov_ax = fig.axes
     assert err_ax.get_ylabel() == "mean position error (cm)"
@@ -458,14 +426,20 @@ def test_chain_errors(tmp_path, saved):
     assert labels == ["1 object", "2 objects", "3 objects", "nominal 90 %"]
 
 
+def _refuses_empty_and_incomplete_rows(plot, rows, index, key, out):
+    """`plot` refuses no rows, and `rows` once its row `index` lacks `key`."""
+    with pytest.raises(InputError, match="rows is empty"):
+        plot([], out)
+    del rows[index][key]
+    with pytest.raises(InputError, match=rf"rows\[{index}\] lacks key\(s\) \['{key}'\]"):
+        plot(rows, out)
+
+
 def test_chain_errors_bad_input(tmp_path):
     out = tmp_path / "x.png"
-    with pytest.raises(InputError, match="rows is empty"):
-        charts.plot_chain_errors([], out)
-    rows = _chain_rows()
-    del rows[2]["coverage_ci"]
-    with pytest.raises(InputError, match=r"rows\[2\] lacks key\(s\) \['coverage_ci'\]"):
-        charts.plot_chain_errors(rows, out)
+    _refuses_empty_and_incomplete_rows(
+        charts.plot_chain_errors, _chain_rows(), 2, "coverage_ci", out
+    )
     beyond = [dict(_chain_rows()[0], object=2)]
     with pytest.raises(InputError, match=r"rows\[0\]\['object'\] is 2 but the chain has 1"):
         charts.plot_chain_errors(beyond, out)
@@ -484,7 +458,7 @@ def test_chain_errors_bad_input(tmp_path):
 def test_modular_vs_monolithic(tmp_path, saved):
     rows = _bar_rows()
     out = charts.plot_modular_vs_monolithic(rows, tmp_path / "bars.png", thesis=THESIS)
-    assert _is_png(out)
+    assert is_png(out)
     (fig,) = saved
     (ax,) = fig.axes
     assert ax.get_ylabel() == "mean absolute error (cm)"
@@ -514,7 +488,7 @@ def test_modular_vs_monolithic(tmp_path, saved):
 
 def test_modular_vs_monolithic_without_thesis(tmp_path, saved):
     rows = [r for r in _bar_rows() if r["object"] == 1] + [dict(_bar_rows()[0], model="other")]
-    assert _is_png(charts.plot_modular_vs_monolithic(_json(rows), tmp_path / "b.png"))
+    assert is_png(charts.plot_modular_vs_monolithic(_json(rows), tmp_path / "b.png"))
     (fig,) = saved
     labels = [t.get_text() for t in fig.legends[0].get_texts()]
     assert labels == ["modular", "monolithic", "other"]
@@ -547,7 +521,7 @@ def test_learning_curves(tmp_path, saved):
         dict(r, panel="place (cm)", train_size=s) for r, s in zip(rows[:2], (4, 8), strict=True)
     ]
     out = charts.plot_learning_curves(_json(rows), tmp_path / "curves.png")
-    assert _is_png(out)
+    assert is_png(out)
     (fig,) = saved
     axes = [ax for ax in fig.axes if ax.axison]
     assert [ax.get_title() for ax in axes] == ["push o1 along (cm)", "pick up (cm)", "place (cm)"]
@@ -567,7 +541,7 @@ def test_learning_curves(tmp_path, saved):
 def test_learning_curves_linear_sizes_and_single_points(tmp_path, saved):
     rows = [r for r in _curve_rows(sizes=(10, 20, 40)) if r["panel"] == "pick up (cm)"]
     rows.append(dict(rows[0], series="one size", train_size=30, ci=1.0))
-    assert _is_png(charts.plot_learning_curves(rows, tmp_path / "c.png", title="pick"))
+    assert is_png(charts.plot_learning_curves(rows, tmp_path / "c.png", title="pick"))
     (fig,) = saved
     (ax,) = fig.axes
     assert ax.get_xscale() == "linear" and fig.get_suptitle() == "pick"
@@ -579,12 +553,7 @@ def test_learning_curves_linear_sizes_and_single_points(tmp_path, saved):
 
 def test_learning_curves_bad_input(tmp_path):
     out = tmp_path / "x.png"
-    with pytest.raises(InputError, match="rows is empty"):
-        charts.plot_learning_curves([], out)
-    rows = _curve_rows()
-    del rows[3]["ci"]
-    with pytest.raises(InputError, match=r"rows\[3\] lacks key\(s\) \['ci'\]"):
-        charts.plot_learning_curves(rows, out)
+    _refuses_empty_and_incomplete_rows(charts.plot_learning_curves, _curve_rows(), 3, "ci", out)
     with pytest.raises(InputError, match=r"rows\[0\]\['train_size'\] must be a positive integer"):
         charts.plot_learning_curves([dict(_curve_rows()[0], train_size="ten")], out)
     with pytest.raises(InputError, match=r"rows\[0\]\['value'\] contains 1 NaN"):

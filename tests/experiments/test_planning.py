@@ -8,14 +8,12 @@ probaff.experiments.planning.run.
 
 import copy
 import json
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 from matplotlib.patches import Polygon
+from study_helpers import assert_resumes, assert_wrote, is_png, record_saved_figures, run_smoke
 
 import probaff.experiments.planning.figures as pf
 from probaff.errors import InputError
@@ -29,19 +27,14 @@ from probaff.planning import (
     run_edge_episode,
 )
 
-PNG = b"\x89PNG\r\n\x1a\n"
-
-ROOT = Path(__file__).resolve().parents[2]
-
 
 @pytest.mark.slow
 def test_script_smoke_and_resume(tmp_path):
     out = tmp_path / "plan"
-    cmd = [sys.executable, str(ROOT / "inference/planning.py"), "--smoke", "--out", str(out)]
-    proc = subprocess.run(cmd, capture_output=True, text=True, check=True)
-    files = json.loads(proc.stdout)["files"]
-    for name in ("edge_summary.csv", "summary.md", "edge_success.png", "edge_pushes.png"):
-        assert str(out / name) in files and (out / name).stat().st_size > 0
+    files = run_smoke("planning", out)
+    assert_wrote(
+        files, out, ("edge_summary.csv", "summary.md", "edge_success.png", "edge_pushes.png")
+    )
     assert (out / "edge_episodes.png").stat().st_size > 0
     text = (out / "summary.md").read_text()
     assert "| astar-moe | 2 |" in text and "thesis" in text
@@ -62,12 +55,8 @@ def test_script_smoke_and_resume(tmp_path):
     # every planner gets the same two starts
     starts = {(r["trial"], json.dumps(r["start"])) for r in records}
     assert len(starts) == 2
-    stamp = [p.stat().st_mtime_ns for p in tasks]
     models = sorted((out / "models").glob("*.pt"))
-    model_stamp = [p.stat().st_mtime_ns for p in models]
-    subprocess.run(cmd, capture_output=True, text=True, check=True)  # resumes: no reruns
-    assert [p.stat().st_mtime_ns for p in tasks] == stamp
-    assert [p.stat().st_mtime_ns for p in models] == model_stamp
+    assert_resumes(lambda: run_smoke("planning", out), tasks + models)  # resumes: no reruns
 
 
 @pytest.mark.slow
@@ -167,20 +156,7 @@ def episodes(task):
 @pytest.fixture
 def saved(monkeypatch):
     """The figures the module saves, in order (the files are still written)."""
-    figures = []
-    real = pf.atomic_save_figure
-
-    def save(fig, path, **kw):
-        figures.append(fig)
-        real(fig, path, **kw)
-
-    monkeypatch.setattr(pf, "atomic_save_figure", save)
-    return figures
-
-
-def _is_png(path):
-    data = Path(path).read_bytes()
-    return len(data) > 1000 and data.startswith(PNG)
+    return record_saved_figures(monkeypatch, pf)
 
 
 def _rates():
@@ -205,7 +181,7 @@ def _rates():
 def test_edge_episodes_panels(tmp_path, task, episodes, saved):
     out = pf.plot_edge_episodes(episodes, task, tmp_path / "eps.png", title="two episodes")
     assert out == str(tmp_path / "eps.png")
-    assert _is_png(out)
+    assert is_png(out)
     (fig,) = saved
     axes = [ax for ax in fig.axes if ax.axison]
     assert len(axes) == 2
@@ -238,7 +214,7 @@ def test_edge_episodes_without_trajectories_or_steps(tmp_path, task, episodes):
     for step in eps[0]["steps"]:
         step["book_path"] = []
     eps[1]["steps"], eps[1]["pushes"] = [], 0
-    assert _is_png(pf.plot_edge_episodes(eps, task, tmp_path / "chain.png"))
+    assert is_png(pf.plot_edge_episodes(eps, task, tmp_path / "chain.png"))
 
 
 def test_edge_episodes_caps_panels(tmp_path, task, episodes, saved):
@@ -272,7 +248,7 @@ def test_success_rates(tmp_path, saved):
     out = pf.plot_success_rates(
         _rates(), tmp_path / "rates.png", title="push to edge", reference=("thesis", 14 / 15)
     )
-    assert _is_png(out)
+    assert is_png(out)
     (fig,) = saved
     (ax,) = fig.axes
     assert [t.get_text() for t in ax.get_yticklabels()] == ["astar:moe", "greedy:moe"]
@@ -302,7 +278,7 @@ def test_pushes_per_trial(tmp_path, episodes, saved):
     out = pf.plot_pushes_per_trial(
         {"astar:quasi-static": episodes, "all failed": failed}, tmp_path / "pushes.png", title="t"
     )
-    assert _is_png(out)
+    assert is_png(out)
     (fig,) = saved
     pushes, replans = fig.axes
     assert pushes.get_ylabel() == "pushes per trial" and replans.get_ylabel() == "replans per trial"

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from study_helpers import ROOT, assert_resumes, assert_wrote
 
 from probaff.errors import DatasetError, InputError
 from probaff.experiments.point_cloud_labels import SMOKE, PointCloudStudyConfig, run
@@ -32,8 +33,6 @@ from probaff.experiments.point_cloud_labels.figures import (
 from probaff.experiments.point_cloud_labels.report import summarise_merge
 from probaff.experiments.point_cloud_labels.scans import scan_task
 from probaff.perception.labels import LABELS, THESIS_PR
-
-ROOT = Path(__file__).resolve().parents[2]
 
 _TABLES = ("labels.csv", "refinement.csv", "merge.csv", "summary.md")
 _FIGURES = (
@@ -63,8 +62,7 @@ def _script(out: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFi
 def test_script_smoke_and_resume(tmp_path, monkeypatch, capsys):
     out = tmp_path / "pcl"
     files = _script(out, monkeypatch, capsys)
-    for name in _TABLES + _FIGURES:
-        assert str(out / name) in files and (out / name).stat().st_size > 0
+    assert_wrote(files, out, _TABLES + _FIGURES)
     scans = sorted((out / "tasks").glob("*.json"))
     assert [p.name.split(".")[0] for p in scans] == [f"scene_{i:03d}" for i in range(4)]
     merges = sorted((out / "merge_tasks").glob("*.json"))
@@ -112,9 +110,8 @@ def test_script_smoke_and_resume(tmp_path, monkeypatch, capsys):
     assert "195 segments from 10 office scenes" in text and "81.8 / 81.7" in text
 
     merges += [p.with_suffix(".npz") for p in merges]
-    stamp = [p.stat().st_mtime_ns for p in scans + merges]
-    assert _script(out, monkeypatch, capsys) == files  # resumes: no rescans
-    assert [p.stat().st_mtime_ns for p in scans + merges] == stamp
+    # resumes: no rescans
+    assert assert_resumes(lambda: _script(out, monkeypatch, capsys), scans + merges) == files
 
 
 def test_summarise_merge_needs_points_for_the_points_proximity():

@@ -29,23 +29,8 @@ def test_pick_rows_see_the_lift(picks):
     assert rows.reaction.shape == (len(picks), 2) and np.isfinite(rows.reaction).all()
 
 
-def test_pick_rows_refuse_other_data(picks, tmp_path):
-    place = generate_skills(GenerateConfig("place", 2, seed=0), tmp_path / "p", progress=False)
-    with pytest.raises(InputError, match="pick dataset"):
-        pick_interactions(place)
-    bare = dataclasses.replace(
-        picks,
-        arrays={
-            k: v
-            for k, v in picks.arrays.items()
-            if k not in ("traj_time", "traj_length", "ee_commanded", "ee_actual")
-            and not k.startswith(("opening_", "traj_"))
-        },
-    )
-    with pytest.raises(InputError, match="trajector"):
-        pick_interactions(bare)
-    with pytest.raises(InputError, match="geometry"):
-        pick_interactions(picks, geometry=object())
+def test_pick_rows_refuse_other_data(picks, refuses_other_data):
+    refuses_other_data(pick_interactions, picks, "place", object())
 
 
 @pytest.mark.parametrize(

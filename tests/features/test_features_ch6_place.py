@@ -124,23 +124,8 @@ def test_custom_geometry_and_world(places, rows):
     np.testing.assert_allclose(short.features[:, 7], lowering, atol=2e-3)
 
 
-def test_place_rows_refuse_other_data(places, tmp_path):
-    pick = generate_skills(GenerateConfig("pick", 2, seed=0), tmp_path / "p", progress=False)
-    with pytest.raises(InputError, match="place dataset"):
-        place_interactions(pick)
-    bare = dataclasses.replace(
-        places,
-        arrays={
-            k: v
-            for k, v in places.arrays.items()
-            if k not in ("traj_length", "ee_commanded", "ee_actual")
-            and not k.startswith(("opening_", "traj_"))
-        },
-    )
-    with pytest.raises(InputError, match="trajector"):
-        place_interactions(bare)
-    with pytest.raises(InputError, match="geometry"):
-        place_interactions(places, geometry="ch6")
+def test_place_rows_refuse_other_data(places, refuses_other_data):
+    refuses_other_data(place_interactions, places, "pick", "ch6")
     empty = dataclasses.replace(places, arrays={k: v[:0] for k, v in places.arrays.items()})
     with pytest.raises(InputError, match="no places"):
         place_interactions(empty)

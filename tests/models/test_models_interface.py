@@ -4,7 +4,6 @@ import torch
 from torch.distributions import Distribution
 
 import probaff.models.registry as registry
-from probaff._threads import torch_threads
 from probaff.errors import InputError
 from probaff.models import (
     FITTERS,
@@ -24,11 +23,7 @@ from probaff.models.gated import ExpertList
 from probaff.models.gp_expert import GPExpert
 from probaff.models.synthetic import piecewise_1d
 
-
-@pytest.fixture(autouse=True, scope="module")
-def _single_thread():
-    with torch_threads(1):
-        yield
+pytestmark = pytest.mark.usefixtures("single_thread")
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,6 @@ import pytest
 import torch
 from torch.distributions import MixtureSameFamily
 
-from probaff._threads import torch_threads
 from probaff.errors import InputError
 from probaff.models import (
     EMHistory,
@@ -20,11 +19,7 @@ from probaff.models.mixture import AUTO_SPARSE_ABOVE
 from probaff.models.sparse_expert import FitMemoryError, SparseGPExpert
 from probaff.models.synthetic import piecewise_1d
 
-
-@pytest.fixture(autouse=True, scope="module")
-def _single_thread():
-    with torch_threads(1):
-        yield
+pytestmark = pytest.mark.usefixtures("single_thread")
 
 
 @pytest.fixture(scope="module")
@@ -179,6 +174,14 @@ def test_sparse_experts_fit_by_em_and_the_path_never_falls():
     assert all(e.n_inducing <= 15 for e in model.experts)
     loo = model.loo_log_lik(x, y)
     assert loo.shape == (90, 3) and bool(torch.isfinite(loo).all())
+    # a held sample is scored by its leave-one-out density, any other by the predictive
+    pred = model.expert_predictions(x)
+    for j, expert in enumerate(model.experts):
+        held = model.train_weights[:, j] > 0
+        out = expert.loo_predict()
+        want = pred.log_prob(y[:, None, :]).sum(-1)[:, j]
+        want[held] = out.log_prob(y[held]).sum(-1)
+        torch.testing.assert_close(loo[:, j], want, rtol=1e-10, atol=1e-10)
     sparse_lp = float(model.predict(xt).log_prob(yt).mean())
     exact = MixtureOfGPExperts(3, experts="exact", gp_max_iter=20)
     fit_em(exact, x, y, **quick)

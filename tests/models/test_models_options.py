@@ -51,7 +51,10 @@ def test_defaults_are_the_fits_defaults():
         "n_init": 5,
         "seed": 0,
         "init": "auto",
-        "init_rows": 400,
+        "init_rows": 2000,
+        "natural_step": 0.1,
+        "gate_lr_scale": 0.0,
+        "hyper_lr_scale": 0.0,
     }
     assert dataclasses.asdict(GPOptions()) == {
         "max_iter": 50,
@@ -64,6 +67,7 @@ def test_defaults_are_the_fits_defaults():
         **dataclasses.asdict(GPOptions()),
         "n_inducing": None,
         "learn_inducing": False,
+        "hyper_rows": 4096,
     }
 
 
@@ -82,12 +86,18 @@ def test_defaults_are_the_fits_defaults():
         (SVIOptions, "n_steps", 0),
         (SVIOptions, "lr", 0.0),
         (SVIOptions, "init_rows", True),
+        (SVIOptions, "natural_step", 0.0),
+        (SVIOptions, "natural_step", 1.5),
+        (SVIOptions, "gate_lr_scale", -0.1),
+        (SVIOptions, "hyper_lr_scale", float("inf")),
         (GPOptions, "max_iter", 2.5),
         (GPOptions, "noise_floor", -1.0),
         (GPOptions, "outputscale", 0.0),
         (GPOptions, "noise", 1e3),
         (SparseGPOptions, "n_inducing", 0),
         (SparseGPOptions, "n_inducing", 2.5),
+        (SparseGPOptions, "hyper_rows", 0),
+        (SparseGPOptions, "hyper_rows", 1.5),
         (SparseGPOptions, "learn_inducing", "no"),
         (SparseGPOptions, "noise", 0.0),
     ],

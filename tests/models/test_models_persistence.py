@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 import torch
 
-from probaff._threads import torch_threads
 from probaff.errors import InputError
 from probaff.models import (
     ClusteredGPModel,
@@ -23,11 +22,7 @@ from probaff.models.persistence import FORMATS, load, save
 from probaff.models.sparse_expert import SparseGPExpert
 from probaff.models.synthetic import piecewise_1d
 
-
-@pytest.fixture(autouse=True, scope="module")
-def _single_thread():
-    with torch_threads(1):
-        yield
+pytestmark = pytest.mark.usefixtures("single_thread")
 
 
 def test_save_load_round_trip_is_bit_identical(tmp_path):

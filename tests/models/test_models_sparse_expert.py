@@ -1,3 +1,4 @@
+import copy
 import math
 
 import gpytorch
@@ -253,3 +254,52 @@ def test_memory_estimates():
     assert free is None or free > 0
     assert issubclass(FitMemoryError, InputError) and issubclass(FitMemoryError, MemoryError)
     assert math.isfinite(float(sparse))
+
+
+def test_hyper_rows_fits_on_a_fixed_subset_and_conditions_on_every_row():
+    x, y = _data(n=600, seed=5)
+    xt, yt = _data(n=300, seed=6)
+    w = _weights(600)
+    full = SparseGPExpert(3, 2, n_inducing=30, hyper_rows=None, max_iter=30).fit(x, y, w)
+    sub = SparseGPExpert(3, 2, n_inducing=30, hyper_rows=150, max_iter=30).fit(x, y, w)
+    again = SparseGPExpert(3, 2, n_inducing=30, hyper_rows=150, max_iter=30).fit(x, y, w)
+    rows = sub._hyper_subset()
+    assert rows is not None and rows.numel() == 150 and bool((rows.diff() > 0).all())
+    # the inducing inputs are chosen among the subset's rows
+    chosen = sub.inducing.detach()[:, :, None, :] == sub.train_x[rows][None, None]
+    assert bool(chosen.all(-1).any(-1).all())
+    # every row is conditioned on, and the same data gives the same fit
+    assert sub.n_train == 600
+    assert torch.equal(sub.predict(xt).loc, again.predict(xt).loc)
+    # a subset of a quarter of the rows keeps the held-out density close to the full fit's
+    lp_full = float(full.log_prob(xt, yt).mean())
+    lp_sub = float(sub.log_prob(xt, yt).mean())
+    assert lp_sub > lp_full - 0.1, (lp_sub, lp_full)
+    # with at least as many rows as samples, the subset is every row
+    whole = SparseGPExpert(3, 2, n_inducing=30, hyper_rows=600, max_iter=30).fit(x, y, w)
+    assert whole._hyper_subset() is None
+    assert torch.equal(whole.predict(xt).loc, full.predict(xt).loc)
+    with pytest.raises(InputError, match="hyper_rows"):
+        SparseGPOptions(hyper_rows=0)
+
+
+def test_posterior_is_kept_until_a_tensor_it_depends_on_changes():
+    x, y = _data(n=80)
+    expert = SparseGPExpert(3, 2, n_inducing=20, max_iter=5).fit(x, y)
+    first = expert.predict(x[:5]).loc
+    assert expert._posterior()[0] is expert._posterior()[0]
+
+    def fresh(e: SparseGPExpert) -> torch.Tensor:
+        clone = copy.deepcopy(e)
+        clone.__dict__.pop("_cached_posterior", None)
+        return clone.predict(x[:5]).loc
+
+    with torch.no_grad():  # a parameter written in place
+        expert.covar_module.base_kernel.raw_lengthscale.add_(0.3)
+    moved = expert.predict(x[:5]).loc
+    assert not torch.equal(first, moved) and torch.equal(moved, fresh(expert))
+    expert.condition(x[:60], y[:60])  # new training data
+    fewer = expert.predict(x[:5]).loc
+    assert not torch.equal(fewer, moved) and torch.equal(fewer, fresh(expert))
+    expert.inducing.data = expert.inducing.data[:, :10].clone()  # replaced storage
+    assert torch.equal(expert.predict(x[:5]).loc, fresh(expert))

@@ -154,6 +154,12 @@ def test_start_from_em_reproduces_em_predictions():
     nlpd_vi, nlpd_em = (-float(m.predict(xt).log_prob(yt).mean()) for m in (vi, em))
     assert abs(nlpd_vi - nlpd_em) < 0.05, (nlpd_vi, nlpd_em)
 
+    # a gate and kernel step relative to lr (SVIOptions.gate_lr_scale, hyper_lr_scale) moves them
+    moved = VariationalMixtureOfGPExperts(2, n_inducing=60)
+    fit_svi(moved, x, y, n_steps=5, batch_size=20, init=em, gate_lr_scale=1.0, hyper_lr_scale=1.0)
+    assert float((moved.gate_probs(xt) - em.gate_probs(xt)).abs().max()) > 1e-6
+    assert not torch.equal(moved.experts[0].covar_module.base_kernel.lengthscale, lengthscale)
+
 
 def test_inducing_points_cover_the_weighted_samples():
     x = torch.linspace(-3, 3, 40, dtype=torch.float64)[:, None]

@@ -9,6 +9,7 @@ from probaff.perception.labels import (
     LABELS,
     THESIS_PR,
     LabelClassifier,
+    PerColumnLogistic,
     cross_validate_labels,
     label_index,
     reliability,
@@ -121,6 +122,36 @@ def test_reliability_edges_and_empty_bins():
     np.testing.assert_array_equal(diagram.counts, [1, 0, 1, 2])
     np.testing.assert_array_equal(diagram.frequency[[0, 2, 3]], [0.0, 1.0, 0.5])
     assert math.isnan(diagram.frequency[1])
+
+
+class _Columns(PerColumnLogistic):
+    """The bare per-column regressions, as a subclass sees them."""
+
+    C_NAME = "C of the columns"
+
+    def fit(self, x, y):
+        self._fit_columns(x, y)
+        return self
+
+    def predict_proba(self, x):
+        return self._predict_columns(x)
+
+
+def test_per_column_logistic_fits_each_column_and_keeps_constant_ones(rng):
+    x = rng.normal(size=(40, 3))
+    y = np.column_stack([x[:, 0] > 0, np.ones(40, bool), np.zeros(40, bool)])
+    model = _Columns(C=2.0)
+    assert not model.is_fitted
+    with pytest.raises(NotFittedError, match="fit"):
+        model.predict_proba(x)
+    p = model.fit(x, y).predict_proba(x)
+    assert model.is_fitted and p.shape == (40, 3)
+    np.testing.assert_array_equal(p[:, 1:], np.tile([1.0, 0.0], (40, 1)))
+    assert ((p[:, 0] >= 0.5) == y[:, 0]).mean() > 0.9
+    with pytest.raises(InputError, match="C of the columns"):
+        _Columns(C=0.0)
+    with pytest.raises(InputError, match="max_iter"):
+        _Columns(max_iter=0)
 
 
 def test_label_errors(rng):

@@ -57,11 +57,17 @@ def test_majority_decides_and_misses_leave_no_hit():
     assert g.hits[3, j] == 1 and g.passes[3, j] == 2 and g.state[3, j] == FREE_SPACE
 
 
-def test_one_scan_of_one_box(spec):
+def _one_box_grid(spec):
+    """The grid after one scan from cell (6, 5) of a 12 x 12 map with one box, at (6, 8)."""
     m = WarehouseMap.from_boxes((12, 12), [(6, 8)])
     scan = DepthSensor(spec, m).scan(m.cell_centre(np.array([6, 5])), np.random.default_rng(0))
     g = OccupancyGrid(m.shape, m.cell_size)
     g.update(scan)
+    return g
+
+
+def test_one_scan_of_one_box(spec):
+    g = _one_box_grid(spec)
     f = g.cell_fractions()
     assert f.shape == (12, 12, 3)
     np.testing.assert_allclose(f.sum(-1), 1.0)
@@ -75,10 +81,7 @@ def test_one_scan_of_one_box(spec):
 
 
 def test_frontiers(spec):
-    m = WarehouseMap.from_boxes((12, 12), [(6, 8)])
-    scan = DepthSensor(spec, m).scan(m.cell_centre(np.array([6, 5])), np.random.default_rng(0))
-    g = OccupancyGrid(m.shape, m.cell_size)
-    g.update(scan)
+    g = _one_box_grid(spec)
     fr = g.frontier()
     assert fr.shape == g.fine_shape and fr.any()
     st = g.state

@@ -4,8 +4,11 @@ import numpy as np
 import pytest
 
 from probaff.errors import InputError
+from probaff.perception.normals import estimate_normals
+from probaff.perception.region_growing import region_growing
 from probaff.perception.scan_labels import (
     PerceptionConfig,
+    grow_regions,
     head_pose,
     label_dataset,
     scan_segments,
@@ -58,6 +61,28 @@ def test_segments_of_a_handbuilt_scene_match_its_objects_and_labels():
     outside = int(np.count_nonzero(view.point_segments < 0))
     assert outside == len(view.points) - int(view.point_counts.sum())
     assert 0 < view.n_unassigned <= outside
+
+
+def test_grow_regions_is_region_growing_with_the_configs_settings():
+    rng = np.random.default_rng(0)
+    plane = np.column_stack([rng.uniform(0, 1, (300, 2)), np.zeros(300)])
+    wall = np.column_stack([np.full(300, 1.2), rng.uniform(0, 1, (300, 2))])
+    pts = np.vstack([plane, wall])
+    config = PerceptionConfig(k=10, min_size=20)
+    nrm = estimate_normals(pts, config.k, viewpoint=np.array([0.5, 0.5, 2.0]))
+    seg = grow_regions(pts, nrm, config)
+    ref = region_growing(
+        pts,
+        nrm.normals,
+        nrm.curvature,
+        k=10,
+        smoothness_deg=config.smoothness_deg,
+        curvature_threshold=config.curvature_threshold,
+        min_size=20,
+        neighbours=nrm.neighbours,
+    )
+    np.testing.assert_array_equal(seg.labels, ref.labels)
+    assert seg.n_segments == ref.n_segments >= 2
 
 
 def test_structure_segments_can_be_dropped():

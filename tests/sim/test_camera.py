@@ -330,6 +330,14 @@ def test_malformed_yaml_names_the_field(tmp_path: Path, field: str, match: str) 
         load_camera(_write(tmp_path, field))
 
 
+def test_load_camera_sets_the_image_size_in_place_of_the_files(spec: CameraSpec) -> None:
+    assert load_camera(width=None, height=None) == spec
+    assert load_camera(width=80, height=60) == replace(spec, width=80, height=60)
+    assert load_camera(height=60) == replace(spec, height=60)
+    with pytest.raises(ConfigError, match="width"):
+        load_camera(width=0)
+
+
 def test_spec_built_in_code_is_checked(spec: CameraSpec) -> None:
     with pytest.raises(ConfigError, match="height"):
         replace(spec, height=0)

@@ -20,17 +20,15 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from sklearn.linear_model import LogisticRegression
 from sklearn.metrics import precision_score, recall_score
 from sklearn.model_selection import GroupKFold, StratifiedKFold
-from sklearn.pipeline import Pipeline, make_pipeline
-from sklearn.preprocessing import StandardScaler
 
 from probaff._checks import check_count, check_finite, check_positive, check_shape
 from probaff.errors import InputError
 from probaff.features.cells import cell_features
 from probaff.grid import DIRECTION_NAMES
 from probaff.perception.exploration import explore, grid_distances
+from probaff.perception.labels import PerColumnLogistic
 from probaff.perception.occupancy import FREE_SPACE
 from probaff.sim.warehouse import generate_map, rule_affordances
 from probaff.sim.warehouse_config import WarehouseSpec, load_warehouse
@@ -44,7 +42,7 @@ __all__ = [
 ]
 
 
-class AffordanceClassifier:
+class AffordanceClassifier(PerColumnLogistic):
     """One standardised logistic regression per push direction, over voxel features.
 
     Args:
@@ -56,17 +54,7 @@ class AffordanceClassifier:
             integer.
     """
 
-    def __init__(self, C: float = 1.0, max_iter: int = 2000) -> None:
-        check_positive("C (inverse regularisation strength)", C)
-        self.C = float(C)
-        self.max_iter = check_count("max_iter", max_iter)
-        self._models: list[Pipeline | float] | None = None
-        self._dim: int | None = None
-
-    @property
-    def is_fitted(self) -> bool:
-        """Whether `fit` has run."""
-        return self._models is not None
+    C_NAME = "C (inverse regularisation strength)"
 
     def fit(self, features: np.ndarray, labels: np.ndarray) -> AffordanceClassifier:
         """Train on labelled voxels.
@@ -85,27 +73,17 @@ class AffordanceClassifier:
         """
         x = self._check_features(features, fitting=True)
         check_shape("labels", labels, (x.shape[0], len(DIRECTION_NAMES)))
-        y = np.asarray(labels, dtype=bool)
-        models: list[Pipeline | float] = []
-        for k in range(len(DIRECTION_NAMES)):
-            if y[:, k].all() or not y[:, k].any():
-                models.append(float(y[0, k]))
-                continue
-            model = make_pipeline(
-                StandardScaler(), LogisticRegression(C=self.C, max_iter=self.max_iter)
-            )
-            models.append(model.fit(x, y[:, k]))
-        self._models = models
+        self._fit_columns(x, np.asarray(labels, dtype=bool))
         return self
 
     def _check_features(self, features: np.ndarray, fitting: bool = False) -> np.ndarray:
-        check_shape("features", features, (None, None if fitting else self._dim))
+        check_shape("features", features, (None, None if fitting else self._width))
         check_finite("features", features)
         x = np.asarray(features, dtype=float)
         if fitting:
             if not len(x):
                 raise InputError("features hold no voxels; fit needs at least one.")
-            self._dim = x.shape[1]
+            self._width = x.shape[1]
         return x
 
     def predict_proba(self, features: np.ndarray) -> np.ndarray:
@@ -122,11 +100,7 @@ class AffordanceClassifier:
         """
         if self._models is None:
             raise InputError("the classifier is not trained; call fit(features, labels) first.")
-        x = self._check_features(features)
-        out = np.empty((len(x), len(self._models)))
-        for k, model in enumerate(self._models):
-            out[:, k] = model if isinstance(model, float) else model.predict_proba(x)[:, 1]
-        return out
+        return self._predict_columns(self._check_features(features))
 
     def predict_cells(
         self, features: np.ndarray, cells: np.ndarray, map_shape: tuple[int, int]

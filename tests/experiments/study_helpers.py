@@ -1,0 +1,78 @@
+"""Helpers of the study tests: smoke runs of the study scripts, resumption, saved figures."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+from types import ModuleType
+from typing import Any, TypeVar
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+PNG = b"\x89PNG\r\n\x1a\n"
+
+T = TypeVar("T")
+
+
+def run_smoke(script: str, out: Path, *flags: str) -> list[str]:
+    """Run ``inference/<script>.py --smoke FLAGS --out OUT`` in a subprocess.
+
+    Args:
+        script: The script's name, without ``.py``.
+        out: The output folder.
+        *flags: More flags of the script.
+
+    Returns:
+        The files the script reports on its standard output.
+    """
+    cmd = [sys.executable, str(ROOT / f"inference/{script}.py"), "--smoke", *flags]
+    proc = subprocess.run([*cmd, "--out", str(out)], capture_output=True, text=True, check=True)
+    files: list[str] = json.loads(proc.stdout)["files"]
+    return files
+
+
+def assert_wrote(files: Sequence[str], out: Path, names: Iterable[str]) -> None:
+    """Check that each of `names` under `out` is reported in `files` and is not empty."""
+    for name in names:
+        assert str(out / name) in files and (out / name).stat().st_size > 0
+
+
+def assert_resumes(rerun: Callable[[], T], paths: Sequence[Path]) -> T:
+    """Run `rerun` and check that it rewrote none of `paths`.
+
+    Returns:
+        What `rerun` returned.
+    """
+    stamp = [p.stat().st_mtime_ns for p in paths]
+    result = rerun()
+    assert [p.stat().st_mtime_ns for p in paths] == stamp
+    return result
+
+
+def record_saved_figures(monkeypatch: pytest.MonkeyPatch, module: ModuleType) -> list[Any]:
+    """Record the figures `module` saves through its ``atomic_save_figure``.
+
+    The files are still written.
+
+    Returns:
+        The list the saved figures are appended to, in order.
+    """
+    figures: list[Any] = []
+    real = module.atomic_save_figure
+
+    def save(fig: Any, path: Any, **kw: Any) -> None:
+        figures.append(fig)
+        real(fig, path, **kw)
+
+    monkeypatch.setattr(module, "atomic_save_figure", save)
+    return figures
+
+
+def is_png(path: str | Path) -> bool:
+    """Whether `path` holds a PNG image of more than 1000 bytes."""
+    data = Path(path).read_bytes()
+    return len(data) > 1000 and data.startswith(PNG)
