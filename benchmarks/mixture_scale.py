@@ -35,13 +35,15 @@ Methods (``METHODS``; each is ``fit(X, Y, seed, n_experts, em=..., **options) ->
 ``(N_test,)`` and event shape ``(E,)``; adding a method is one function decorated with
 ``@method("name")``):
 
-* ``exact-em``: `MixtureOfGPExperts(M, experts="exact")` fitted by `fit_em` (defaults).
+* ``exact-em``: `MixtureOfGPExperts(M, experts="exact")` fitted by `fit_em` (defaults); above
+  N = ``EXACT_MAX_N`` (2,000) its cells are recorded as skipped.
 * ``exact-em-serial``: ``exact-em`` with the experts fitted one by one (`per_expert_fits`).
 * ``sparse-em``: `MixtureOfGPExperts(M, experts="sparse")` (inducing-point experts,
-  ``--n-inducing``, default ``min(256, N)``) fitted by `fit_em` (defaults).
+  ``--n-inducing``, default ``min(DEFAULT_N_INDUCING, N)``) fitted by `fit_em` (defaults: above
+  1,000 rows the search runs on 1,000 of them and the kept fit is refined on all).
 * ``vi``: `VariationalMixtureOfGPExperts(M)` with ``min(128, N)`` inducing points per expert
   (``--n-inducing`` overrides) fitted by `fit_svi` with minibatches of 256 and ``--svi-steps``
-  steps (its start, an exact EM fit on at most 400 rows, is timed with it).
+  steps (its start, an EM fit on at most 2,000 rows, is timed with it).
 * ``svgp``: one sparse variational GP per output (GPyTorch SVGP, `probaff.models.vi.SVGPExpert`,
   ``min(128, N)`` inducing inputs drawn from the rows, a Gaussian likelihood per output) on
   standardised inputs and outputs, trained by Adam (step 0.01) on
@@ -106,6 +108,9 @@ from probaff.models.vi import SVGPExpert
 PEERS_SCRIPT = Path(__file__).resolve().parent / "mixture_peers.py"
 CCR_MAX_N = 5000
 """Largest training size of ``ccr`` (exact scikit-learn GPs); larger cells are skipped."""
+EXACT_MAX_N = 2000
+"""Largest training size of ``exact-em`` (about 16 CPU-minutes at N = 2,000, D = 101, E = 6,
+and :math:`N^3` beyond); larger cells are skipped."""
 BATCH_SIZE = 256
 """Minibatch size of ``vi`` and ``svgp``."""
 N_INDUCING_SVI = 128
@@ -174,7 +179,7 @@ def vi(
 ) -> Any:
     """`VariationalMixtureOfGPExperts` fitted by `fit_svi` (minibatches of `BATCH_SIZE`).
 
-    The start is `fit_svi`'s default (an exact EM fit on at most 400 rows), or with `smoke`
+    The start is `fit_svi`'s default (an EM fit on at most 2,000 rows), or with `smoke`
     the Gaussian mixture of the effects (no EM).
     """
     k = min(n_inducing or N_INDUCING_SVI, x.shape[0])
@@ -314,7 +319,7 @@ def ccr(
     return Predicted(x_test, dist)
 
 
-SKIP_ABOVE = {"ccr": CCR_MAX_N}
+SKIP_ABOVE = {"ccr": CCR_MAX_N, "exact-em": EXACT_MAX_N, "exact-em-serial": EXACT_MAX_N}
 """Methods recorded as skipped above a training size."""
 
 
@@ -412,7 +417,7 @@ def run_cell(name: str, n: int, data: Data, args: argparse.Namespace) -> dict[st
         **_settings(args),
     }
     if n > SKIP_ABOVE.get(name, math.inf):
-        return {**record, "skipped": f"too large: exact {name} runs up to N = {SKIP_ABOVE[name]}"}
+        return {**record, "skipped": f"too large: {name} runs up to N = {SKIP_ABOVE[name]}"}
     start, cpu_start = time.perf_counter(), time.process_time()
     with torch_threads(args.threads), threadpool_limits(args.threads):
         em = _em_options(args, labels)

@@ -72,11 +72,16 @@ def test_randhie_split_is_fixed_and_disjoint(scale):
     assert not other.x_test.equal(a.x_test)
 
 
-def test_ccr_is_skipped_above_its_limit(scale):
-    args = scale.parse_args(["--data", "randhie", "--methods", "ccr"])
+@pytest.mark.parametrize(
+    ("name", "limit"),
+    [("ccr", "CCR_MAX_N"), ("exact-em", "EXACT_MAX_N"), ("exact-em-serial", "EXACT_MAX_N")],
+)
+def test_exact_methods_are_skipped_above_their_limit(scale, name, limit):
+    args = scale.parse_args(["--data", "randhie", "--methods", name])
     scale._complete(args)
-    data = scale.load_randhie(scale.CCR_MAX_N + 1, 10, args)
-    cell = scale.run_cell("ccr", scale.CCR_MAX_N + 1, data, args)
+    n = getattr(scale, limit) + 1
+    data = scale.load_randhie(n, 10, args)
+    cell = scale.run_cell(name, n, data, args)
     assert cell["skipped"].startswith("too large") and "nlpd" not in cell
 
 

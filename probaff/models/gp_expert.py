@@ -5,12 +5,11 @@ from __future__ import annotations
 import contextlib
 import math
 import warnings
-from collections.abc import Callable, Iterator, Sequence
-from typing import Any, Self, TypeAlias
+from collections.abc import Callable, Iterator
+from typing import Any, TypeAlias
 
 import gpytorch
 import torch
-from gpytorch.constraints import Interval
 from gpytorch.distributions import MultivariateNormal
 from gpytorch.means import ConstantMean
 from gpytorch.priors import Prior
@@ -18,14 +17,13 @@ from linear_operator.utils.errors import NanError, NotPSDError
 from torch import Tensor
 from torch.distributions import Normal
 
-from probaff._checks import check_count, check_finite
-from probaff.errors import InputError, NotFittedError
-from probaff.models._scaling import Standardizer
+from probaff.errors import NotFittedError
+from probaff.models.expert_base import WeightedExpert, noise_floor_vector
 from probaff.models.gaussian_density import gaussian_log_density
-from probaff.models.kernels import ard_se_kernel, lengthscale_prior
+from probaff.models.kernels import ard_se_kernel
 from probaff.models.likelihood import WeightedGaussianLikelihood
-from probaff.models.options import NOISE_BOUNDS, OUTPUTSCALE_BOUNDS, GPOptions, resolve_options
-from probaff.models.tensors import as_matrix, as_vector, check_to_device
+from probaff.models.options import OUTPUTSCALE_BOUNDS, GPOptions, resolve_options
+from probaff.models.tensors import as_matrix
 
 __all__ = ["GPExpert", "LossFunction", "exact_gp_settings", "noise_floor_vector"]
 
@@ -38,35 +36,6 @@ _JITTERS = (1e-8, 1e-6, 1e-4, 1e-2)
 _LENGTHSCALE_BOUNDS = (1e-3, 1e4)
 # Floor on predictive variances (in standardised output units).
 _MIN_VARIANCE = 1e-12
-
-
-def noise_floor_vector(
-    noise_floor: float | Sequence[float] | Tensor | None, n_outputs: int
-) -> Tensor:
-    """A noise floor (standard deviations in output units) as one value per output.
-
-    Args:
-        noise_floor: ``None`` (no floor), a scalar, or one value per output.
-        n_outputs: Number of outputs `E`.
-
-    Returns:
-        Non-negative standard deviations, `(E,)`, float64.
-
-    Raises:
-        InputError: For negative, NaN or infinite values, or the wrong number of values.
-    """
-    if noise_floor is None:
-        return torch.zeros(n_outputs, dtype=torch.float64)
-    floor = torch.as_tensor(noise_floor, dtype=torch.float64).flatten()
-    check_finite("noise_floor", floor)
-    if floor.numel() == 1:
-        floor = floor.expand(n_outputs)
-    if floor.numel() != n_outputs or bool((floor < 0).any()):
-        raise InputError(
-            f"noise_floor must be one non-negative standard deviation or {n_outputs} of them "
-            f"(one per output), got {noise_floor!r}."
-        )
-    return floor.clone()
 
 
 @contextlib.contextmanager
@@ -117,7 +86,7 @@ class _BatchedExactGP(gpytorch.models.ExactGP):
         return MultivariateNormal(self.mean_module(x), self.covar_module(x))
 
 
-class GPExpert(torch.nn.Module):
+class GPExpert(WeightedExpert):
     r"""Multi-output GP regressor with SE-ARD kernels and per-sample noise weights.
 
     Each of the `E` outputs is an independent exact GP (constant mean, amplitude times an
@@ -154,9 +123,6 @@ class GPExpert(torch.nn.Module):
         likelihood: Its weighted Gaussian likelihood.
     """
 
-    jitter: Tensor
-    noise_floor: Tensor
-
     def __init__(
         self,
         n_features: int,
@@ -164,25 +130,12 @@ class GPExpert(torch.nn.Module):
         options: GPOptions | None = None,
         **overrides: Any,
     ) -> None:
-        super().__init__()
-        self.n_features = check_count("n_features", n_features)
-        self.n_outputs = check_count("n_outputs", n_outputs)
-        self.options = resolve_options(GPOptions, options, overrides)
-        self.max_iter = self.options.max_iter
-        self.initial_outputscale = self.options.outputscale
-        self.initial_noise = self.options.noise
-        self.lengthscale_prior = self.options.lengthscale_prior
-        batch = torch.Size([self.n_outputs])
-        self.likelihood = WeightedGaussianLikelihood(
-            batch_shape=batch, noise_constraint=Interval(*NOISE_BOUNDS)
-        )
-        prior = lengthscale_prior(self.n_features) if self.lengthscale_prior else None
-        self.gp = _BatchedExactGP(self.n_features, self.n_outputs, self.likelihood, prior)
-        self.x_scaler = Standardizer(self.n_features)
-        self.y_scaler = Standardizer(self.n_outputs)
-        self.register_buffer("jitter", torch.tensor(_JITTERS[0], dtype=torch.float64))
-        self.register_buffer(
-            "noise_floor", noise_floor_vector(self.options.noise_floor, self.n_outputs)
+        resolved = resolve_options(GPOptions, options, overrides)
+        super().__init__(n_features, n_outputs, resolved, _JITTERS[0])
+        self.initial_outputscale = resolved.outputscale
+        self.initial_noise = resolved.noise
+        self.gp = _BatchedExactGP(
+            self.n_features, self.n_outputs, self.likelihood, self.kernel_prior()
         )
         self.to(torch.float64)
         self.reset_hyperparameters()
@@ -202,20 +155,6 @@ class GPExpert(torch.nn.Module):
         kernel.outputscale = torch.full_like(kernel.outputscale, self.initial_outputscale)
         self.likelihood.noise = self.initial_noise
         self.gp.mean_module.constant.data.zero_()
-
-    @property
-    def device(self) -> torch.device:
-        """The device of the expert's parameters, where it fits and predicts."""
-        return self.jitter.device
-
-    def to(self, *args: Any, **kwargs: Any) -> Self:
-        """`torch.nn.Module.to`, refusing a device that this machine does not have.
-
-        Raises:
-            InputError: For a malformed device or one that does not exist.
-        """
-        check_to_device(args, kwargs)
-        return super().to(*args, **kwargs)
 
     @property
     def is_fitted(self) -> bool:
@@ -241,24 +180,7 @@ class GPExpert(torch.nn.Module):
         Raises:
             InputError: On malformed inputs or if every weight is zero.
         """
-        device = self.device
-        x = as_matrix("features X", X, n_cols=self.n_features, device=device)
-        y = as_matrix("targets Y", Y, n_rows=x.shape[0], n_cols=self.n_outputs, device=device)
-        if weights is None:
-            w = torch.ones(x.shape[0], dtype=torch.float64, device=device)
-        else:
-            w = as_vector("weights", weights, n=x.shape[0], device=device)
-            if bool((w < 0).any()):
-                raise InputError("weights must be >= 0.")
-        keep = w > 0
-        if not bool(keep.any()):
-            raise InputError("every weight is zero; at least one sample must have weight > 0.")
-        x, y, w = x[keep], y[keep], w[keep]
-        self.x_scaler.fit(x, w)
-        self.y_scaler.fit(y, w)
-        floor = (self.noise_floor / self.y_scaler.std).square()
-        self.likelihood.noise_covar.floor.copy_(floor[:, None])
-        self.likelihood.weights = w
+        x, y, _ = self.weighted_rows(X, Y, weights)
         self.gp.set_train_data(self.x_scaler(x), self.y_scaler(y).T.contiguous(), strict=False)
         return self
 
@@ -486,22 +408,6 @@ class GPExpert(torch.nn.Module):
         std = var.T.sqrt() * self.y_scaler.std
         return Normal(mean, std)
 
-    def log_prob(self, X: Any, Y: Any) -> Tensor:
-        """Predictive log density of each row of `Y` (noise included, summed over outputs).
-
-        Args:
-            X: Features, `(N, D)`.
-            Y: Targets, `(N, E)`.
-
-        Returns:
-            Log densities, `(N,)`.
-        """
-        pred = self.predict(X)
-        y = as_matrix(
-            "targets Y", Y, n_rows=pred.loc.shape[0], n_cols=self.n_outputs, device=self.device
-        )
-        return pred.log_prob(y).sum(-1)
-
     # ------------------------------------------------------------ relevances
     @property
     def lengthscales(self) -> Tensor:
@@ -509,8 +415,3 @@ class GPExpert(torch.nn.Module):
         return self.gp.covar_module.base_kernel.lengthscale.detach().reshape(
             self.n_outputs, self.n_features
         )
-
-    @property
-    def noise(self) -> Tensor:
-        """Observation noise variances in output units, `(E,)`."""
-        return self.likelihood.noise.detach()[..., 0] * self.y_scaler.std.square()

@@ -11,11 +11,12 @@ from torch.distributions import Normal
 
 from probaff._checks import check_count
 from probaff.errors import InputError, NotFittedError
+from probaff.models.expert_base import noise_floor_vector
 from probaff.models.expert_batch import fit_exact_experts, predict_exact_experts
 from probaff.models.gate import GATE_KINDS, make_gate
 from probaff.models.gate_penalty import check_strength
 from probaff.models.gated import ExpertList, GatedMixture, gated_probs, mixture_distribution
-from probaff.models.gp_expert import GPExpert, noise_floor_vector
+from probaff.models.gp_expert import GPExpert
 from probaff.models.sparse_expert import (
     DEFAULT_N_INDUCING,
     FitMemoryError,
@@ -146,7 +147,7 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         noise_floor: float | Sequence[float] | str | None = "auto",
         experts: str = "auto",
         n_inducing: int | None = None,
-        hyper_rows: int | None = 4096,
+        hyper_rows: int | None = 2048,
         **columns: Any,
     ) -> None:
         super().__init__(n_experts, gate_l2=gate_l2, **columns)

@@ -132,6 +132,11 @@ class EMOptions:
         anneal: Temper the E-step (deterministic annealing).
         anneal_start: First inverse temperature of the annealing, in (0, 1].
         anneal_iter: Iterations over which the inverse temperature rises to 1.
+        search_rows: With more training rows than this, `fit_em` searches for the fit (the
+            path over `M`, the screened starts, split-and-merge) on a seeded random subset
+            of this many rows, then refines the kept fit on every row by up to `max_iter`
+            EM iterations from its responsibilities there (coarse to fine). None searches
+            on every row. `fit_em_path` always uses every row.
 
     Raises:
         InputError: On construction, naming the first field out of range.
@@ -153,6 +158,7 @@ class EMOptions:
     anneal: bool = False
     anneal_start: float = 0.1
     anneal_iter: int = 4
+    search_rows: int | None = 1000
 
     def __post_init__(self) -> None:
         """Validate every field and store counts and numbers as builtin types."""
@@ -161,7 +167,7 @@ class EMOptions:
             _set(self, name, check_count(name, getattr(self, name)))
         _set(self, "split_merge", check_count("split_merge", self.split_merge, minimum=0))
         _set(self, "seed", check_count("seed", self.seed, minimum=0))
-        for name in ("screen_iter", "gp_max_iter"):
+        for name in ("screen_iter", "gp_max_iter", "search_rows"):
             value = getattr(self, name)
             _set(self, name, None if value is None else check_count(name, value))
         for name in ("tol", "prune_below", "min_size"):
@@ -305,7 +311,7 @@ class SparseGPOptions(GPOptions):
     `noise`) mean the same here; three are added.
 
     Attributes:
-        n_inducing: Inducing points `m` per output; None for 256. At most the number of
+        n_inducing: Inducing points `m` per output; None for 128. At most the number of
             samples with non-zero weight are used (`MixtureOfGPExperts` refuses a value
             above its `N` training rows).
         learn_inducing: Optimise the inducing inputs with the hyperparameters (each fit
@@ -325,7 +331,7 @@ class SparseGPOptions(GPOptions):
 
     n_inducing: int | None = None
     learn_inducing: bool = False
-    hyper_rows: int | None = 4096
+    hyper_rows: int | None = 2048
 
     def __post_init__(self) -> None:
         """Validate every field and store it as builtin types."""

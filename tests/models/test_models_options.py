@@ -43,6 +43,7 @@ def test_defaults_are_the_fits_defaults():
         "anneal": False,
         "anneal_start": 0.1,
         "anneal_iter": 4,
+        "search_rows": 1000,
     }
     assert dataclasses.asdict(SVIOptions()) == {
         "n_steps": 1500,
@@ -67,7 +68,7 @@ def test_defaults_are_the_fits_defaults():
         **dataclasses.asdict(GPOptions()),
         "n_inducing": None,
         "learn_inducing": False,
-        "hyper_rows": 4096,
+        "hyper_rows": 2048,
     }
 
 

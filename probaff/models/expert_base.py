@@ -1,0 +1,190 @@
+"""What every GP expert of a mixture shares, and the checks of a weighted training set.
+
+Sizes, settings, the weighted likelihood, the standardisers, the jitter and the noise floor.
+
+`probaff.models.gp_expert.GPExpert` (exact) and `probaff.models.sparse_expert.SparseGPExpert`
+(inducing points) derive from `WeightedExpert`; each adds its kernel and its own fit.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, Self
+
+import torch
+from gpytorch.constraints import Interval
+from gpytorch.priors import Prior
+from torch import Tensor
+from torch.distributions import Normal
+
+from probaff._checks import check_count, check_finite
+from probaff.errors import InputError
+from probaff.models._scaling import Standardizer
+from probaff.models.kernels import lengthscale_prior
+from probaff.models.likelihood import WeightedGaussianLikelihood
+from probaff.models.options import NOISE_BOUNDS, GPOptions
+from probaff.models.tensors import as_matrix, as_vector, check_to_device
+
+__all__ = ["WeightedExpert", "noise_floor_vector"]
+
+
+def noise_floor_vector(
+    noise_floor: float | Sequence[float] | Tensor | None, n_outputs: int
+) -> Tensor:
+    """A noise floor (standard deviations in output units) as one value per output.
+
+    Args:
+        noise_floor: ``None`` (no floor), a scalar, or one value per output.
+        n_outputs: Number of outputs `E`.
+
+    Returns:
+        Non-negative standard deviations, `(E,)`, float64.
+
+    Raises:
+        InputError: For negative, NaN or infinite values, or the wrong number of values.
+    """
+    if noise_floor is None:
+        return torch.zeros(n_outputs, dtype=torch.float64)
+    floor = torch.as_tensor(noise_floor, dtype=torch.float64).flatten()
+    check_finite("noise_floor", floor)
+    if floor.numel() == 1:
+        floor = floor.expand(n_outputs)
+    if floor.numel() != n_outputs or bool((floor < 0).any()):
+        raise InputError(
+            f"noise_floor must be one non-negative standard deviation or {n_outputs} of them "
+            f"(one per output), got {noise_floor!r}."
+        )
+    return floor.clone()
+
+
+class WeightedExpert(torch.nn.Module):
+    r"""Base of the GP experts: `E` outputs of `D` features with per-sample noise weights.
+
+    Sample `i` of weight :math:`w_i > 0` has noise variance :math:`\sigma^2 / w_i`
+    (`WeightedGaussianLikelihood`, batched over the outputs); samples of weight 0 are
+    dropped. Inputs and outputs are standardised with the weighted moments of the training
+    data, and the noise standard deviation of every output is at least its `noise_floor`
+    (output units). Subclasses register their kernel after calling this constructor, then
+    move to float64 and reset their hyperparameters.
+
+    Args:
+        n_features: Number of input features `D`.
+        n_outputs: Number of outputs `E`.
+        options: The resolved settings (`GPOptions` or a subclass).
+        jitter: The first diagonal jitter tried (relative; the subclass's first level).
+
+    Attributes:
+        options: The settings.
+        max_iter: L-BFGS iterations per `fit` (``options.max_iter``).
+        lengthscale_prior: Whether the log length-scale prior is on.
+        likelihood: The weighted Gaussian likelihood, batch shape `(E,)`.
+        x_scaler: Standardiser of the features (weighted moments of the training set).
+        y_scaler: Standardiser of the outputs.
+    """
+
+    jitter: Tensor
+    noise_floor: Tensor
+
+    def __init__(self, n_features: int, n_outputs: int, options: GPOptions, jitter: float) -> None:
+        super().__init__()
+        self.n_features = check_count("n_features", n_features)
+        self.n_outputs = check_count("n_outputs", n_outputs)
+        self.options = options
+        self.max_iter = options.max_iter
+        self.lengthscale_prior = options.lengthscale_prior
+        self.likelihood = WeightedGaussianLikelihood(
+            batch_shape=torch.Size([self.n_outputs]), noise_constraint=Interval(*NOISE_BOUNDS)
+        )
+        self.x_scaler = Standardizer(self.n_features)
+        self.y_scaler = Standardizer(self.n_outputs)
+        self.register_buffer("jitter", torch.tensor(jitter, dtype=torch.float64))
+        self.register_buffer("noise_floor", noise_floor_vector(options.noise_floor, self.n_outputs))
+
+    def kernel_prior(self) -> Prior | None:
+        """The log length-scale prior of the kernel (`lengthscale_prior`), or None when off."""
+        return lengthscale_prior(self.n_features) if self.lengthscale_prior else None
+
+    @property
+    def device(self) -> torch.device:
+        """The device of the expert's parameters, where it fits and predicts."""
+        return self.jitter.device
+
+    def to(self, *args: Any, **kwargs: Any) -> Self:
+        """`torch.nn.Module.to`, refusing a device that this machine does not have.
+
+        Raises:
+            InputError: For a malformed device or one that does not exist.
+        """
+        check_to_device(args, kwargs)
+        return super().to(*args, **kwargs)
+
+    def weighted_rows(self, X: Any, Y: Any, weights: Any | None) -> tuple[Tensor, Tensor, Tensor]:
+        """Validate a weighted training set and set the scalers, noise floor and weights.
+
+        Rows of weight 0 are dropped; the standardisers take the weighted moments of the
+        rest, the likelihood their weights and the noise floor (in standardised units).
+
+        Args:
+            X: Features, `(N, D)`.
+            Y: Targets, `(N, E)`.
+            weights: Non-negative sample weights, `(N,)`; all 1 if ``None``.
+
+        Returns:
+            The kept rows' features `(n, D)`, targets `(n, E)` and weights `(n,)`, in input
+            units, on the expert's device.
+
+        Raises:
+            InputError: On malformed inputs or if every weight is zero.
+        """
+        device = self.device
+        x = as_matrix("features X", X, n_cols=self.n_features, device=device)
+        y = as_matrix("targets Y", Y, n_rows=x.shape[0], n_cols=self.n_outputs, device=device)
+        if weights is None:
+            w = torch.ones(x.shape[0], dtype=torch.float64, device=device)
+        else:
+            w = as_vector("weights", weights, n=x.shape[0], device=device)
+            if bool((w < 0).any()):
+                raise InputError("weights must be >= 0.")
+        keep = w > 0
+        if not bool(keep.any()):
+            raise InputError("every weight is zero; at least one sample must have weight > 0.")
+        x, y, w = x[keep], y[keep], w[keep]
+        self.x_scaler.fit(x, w)
+        self.y_scaler.fit(y, w)
+        floor = (self.noise_floor / self.y_scaler.std).square()
+        self.likelihood.noise_covar.floor.copy_(floor[:, None])
+        self.likelihood.weights = w
+        return x, y, w
+
+    def predict(self, X: Any, *, include_noise: bool = True) -> Normal:
+        """Predictive distribution of the outputs at `X` (each subclass's own).
+
+        Args:
+            X: Features, `(N, D)`.
+            include_noise: Add the observation noise variance to the latent one.
+
+        Returns:
+            Independent normals with loc and scale `(N, E)`.
+        """
+        raise NotImplementedError
+
+    def log_prob(self, X: Any, Y: Any) -> Tensor:
+        """Predictive log density of each row of `Y` (noise included, summed over outputs).
+
+        Args:
+            X: Features, `(N, D)`.
+            Y: Targets, `(N, E)`.
+
+        Returns:
+            Log densities, `(N,)`.
+        """
+        pred = self.predict(X)
+        y = as_matrix(
+            "targets Y", Y, n_rows=pred.loc.shape[0], n_cols=self.n_outputs, device=self.device
+        )
+        return pred.log_prob(y).sum(-1)
+
+    @property
+    def noise(self) -> Tensor:
+        """Observation noise variances in output units, `(E,)`."""
+        return self.likelihood.noise.detach()[..., 0] * self.y_scaler.std.square()
