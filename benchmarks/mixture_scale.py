@@ -76,6 +76,7 @@ import importlib.util
 import io
 import json
 import math
+import resource
 import sys
 import time
 import warnings
@@ -434,6 +435,7 @@ def run_cell(name: str, n: int, data: Data, args: argparse.Namespace) -> dict[st
         "nlpd": float(per_output.sum()),
         "nlpd_per_output": [float(v) for v in per_output],
         "rmse": float(rmse(pred, data.y_test).mean()),
+        "peak_gib": peak_memory_gib(),
         "em": {k: "oracle" if k == "init" and args.init == "oracle" else v for k, v in em.items()},
     }
 
@@ -442,7 +444,13 @@ _METHOD_OPTIONS = ("n_inducing", "svi_steps", "svgp_steps", "ccr_restarts", "smo
 
 
 # -------------------------------------------------------------------------------- outputs
-COLUMNS = ("method", "n", "fit_s", "fit_cpu_s", "nlpd", "rmse", "skipped")
+COLUMNS = ("method", "n", "fit_s", "fit_cpu_s", "nlpd", "rmse", "peak_gib", "skipped")
+
+
+def peak_memory_gib() -> float:
+    """The process's peak resident memory so far, GiB (an upper bound for the last cell's)."""
+    kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # KiB on Linux
+    return kib / 2.0**20
 
 
 def read_cells(out: Path) -> list[dict[str, Any]]:
@@ -478,18 +486,20 @@ def table_markdown(rows: list[dict[str, Any]], data: str) -> str:
         f"# Scaling with N on `{data}`",
         "",
         "One fit per cell (one seed, no error bars); NLPD in nats per held-out point summed"
-        " over the outputs, RMSE averaged over the outputs; CPU s is the fit's process CPU time.",
+        " over the outputs, RMSE averaged over the outputs; CPU s is the fit's process CPU time;"
+        " peak GiB the process's peak resident memory after the cell (cells run in one process"
+        " in order of N, so it bounds the cell's own).",
         "",
-        "| method | N | fit s | CPU s | NLPD | RMSE |",
-        "|---|---|---|---|---|---|",
+        "| method | N | fit s | CPU s | NLPD | RMSE | peak GiB |",
+        "|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         if "skipped" in r:
-            lines.append(f"| {r['method']} | {r['n']} | skipped: {r['skipped']} | | | |")
+            lines.append(f"| {r['method']} | {r['n']} | skipped: {r['skipped']} | | | | |")
         else:
             lines.append(
                 f"| {r['method']} | {r['n']} | {r['fit_s']:.1f} | {r['fit_cpu_s']:.1f} | "
-                f"{r['nlpd']:.3f} | {r['rmse']:.4f} |"
+                f"{r['nlpd']:.3f} | {r['rmse']:.4f} | {_num(r, 'peak_gib', '.2f')} |"
             )
     return "\n".join(lines) + "\n"
 

@@ -258,9 +258,9 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
                 else noise_floor_vector(self.noise_floor, n_outputs)
             )
         kind = self.resolve_expert_kind(n_samples)
+        self.resolve_columns(n_features)
         if n_samples is not None:
             self.check_fit_memory(kind, n_samples, n_outputs)
-        self.resolve_columns(n_features)
         self.n_outputs = int(n_outputs)
         self.gate = make_gate(
             self.gate_kind, len(self.gate_columns), self.n_experts, l2=self.gate_l2, l1=self.gate_l1
@@ -323,17 +323,20 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
             FitMemoryError: If the estimate exceeds the memory available.
         """
         m = min(self.n_inducing or DEFAULT_N_INDUCING, n_samples)
-        need = fit_memory_bytes(kind, n_samples, n_outputs, self.n_experts, m)
+        d, rows = len(self.expert_columns), self.hyper_rows
+
+        def need_of(kind: str) -> int:
+            return fit_memory_bytes(
+                kind, n_samples, n_outputs, self.n_experts, m, n_features=d, hyper_rows=rows
+            )
+
+        need = need_of(kind)
         free = available_memory_bytes()
         if free is None or need <= free:
             return
         gib = 2.0**30
         if kind == "exact":
-            hint = (
-                f"use experts='sparse' (about "
-                f"{fit_memory_bytes('sparse', n_samples, n_outputs, self.n_experts, m) / gib:.2g}"
-                " GiB) or fewer training rows"
-            )
+            hint = f"use experts='sparse' (about {need_of('sparse') / gib:.2g} GiB) or fewer rows"
         else:
             hint = "use a smaller n_inducing or fewer training rows"
         raise FitMemoryError(

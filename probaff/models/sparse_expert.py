@@ -74,6 +74,8 @@ _BLOCK = 4096
 # an exact fit (kernel, covariance, Cholesky factor, gradient).
 _SPARSE_COPIES = 8
 _EXACT_COPIES = 4
+# Working copies of an (E, m, block) matrix in a no-gradient pass (kernel, projection, solve).
+_PASS_COPIES = 4
 
 
 # ----------------------------------------------------------------- memory
@@ -82,15 +84,24 @@ class FitMemoryError(InputError, MemoryError):
 
 
 def fit_memory_bytes(
-    experts: str, n_samples: int, n_outputs: int, n_experts: int, n_inducing: int
+    experts: str,
+    n_samples: int,
+    n_outputs: int,
+    n_experts: int,
+    n_inducing: int,
+    *,
+    n_features: int = 0,
+    hyper_rows: int | None = None,
 ) -> int:
     """Estimated peak memory of fitting `n_experts` experts on `n_samples` rows (float64).
 
     An exact M-step fits the `M` experts as one batch and holds :math:`M E N^2` kernel
     entries with working copies of them (the covariance, its Cholesky factor and the
-    gradient). Sparse experts are fitted one at a time: one holds :math:`E m N`
-    cross-covariance entries and their working copies (kernel, projection, gradient),
-    and every expert keeps its `m x m` factors.
+    gradient). Sparse experts are fitted one at a time: the bound and its gradient hold
+    :math:`E m R` cross-covariance entries and their working copies for the `R` rows the
+    hyperparameters are chosen on (`hyper_rows`, at most `N`), the passes over every row
+    (posterior, prediction, leave-one-out) go in blocks of a few thousand rows, every
+    expert keeps its `m x m` factors and its standardised copy of the `N` rows.
 
     Args:
         experts: ``"exact"`` or ``"sparse"``.
@@ -98,6 +109,8 @@ def fit_memory_bytes(
         n_outputs: Outputs `E`.
         n_experts: Experts `M`.
         n_inducing: Inducing points `m` (ignored for ``"exact"``).
+        n_features: Features `D` of the experts (their copies of the data).
+        hyper_rows: Rows the sparse bound is maximised on; None for `N`.
 
     Returns:
         Bytes.
@@ -105,7 +118,11 @@ def fit_memory_bytes(
     if experts == "exact":
         return 8 * n_experts * n_outputs * n_samples * n_samples * _EXACT_COPIES
     m, e = n_inducing, n_outputs
-    return 8 * e * (m * n_samples * _SPARSE_COPIES + 4 * n_experts * m * m)
+    rows = n_samples if hyper_rows is None else min(n_samples, hyper_rows)
+    bound = m * rows * _SPARSE_COPIES
+    passes = m * min(n_samples, _BLOCK) * _PASS_COPIES
+    data = n_experts * n_samples * (n_features + n_outputs)
+    return 8 * (e * (bound + passes + 4 * n_experts * m * m) + data)
 
 
 def available_memory_bytes() -> int | None:

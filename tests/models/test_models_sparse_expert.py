@@ -248,8 +248,17 @@ def test_memory_estimates():
     assert exact >= 3 * 6 * 10_000**2 * 8
     assert sparse < exact / 20
     # the sparse estimate grows linearly in N, the exact one quadratically
-    assert 1.9 * sparse < fit_memory_bytes("sparse", 20_000, 6, 3, 256) <= 2 * sparse
+    sizes = [fit_memory_bytes("sparse", n, 6, 3, 256) for n in (10_000, 20_000, 30_000)]
+    assert sizes[2] - sizes[1] == sizes[1] - sizes[0] > 0
+    assert 1.5 * sparse < sizes[1] <= 2 * sparse
     assert fit_memory_bytes("exact", 20_000, 6, 3, 256) == 4 * exact
+    # with the bound on hyper_rows rows, N adds only the experts' copies of the data
+    big = [
+        fit_memory_bytes("sparse", n, 6, 3, 128, n_features=101, hyper_rows=2048)
+        for n in (100_000, 200_000)
+    ]
+    assert big[1] - big[0] == 8 * 3 * 100_000 * (101 + 6)
+    assert big[0] < 2**30  # 100,000 rows of 101 features: well under 1 GiB
     free = available_memory_bytes()
     assert free is None or free > 0
     assert issubclass(FitMemoryError, InputError) and issubclass(FitMemoryError, MemoryError)
