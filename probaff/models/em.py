@@ -15,7 +15,7 @@ from torch import Tensor
 from probaff._checks import check_count, check_probability
 from probaff.errors import InputError
 from probaff.models.em_run import EMHistory, EMRun, RunSettings
-from probaff.models.em_starts import fit_level
+from probaff.models.em_starts import _fresh, fit_level
 from probaff.models.gated import mixture_payload
 from probaff.models.mixture import MixtureOfGPExperts
 from probaff.models.options import EMOptions, resolve_options
@@ -228,8 +228,7 @@ def _coarse_to_fine(
     subset = torch.randperm(n, generator=torch.Generator().manual_seed(opts.seed))[:rows]
     subset = subset.sort().values.to(x.device)
     coarse, found = fit_em_path(template, x[subset], y[subset], (m,), opts)[m]
-    fine = MixtureOfGPExperts(**template.config())
-    fine.build(x.shape[1], y.shape[1], template.resolve_noise_floor(y), n_samples=n)
+    fine = _fresh(template, m, x, y)
     for mine, theirs in zip(fine.experts, coarse.experts, strict=True):
         mine.load_state_dict(theirs.state_dict())
     resp = torch.softmax(coarse.log_joint(x, y), dim=1)
