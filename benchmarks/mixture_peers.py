@@ -453,6 +453,22 @@ def load_engel(data_root: Path, rows: int | None, progress: bool) -> Dataset:
     )
 
 
+def load_motorcycle(data_root: Path, rows: int | None, progress: bool) -> Dataset:
+    """Silverman's motorcycle crash data (133 x 1): regimes of the acceleration curve, each
+    with its own noise, as statsmodels ships it (time after impact in ms -> head
+    acceleration in g)."""
+    from importlib.resources import files
+
+    text = (files("statsmodels") / "gam/tests/results/motorcycle.csv").read_text()
+    data = np.loadtxt(text.splitlines(), delimiter=",", skiprows=1)
+    return Dataset(
+        "motorcycle",
+        *_subsample(data[:, :1], data[:, 1], rows),
+        ("accel",),
+        about="statsmodels motorcycle: head acceleration (g) vs time after impact (ms)",
+    )
+
+
 Loader = Callable[[Path, int | None, bool], Dataset]
 
 DATASETS: dict[str, Loader] = {
@@ -461,6 +477,7 @@ DATASETS: dict[str, Loader] = {
     "synthetic": load_synthetic,
     "diabetes": load_diabetes,
     "engel": load_engel,
+    "motorcycle": load_motorcycle,
 }
 
 

@@ -72,3 +72,11 @@ def test_em_init_variants_follow_fit_em_signature(peers):
     variants = {f"em_{name}" for name in peers.EM_INITS}
     assert variants <= set(peers.MODELS) if has_init else not variants & set(peers.MODELS)
     assert {"single_gp", "ccr", "clustered", "em", "vi"} <= set(peers.MODELS)
+
+
+def test_motorcycle_loads_the_shipped_crash_data(peers, tmp_path):
+    ds = peers.DATASETS["motorcycle"](tmp_path, None, False)
+    assert ds.X.shape == (133, 1) and ds.Y.shape == (133, 1) and ds.outputs == ("accel",)
+    assert ds.X[0, 0] < ds.X[-1, 0]  # time after impact, ms, in order
+    assert -150.0 < ds.Y.min() < -100.0 < 50.0 < ds.Y.max() < 100.0  # acceleration, g
+    assert peers.DATASETS["motorcycle"](tmp_path, 40, False).X.shape == (40, 1)

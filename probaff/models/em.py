@@ -6,6 +6,7 @@ the best `M - 1` solution, so that the training objective never falls as experts
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from typing import Any
 
@@ -180,7 +181,8 @@ def fit_em(
     the true one, on synthetic data).
 
     With more than `search_rows` training rows, all of the above runs on a seeded random
-    subset of `search_rows` rows (with the experts the whole set would get); the kept fit
+    subset of `search_rows` rows with `search_restarts` starts (and the experts the whole
+    set would get); the kept fit
     then gives every row its responsibilities and its experts' hyperparameters start one
     more run on the whole set, of up to `max_iter` iterations (coarse to fine). Measured on
     `probaff.models.synthetic.regime_features` (see `benchmarks/mixture_scale.py`), this
@@ -227,7 +229,8 @@ def _coarse_to_fine(
     template = MixtureOfGPExperts(**{**model.config(), "experts": model.resolve_expert_kind(n)})
     subset = torch.randperm(n, generator=torch.Generator().manual_seed(opts.seed))[:rows]
     subset = subset.sort().values.to(x.device)
-    coarse, found = fit_em_path(template, x[subset], y[subset], (m,), opts)[m]
+    search = dataclasses.replace(opts, n_restarts=opts.search_restarts)
+    coarse, found = fit_em_path(template, x[subset], y[subset], (m,), search)[m]
     fine = _fresh(template, m, x, y)
     for mine, theirs in zip(fine.experts, coarse.experts, strict=True):
         mine.load_state_dict(theirs.state_dict())

@@ -36,7 +36,7 @@ from probaff.models.gp_expert import GPExpert
 from probaff.models.kernels import ard_se_kernel
 from probaff.models.mixture import MixtureOfGPExperts
 
-__all__ = ["SVGPExpert", "VariationalMixtureOfGPExperts"]
+__all__ = ["SVGPExpert", "VariationalMixtureOfGPExperts", "expected_log_density"]
 
 # Smallest noise variance of every expert (standardised units).
 _NOISE_FLOOR = 1e-6
@@ -48,6 +48,22 @@ _CANDIDATES = 8192
 _NOT_FITTED = (
     "VariationalMixtureOfGPExperts is not fitted; call probaff.models.fit_svi(model, X, Y) first."
 )
+
+
+def expected_log_density(y: Tensor, mean: Tensor, var: Tensor, noise: Tensor) -> Tensor:
+    r""":math:`\sum_e \mathbb E_{f \sim \mathcal N(\mu, v)} \log \mathcal N(y_e; f_e, \sigma_e^2)`.
+
+    Args:
+        y: Effects, `(B, E)`.
+        mean: Mean :math:`\mu` of q(f), `(B, E)`.
+        var: Variance `v` of q(f), `(B, E)`.
+        noise: Noise variances :math:`\sigma^2`, `(E,)`.
+
+    Returns:
+        `(B,)`.
+    """
+    ll = -0.5 * (torch.log(2 * math.pi * noise) + ((y - mean).square() + var) / noise)
+    return ll.sum(-1)
 
 
 class SVGPExpert(gpytorch.models.ApproximateGP):
@@ -109,6 +125,27 @@ class SVGPExpert(gpytorch.models.ApproximateGP):
                 resid[rows, idx] = 0.0
             strategy.inducing_points.copy_(x[chosen])
 
+    def inducing_factor(self) -> Tensor:
+        """Lower Cholesky factor `L` of :math:`K_{uu}` plus the strategy's jitter, `(E, K, K)`."""
+        strategy = self.variational_strategy
+        with torch.no_grad():
+            z = strategy.inducing_points
+            eye = torch.eye(z.shape[-2], dtype=z.dtype, device=z.device)
+            k_uu = self.covar_module(z).to_dense() + float(strategy.jitter_val) * eye
+            return torch.linalg.cholesky(k_uu)
+
+    def projection(self, x: Tensor, chol: Tensor) -> Tensor:
+        r"""The whitened projection :math:`A = L^{-1} K_{uf}` of inputs `x: (B, D)`, `(E, K, B)`.
+
+        Args:
+            x: Standardised expert inputs, `(B, D)`.
+            chol: `inducing_factor()`.
+        """
+        z = self.variational_strategy.inducing_points
+        with torch.no_grad():
+            k_uf = self.covar_module(z, x.expand(self.n_outputs, *x.shape)).to_dense()
+            return torch.linalg.solve_triangular(chol, k_uf, upper=False)
+
     def natural_target(
         self, x: Tensor, y: Tensor, weights: Tensor, noise: Tensor, scale: float = 1.0
     ) -> tuple[Tensor, Tensor]:
@@ -134,22 +171,53 @@ class SVGPExpert(gpytorch.models.ApproximateGP):
         Returns:
             :math:`\Lambda`, `(E, K, K)`, and :math:`\eta`, `(E, K)`.
         """
-        strategy = self.variational_strategy
+        chol = self.inducing_factor()
+        parts = [
+            self.projected_target(self.projection(x[rows], chol), y[rows], weights[rows], noise)
+            for rows in torch.arange(x.shape[0], device=x.device).split(_CHUNK)
+        ]
+        precision = torch.eye(chol.shape[-1], dtype=chol.dtype, device=chol.device)
+        precision = precision + scale * sum(part[0] for part in parts)
+        return precision, scale * sum(part[1] for part in parts)  # type: ignore[return-value]
+
+    def projected_target(
+        self, a: Tensor, y: Tensor, weights: Tensor, noise: Tensor
+    ) -> tuple[Tensor, Tensor]:
+        r"""The samples' parts of `natural_target`, from their projection `a: (E, K, B)`.
+
+        They are :math:`\sigma^{-2} A W A^T`, `(E, K, K)`, and
+        :math:`\sigma^{-2} A W (y - \mu)`, `(E, K)`.
+
+        Args:
+            a: `projection` of the samples' inputs, `(E, K, B)`.
+            y: Standardised effects, `(B, E)`.
+            weights: Non-negative sample weights, `(B,)`.
+            noise: Noise variances (standardised units), `(E,)`.
+        """
         with torch.no_grad():
-            z = strategy.inducing_points
-            eye = torch.eye(z.shape[-2], dtype=z.dtype, device=z.device)
-            precision = eye.expand(self.n_outputs, *eye.shape).clone()
-            shift = torch.zeros(self.n_outputs, z.shape[-2], dtype=z.dtype, device=z.device)
-            k_uu = self.covar_module(z).to_dense() + float(strategy.jitter_val) * eye
-            chol = torch.linalg.cholesky(k_uu)
-            for rows in torch.arange(x.shape[0], device=x.device).split(_CHUNK):
-                k_uf = self.covar_module(z, x[rows].expand(self.n_outputs, len(rows), -1))
-                a = torch.linalg.solve_triangular(chol, k_uf.to_dense(), upper=False)
-                beta = scale * weights[rows].clamp_min(0.0)[None, :] / noise[:, None]  # (E, B)
-                precision += (a * beta[:, None, :]) @ a.transpose(-1, -2)
-                resid = y[rows].T - self.mean_module.constant[:, None]  # (E, B)
-                shift += (a @ (beta * resid)[..., None])[..., 0]
-        return precision, shift
+            beta = weights.clamp_min(0.0)[None, :] / noise[:, None]  # (E, B)
+            resid = y.T - self.mean_module.constant[:, None]  # (E, B)
+            return (a * beta[:, None, :]) @ a.mT, (a @ (beta * resid)[..., None])[..., 0]
+
+    def projected_moments(self, x: Tensor, a: Tensor) -> tuple[Tensor, Tensor]:
+        r"""`moments` from the inputs' `projection` `a: (E, K, B)`: mean and variance `(B, E)`.
+
+        The same numbers as gpytorch's whitened `VariationalStrategy` gives
+        (:math:`\mu + A^T m` and :math:`k(x, x) + \text{jitter} + a^T (S - I) a`), without
+        recomputing :math:`K_{uu}` and its factor for every batch.
+        """
+        strategy = self.variational_strategy
+        variational = strategy._variational_distribution
+        with torch.no_grad():
+            prior = self.covar_module(x.expand(self.n_outputs, *x.shape), diag=True)  # (E, B)
+            chol_s = variational.chol_variational_covar.tril()
+            mean = (
+                self.mean_module.constant[:, None]
+                + (variational.variational_mean[:, None, :] @ a)[:, 0, :]
+            )
+            var = prior + float(strategy.jitter_val) + (chol_s.mT @ a).square().sum(-2)
+            var = var - a.square().sum(-2)
+            return mean.T, var.clamp_min(0.0).T
 
     def natural_step(self, precision: Tensor, shift: Tensor, step: float) -> None:
         r"""Move q(u) a natural-gradient step of size `step` towards a target.
@@ -418,12 +486,11 @@ class VariationalMixtureOfGPExperts(GatedMixture[SVGPExpert]):
         Returns:
             `(B, M)`.
         """
-        out = []
-        for j, expert in enumerate(self.experts):
-            mean, var = expert.moments(x_e)
-            noise = self.noise[j]
-            ll = -0.5 * (torch.log(2 * math.pi * noise) + ((y - mean).square() + var) / noise)
-            out.append(ll.sum(-1))
+        noise = self.noise
+        out = [
+            expected_log_density(y, *expert.moments(x_e), noise[j])
+            for j, expert in enumerate(self.experts)
+        ]
         return torch.stack(out, dim=-1)
 
     @config_enumerate

@@ -258,14 +258,14 @@ def test_search_on_a_subset_then_refine_on_every_row():
     full = MixtureOfGPExperts(3, gate_features=[0, 1])
     h_full = fit_em(full, x, y, search_rows=None, **settings)
     coarse = MixtureOfGPExperts(3, gate_features=[0, 1])
-    h_coarse = fit_em(coarse, x, y, search_rows=120, **settings)
+    h_coarse = fit_em(coarse, x, y, search_rows=120, search_restarts=2, **settings)
     again = MixtureOfGPExperts(3, gate_features=[0, 1])
-    h_again = fit_em(again, x, y, search_rows=120, **settings)
+    h_again = fit_em(again, x, y, search_rows=120, search_restarts=2, **settings)
     # the refined fit holds every row, is deterministic and predicts about as well
     assert coarse.train_weights.shape == (300, 3)
     assert h_coarse.responsibilities.shape == (300, 3)
     assert h_coarse.objective == h_again.objective
-    assert len(h_coarse.candidates) == 2  # the starts screened on the subset
+    assert len(h_coarse.candidates) == 2  # the search_restarts starts screened on the subset
     lp_full = float(full.predict(xt).log_prob(yt).mean())
     lp_coarse = float(coarse.predict(xt).log_prob(yt).mean())
     assert lp_coarse > lp_full - 0.15, (lp_coarse, lp_full)
@@ -274,5 +274,6 @@ def test_search_on_a_subset_then_refine_on_every_row():
     same = MixtureOfGPExperts(3, gate_features=[0, 1])
     assert fit_em(same, x, y, search_rows=300, **settings).objective == h_full.objective
     for bad in (0, 2.5, True):
-        with pytest.raises(InputError, match="search_rows"):
-            fit_em(MixtureOfGPExperts(2), x, y, search_rows=bad)
+        for name in ("search_rows", "search_restarts"):
+            with pytest.raises(InputError, match=name):
+                fit_em(MixtureOfGPExperts(2), x, y, **{name: bad})

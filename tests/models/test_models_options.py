@@ -44,6 +44,7 @@ def test_defaults_are_the_fits_defaults():
         "anneal_start": 0.1,
         "anneal_iter": 4,
         "search_rows": 1000,
+        "search_restarts": 6,
     }
     assert dataclasses.asdict(SVIOptions()) == {
         "n_steps": 1500,
