@@ -9,12 +9,10 @@ Either chooses its L2 penalty by inner K-fold cross-validation when built with `
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import Any
 
-import numpy as np
 import torch
-from scipy.optimize import minimize
 from torch import Tensor
 
 from probaff._checks import check_count, check_positive, check_probability
@@ -33,6 +31,7 @@ from probaff.models.gate_penalty import (
     penalty_value,
     strength_grid,
 )
+from probaff.models.lbfgs import minimise
 from probaff.models.tensors import as_matrix, as_vector
 
 __all__ = [
@@ -51,93 +50,11 @@ _TINY = torch.finfo(torch.float64).tiny
 
 # L-BFGS curvature pairs kept by cross-validated fits (a short history keeps iterations cheap).
 _CV_HISTORY = 10
-# Most curvature pairs of scipy's L-BFGS-B (its compact form costs O(m^2) per iteration).
-_SCIPY_HISTORY = 10
 # Gradient tolerance of the refit that ends a cross-validated fit.
 _CV_TOLERANCE = 1e-6
 
 # Most rows used by the median heuristic; larger data sets use a seeded subset.
 _MEDIAN_ROWS = 1000
-
-
-def _minimise(
-    params: Sequence[Tensor],
-    closure: Callable[[], Tensor],
-    *,
-    max_iter: int,
-    tolerance_grad: float,
-    tolerance_change: float,
-    history_size: int = 100,
-) -> None:
-    """Minimise a loss over `params` in place with L-BFGS.
-
-    On the CPU this is scipy's L-BFGS-B (Fortran; a gate's problems are small, so the
-    per-iteration overhead of `torch.optim.LBFGS` would dominate them); elsewhere it is
-    `torch.optim.LBFGS` with a strong-Wolfe line search, on the parameters' device. The
-    gate's objectives are convex, so both reach the same minimum within the tolerances.
-
-    Args:
-        params: Tensors to optimise.
-        closure: Returns the loss at the current `params` after setting their ``grad``.
-        max_iter: Most L-BFGS iterations.
-        tolerance_grad: Stop when the largest gradient entry is below this.
-        tolerance_change: Stop when the loss changes less than this (relative to its size
-            when that is above 1) or, on other devices, the step is shorter than this.
-        history_size: Curvature pairs kept by L-BFGS.
-    """
-    if all(p.device.type == "cpu" and p.dtype == torch.float64 for p in params):
-        _minimise_scipy(params, closure, max_iter, tolerance_grad, tolerance_change, history_size)
-        return
-    optimiser = torch.optim.LBFGS(
-        params,
-        lr=1.0,
-        max_iter=max_iter,
-        history_size=history_size,
-        line_search_fn="strong_wolfe",
-        tolerance_grad=tolerance_grad,
-        tolerance_change=tolerance_change,
-    )
-    optimiser.step(closure)
-
-
-def _minimise_scipy(
-    params: Sequence[Tensor],
-    closure: Callable[[], Tensor],
-    max_iter: int,
-    tolerance_grad: float,
-    tolerance_change: float,
-    history_size: int,
-) -> None:
-    """`_minimise` by `scipy.optimize.minimize(method="L-BFGS-B")` on float64 CPU tensors."""
-    views = [p.detach().view(-1) for p in params]
-    sizes = [v.numel() for v in views]
-
-    def fun(flat: np.ndarray) -> tuple[float, np.ndarray]:
-        with torch.no_grad():
-            for view, part in zip(views, torch.from_numpy(flat).split(sizes), strict=True):
-                view.copy_(part)
-        loss = float(closure())
-        grads = [p.grad if p.grad is not None else torch.zeros_like(p) for p in params]
-        return loss, torch.cat([g.reshape(-1) for g in grads]).numpy().copy()
-
-    start = torch.cat(views).numpy().copy()
-    result = minimize(
-        fun,
-        start,
-        jac=True,
-        method="L-BFGS-B",
-        options={
-            "maxiter": max_iter,
-            "maxfun": max(2 * max_iter, 20),
-            "maxcor": min(history_size, _SCIPY_HISTORY),
-            "gtol": tolerance_grad,
-            "ftol": tolerance_change,
-        },
-    )
-    best = result.x if np.all(np.isfinite(result.x)) else start
-    with torch.no_grad():
-        for view, part in zip(views, torch.from_numpy(np.asarray(best)).split(sizes), strict=True):
-            view.copy_(part)
 
 
 def _log_softmax(logits: Tensor) -> Tensor:
@@ -445,7 +362,7 @@ class SoftmaxGate(torch.nn.Module):
                 self.bias.grad = residual.sum(0)
             return loss
 
-        _minimise(
+        minimise(
             params,
             closure,
             max_iter=self.max_iter,
@@ -513,7 +430,7 @@ class SoftmaxGate(torch.nn.Module):
                 bias.grad = residual.sum(0)
                 return loss
 
-            _minimise(
+            minimise(
                 [weight, bias],
                 closure,
                 max_iter=self.cv_max_iter,
