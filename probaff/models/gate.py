@@ -18,6 +18,7 @@ from torch import Tensor
 from probaff._checks import check_count, check_positive, check_probability
 from probaff.errors import InputError, NotFittedError
 from probaff.models._scaling import Standardizer
+from probaff.models.gate_newton import NEWTON_MAX_PARAMETERS, newton_fit
 from probaff.models.gate_penalty import (
     DEFAULT_L1_GRID,
     DEFAULT_L2_GRID,
@@ -69,7 +70,9 @@ class SoftmaxGate(torch.nn.Module):
     Here `z` is `f` standardised and :math:`\phi(z) = z`. Fitted by minimising the
     soft-target cross-entropy :math:`-\frac{1}{\sum_i s_i} \sum_i s_i \sum_j r_{ij} \log p(m
     = j \mid f_i) + \frac{\lambda}{2} \lVert W \rVert^2 + \lambda_1 \lVert W \rVert_1` (the
-    intercept `b` is not penalised) with L-BFGS; the lasso term is smoothed within 1e-4 of
+    intercept `b` is not penalised) by Newton's method (`probaff.models.gate_newton`; L-BFGS
+    for gates of more than `NEWTON_MAX_PARAMETERS` parameters and on the cross-validation
+    paths); the lasso term is smoothed within 1e-4 of
     zero (`probaff.models.gate_penalty.penalty_value`). The objective is convex, so the fit
     is unique up to the optimiser's tolerance. The lasso (`l1`) keeps a gate on many
     features to the few that separate the experts: on
@@ -97,7 +100,7 @@ class SoftmaxGate(torch.nn.Module):
         n_experts: Number of experts `M`.
         l2: Ridge penalty :math:`\lambda` on the weights, or ``"cv"`` to choose it per
             `fit`.
-        max_iter: L-BFGS iterations of the final fit in each call to `fit`.
+        max_iter: Newton (or L-BFGS) iterations of the final fit in each call to `fit`.
         l2_grid: Penalties tried by ``l2="cv"``; `DEFAULT_L2_GRID` if ``None``. Only
             allowed with ``l2="cv"``.
         l1: Lasso penalty :math:`\lambda_1` on the weights (0: none), or ``"cv"``.
@@ -342,6 +345,9 @@ class SoftmaxGate(torch.nn.Module):
     ) -> None:
         """Fit `weight` and `bias` from their current values with strengths `penalty`.
 
+        Newton's method (`probaff.models.gate_newton`) while the gate has at most
+        `NEWTON_MAX_PARAMETERS` parameters, L-BFGS above.
+
         Args:
             phi: Basis, `(N, D_basis)`.
             r: Targets, `(N, M)`.
@@ -350,6 +356,19 @@ class SoftmaxGate(torch.nn.Module):
             history_size: Curvature pairs kept by L-BFGS.
             tolerance_grad: Stop when the largest gradient entry is below this.
         """
+        if self.n_experts * (phi.shape[1] + 1) <= NEWTON_MAX_PARAMETERS:
+            newton_fit(
+                phi,
+                r,
+                s,
+                penalty,
+                self.weight,
+                self.bias,
+                max_iter=self.max_iter,
+                tolerance_grad=tolerance_grad,
+                tolerance_change=1e-12,
+            )
+            return
         params = [self.weight, self.bias]
         mass = s[:, None] * r.sum(-1, keepdim=True)  # (N, 1)
 

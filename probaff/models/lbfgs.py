@@ -30,9 +30,9 @@ def minimise(
 ) -> None:
     """Minimise a loss over `params` in place with L-BFGS.
 
-    On the CPU (float64) this is scipy's compiled L-BFGS-B: a gate's problems are small, so
-    the per-iteration overhead of `torch.optim.LBFGS` would dominate them (the gate fits of
-    chapter 5's study take about half the time). Elsewhere it is `torch.optim.LBFGS` with a
+    On the CPU (float64) this is scipy's compiled L-BFGS-B: a gate's cross-validation
+    problems are small, so the per-iteration overhead of `torch.optim.LBFGS` would dominate
+    them. Elsewhere it is `torch.optim.LBFGS` with a
     strong-Wolfe line search, on the parameters' device. The gate's objectives are convex,
     so both reach the same minimum within the tolerances.
 

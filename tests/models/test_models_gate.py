@@ -265,9 +265,9 @@ def test_fixed_l1_and_its_errors():
     torch.testing.assert_close(copy.weight, gate.weight)
 
 
-def test_scipy_and_torch_lbfgs_reach_the_same_gate_optimum():
-    # CPU float64 gates are fitted by scipy's L-BFGS-B (other devices by torch's L-BFGS);
-    # the objective is convex, so a long, tight torch run lands on the same minimum.
+def test_the_gate_fit_reaches_the_optimum_of_a_long_torch_lbfgs_run():
+    # small gates end their fit with Newton's method (cross-validation paths and large gates
+    # use L-BFGS); the objective is convex, so a long, tight torch run lands on the same minimum.
     x, r = _sparse_regimes(300)
     gate = SoftmaxGate(60, 3, l2=1e-3, l1=1e-3).fit(x, r)
     phi = gate.scaler(x)

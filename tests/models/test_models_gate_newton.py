@@ -1,0 +1,93 @@
+import pytest
+import torch
+
+import probaff.models.gate as gate_module
+from probaff.models import SoftmaxGate
+from probaff.models.gate_newton import newton_fit
+from probaff.models.gate_penalty import penalised_loss, penalty_grad, penalty_value
+
+
+def _problem(n: int = 300, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Soft targets of three regimes set by two of 40 standardised columns."""
+    g = torch.Generator().manual_seed(seed)
+    x = torch.randn(n, 40, generator=g, dtype=torch.float64)
+    logits = torch.stack([3.0 * x[:, 0], 3.0 * x[:, 1], torch.zeros(n, dtype=torch.float64)], 1)
+    s = torch.full((n,), 1.0 / n, dtype=torch.float64)
+    return x, torch.softmax(logits, 1), s
+
+
+def _reference(x, r, s, penalty) -> float:
+    """A long, tight torch L-BFGS run of the same convex objective (autograd gradients)."""
+    weight = torch.zeros(3, x.shape[1], dtype=torch.float64, requires_grad=True)
+    bias = torch.zeros(3, dtype=torch.float64, requires_grad=True)
+
+    def closure() -> torch.Tensor:
+        weight.grad = bias.grad = None
+        log_p = torch.log_softmax(x @ weight.T + bias, -1)
+        loss = -(s * (r * log_p).sum(-1)).sum() + penalty_value(weight, penalty)
+        loss.backward()
+        return loss
+
+    torch.optim.LBFGS(
+        [weight, bias],
+        max_iter=5000,
+        tolerance_grad=1e-12,
+        tolerance_change=1e-15,
+        history_size=100,
+        line_search_fn="strong_wolfe",
+    ).step(closure)
+    return penalised_loss(x, r, s, penalty, weight.detach(), bias.detach())
+
+
+@pytest.mark.parametrize("penalty", [(1e-3, 0.0), (1e-3, 1e-3), (0.0, 1e-2), (0.0, 1e-3)])
+def test_newton_reaches_the_optimum_in_few_steps(penalty):
+    x, r, s = _problem()
+    weight = torch.zeros(3, 40, dtype=torch.float64)
+    bias = torch.zeros(3, dtype=torch.float64)
+    steps = newton_fit(
+        x, r, s, penalty, weight, bias, max_iter=500, tolerance_grad=1e-8, tolerance_change=0.0
+    )
+    ours = penalised_loss(x, r, s, penalty, weight, bias)
+    assert ours <= _reference(x, r, s, penalty) + 1e-10
+    # the stationarity condition holds: the gradient (closed form) is below the tolerance
+    log_p = torch.log_softmax(x @ weight.T + bias, -1)
+    residual = log_p.exp() - r
+    grad_w = (s[:, None] * residual).T @ x + penalty_grad(weight, penalty)
+    grad_b = (s[:, None] * residual).sum(0)
+    assert float(torch.cat([grad_w.reshape(-1), grad_b]).abs().max()) <= 1e-8
+    assert 1 <= steps <= (20 if penalty[1] == 0.0 else 200)
+
+
+def test_newton_lasso_zeroes_the_irrelevant_columns():
+    x, r, s = _problem()
+    weight = torch.zeros(3, 40, dtype=torch.float64)
+    bias = torch.zeros(3, dtype=torch.float64)
+    newton_fit(
+        x, r, s, (0.0, 1e-2), weight, bias, max_iter=200, tolerance_grad=1e-7, tolerance_change=0.0
+    )
+    assert float(weight[:, 2:].abs().max()) < 1e-3  # within the lasso's smoothing scale
+    assert float(weight[:, :2].abs().max()) > 0.5
+
+
+def test_newton_stops_at_once_at_an_optimum_and_keeps_a_start_it_cannot_improve():
+    x, r, s = _problem()
+    weight = torch.zeros(3, 40, dtype=torch.float64)
+    bias = torch.zeros(3, dtype=torch.float64)
+    kw = {"max_iter": 100, "tolerance_grad": 1e-9, "tolerance_change": 0.0}
+    newton_fit(x, r, s, (1e-3, 0.0), weight, bias, **kw)
+    before = weight.clone()
+    assert newton_fit(x, r, s, (1e-3, 0.0), weight, bias, **kw) == 0
+    assert torch.equal(weight, before)
+
+
+def test_the_gate_uses_newton_when_small_and_lbfgs_when_large(monkeypatch):
+    x, r, _ = _problem()
+    small = SoftmaxGate(40, 3, l2=1e-3, l1=1e-3).fit(x, r)
+    monkeypatch.setattr(gate_module, "NEWTON_MAX_PARAMETERS", 0)
+    large = SoftmaxGate(40, 3, l2=1e-3, l1=1e-3).fit(x, r)
+    s = torch.full((300,), 1.0 / 300, dtype=torch.float64)
+    phi = small.scaler(x)
+    newton = penalised_loss(phi, r, s, (1e-3, 1e-3), small.weight.detach(), small.bias.detach())
+    lbfgs = penalised_loss(phi, r, s, (1e-3, 1e-3), large.weight.detach(), large.bias.detach())
+    assert newton <= lbfgs + 1e-10
+    assert lbfgs - newton < 1e-6  # the same convex optimum, to L-BFGS's tolerance
