@@ -4,7 +4,6 @@ import torch
 from probaff.errors import InputError
 from probaff.models import NotFittedError, SoftmaxGate
 from probaff.models.gate import DEFAULT_L2_GRID, FourierGate, make_gate
-from probaff.models.gate_penalty import penalised_loss, penalty_value
 
 
 def _soft_targets(n: int = 200, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
@@ -263,34 +262,3 @@ def test_fixed_l1_and_its_errors():
     copy = SoftmaxGate(60, 3, l2=0.0, l1=0.02)
     copy.load_state_dict(state)
     torch.testing.assert_close(copy.weight, gate.weight)
-
-
-def test_the_gate_fit_reaches_the_optimum_of_a_long_torch_lbfgs_run():
-    # small gates end their fit with Newton's method (cross-validation paths and large gates
-    # use L-BFGS); the objective is convex, so a long, tight torch run lands on the same minimum.
-    x, r = _sparse_regimes(300)
-    gate = SoftmaxGate(60, 3, l2=1e-3, l1=1e-3).fit(x, r)
-    phi = gate.scaler(x)
-    s = torch.full((300,), 1.0 / 300, dtype=torch.float64)
-    penalty = (gate.l2_, gate.l1_)
-    ours = penalised_loss(phi, r, s, penalty, gate.weight.detach(), gate.bias.detach())
-    weight = torch.zeros(3, 60, dtype=torch.float64, requires_grad=True)
-    bias = torch.zeros(3, dtype=torch.float64, requires_grad=True)
-
-    def closure() -> torch.Tensor:
-        weight.grad = bias.grad = None
-        log_p = torch.log_softmax(phi @ weight.T + bias, -1)
-        loss = -(s * (r * log_p).sum(-1)).sum() + penalty_value(weight, penalty)
-        loss.backward()
-        return loss
-
-    torch.optim.LBFGS(
-        [weight, bias],
-        max_iter=3000,
-        tolerance_grad=1e-12,
-        tolerance_change=1e-15,
-        history_size=100,
-        line_search_fn="strong_wolfe",
-    ).step(closure)
-    theirs = penalised_loss(phi, r, s, penalty, weight.detach(), bias.detach())
-    assert abs(ours - theirs) < 1e-7, (ours, theirs)

@@ -91,3 +91,13 @@ def test_the_gate_uses_newton_when_small_and_lbfgs_when_large(monkeypatch):
     lbfgs = penalised_loss(phi, r, s, (1e-3, 1e-3), large.weight.detach(), large.bias.detach())
     assert newton <= lbfgs + 1e-10
     assert lbfgs - newton < 1e-6  # the same convex optimum, to L-BFGS's tolerance
+
+
+def test_the_gate_fit_reaches_the_optimum_of_a_long_torch_lbfgs_run():
+    # a fitted gate (standardised basis, lasso and ridge) sits on the convex optimum
+    x, r, s = _problem()
+    gate = SoftmaxGate(40, 3, l2=1e-3, l1=1e-3).fit(x, torch.nn.functional.one_hot(r.argmax(1), 3))
+    hard = torch.nn.functional.one_hot(r.argmax(1), 3).double()
+    phi = gate.scaler(x)
+    ours = penalised_loss(phi, hard, s, (1e-3, 1e-3), gate.weight.detach(), gate.bias.detach())
+    assert abs(ours - _reference(phi, hard, s, (1e-3, 1e-3))) < 1e-7
