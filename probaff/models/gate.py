@@ -25,7 +25,10 @@ from probaff.models.gate_penalty import (
     Penalty,
     check_grid,
     check_strength,
+    log_softmax_last,
+    penalised_gradient,
     penalised_loss,
+    penalised_objective,
     penalty_candidates,
     penalty_grad,
     penalty_paths,
@@ -54,14 +57,11 @@ _CV_HISTORY = 10
 # Gradient tolerance of the refit that ends a cross-validated fit.
 _CV_TOLERANCE = 1e-6
 
+# Relative loss change that ends the fit of one penalty (Newton's method or L-BFGS).
+_FIT_TOLERANCE_CHANGE = 1e-12
+
 # Most rows used by the median heuristic; larger data sets use a seeded subset.
 _MEDIAN_ROWS = 1000
-
-
-def _log_softmax(logits: Tensor) -> Tensor:
-    """`log_softmax` over the last, short axis, `(..., M)` (faster than the fused kernel)."""
-    shifted = logits - logits.amax(-1, keepdim=True)
-    return shifted - shifted.exp().sum(-1, keepdim=True).log()
 
 
 class SoftmaxGate(torch.nn.Module):
@@ -366,27 +366,23 @@ class SoftmaxGate(torch.nn.Module):
                 self.bias,
                 max_iter=self.max_iter,
                 tolerance_grad=tolerance_grad,
-                tolerance_change=1e-12,
+                tolerance_change=_FIT_TOLERANCE_CHANGE,
             )
             return
-        params = [self.weight, self.bias]
-        mass = s[:, None] * r.sum(-1, keepdim=True)  # (N, 1)
 
         def closure() -> Tensor:  # the loss, with its gradient in closed form
             with torch.no_grad():
-                log_p = _log_softmax(torch.addmm(self.bias, phi, self.weight.T))
-                loss = -(s * (r * log_p).sum(-1)).sum() + penalty_value(self.weight, penalty)
-                residual = log_p.exp() * mass - s[:, None] * r  # d loss / d logits, (N, M)
-                self.weight.grad = penalty_grad(self.weight, penalty) + residual.T @ phi
-                self.bias.grad = residual.sum(0)
+                loss, log_p = penalised_objective(phi, r, s, penalty, self.weight, self.bias)
+                grads = penalised_gradient(phi, r, s, penalty, self.weight, log_p)
+                self.weight.grad, self.bias.grad = grads
             return loss
 
         minimise(
-            params,
+            [self.weight, self.bias],
             closure,
             max_iter=self.max_iter,
             tolerance_grad=tolerance_grad,
-            tolerance_change=1e-12,
+            tolerance_change=_FIT_TOLERANCE_CHANGE,
             history_size=history_size,
         )
 
@@ -435,7 +431,7 @@ class SoftmaxGate(torch.nn.Module):
         bias = torch.zeros((k + 1) * m, dtype=torch.float64, device=phi.device)
 
         def log_proba() -> Tensor:
-            return _log_softmax(torch.addmm(bias, phi, weight).view(n, k + 1, m))
+            return log_softmax_last(torch.addmm(bias, phi, weight).view(n, k + 1, m))
 
         scores = torch.empty(len(grid), dtype=torch.float64, device=phi.device)
         solutions: list[tuple[Tensor, Tensor]] = []

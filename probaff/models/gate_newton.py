@@ -1,6 +1,6 @@
 """Newton's method for a gate's penalised soft-target multinomial logistic regression.
 
-The gate's objective (`probaff.models.gate_penalty.penalised_loss`) is convex and smooth
+The gate's objective (`probaff.models.gate_penalty.penalised_objective`) is convex and smooth
 with at most a few hundred parameters, so its exact Hessian is cheap: `N (M (P + 1))^2`
 operations, against hundreds of L-BFGS evaluations when the smoothed lasso makes the
 problem ill-conditioned (curvature ``l1 / eps`` next to zero weights, next to almost
@@ -14,7 +14,12 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from probaff.models.gate_penalty import L1_SMOOTHING, Penalty, penalty_grad, penalty_value
+from probaff.models.gate_penalty import (
+    L1_SMOOTHING,
+    Penalty,
+    penalised_gradient,
+    penalised_objective,
+)
 
 __all__ = ["NEWTON_MAX_PARAMETERS", "newton_fit"]
 
@@ -30,12 +35,10 @@ _DAMPING = 1e-10
 
 
 def _objective(
-    phi1: Tensor, r: Tensor, s: Tensor, penalty: Penalty, v: Tensor
+    phi: Tensor, r: Tensor, s: Tensor, penalty: Penalty, v: Tensor
 ) -> tuple[Tensor, Tensor]:
     """Penalised loss and log-probabilities `(N, M)` at stacked parameters `v: (M, P + 1)`."""
-    log_p = torch.log_softmax(phi1 @ v.T, dim=-1)
-    loss = -(s * (r * log_p).sum(-1)).sum() + penalty_value(v[:, :-1], penalty)
-    return loss, log_p
+    return penalised_objective(phi, r, s, penalty, v[:, :-1], v[:, -1])
 
 
 def _hessian(phi1: Tensor, p: Tensor, mass: Tensor, penalty: Penalty, weight: Tensor) -> Tensor:
@@ -89,7 +92,7 @@ def _stop_at_zero(v: Tensor, d: Tensor) -> Tensor:
 
 
 def _line_search(
-    phi1: Tensor,
+    phi: Tensor,
     r: Tensor,
     s: Tensor,
     penalty: Penalty,
@@ -110,7 +113,7 @@ def _line_search(
     step = 1.0
     for _ in range(_HALVINGS):
         trial = v + step * d
-        new_loss, log_p = _objective(phi1, r, s, penalty, trial)
+        new_loss, log_p = _objective(phi, r, s, penalty, trial)
         bound = float(loss) + _ARMIJO * step * slope
         if bool(torch.isfinite(new_loss)) and float(new_loss) <= bound:
             return trial, new_loss, log_p
@@ -151,25 +154,22 @@ def newton_fit(
         phi1 = torch.cat([phi, torch.ones_like(phi[:, :1])], dim=1)  # (N, P + 1)
         mass = s * r.sum(-1)  # (N,)
         v = torch.cat([weight.detach(), bias.detach()[:, None]], dim=1)  # (M, P + 1)
-        loss, log_p = _objective(phi1, r, s, penalty, v)
+        loss, log_p = _objective(phi, r, s, penalty, v)
         steps = 0
         for steps in range(1, max_iter + 1):
-            p = log_p.exp()
-            residual = p * mass[:, None] - s[:, None] * r  # (N, M)
-            g = residual.T @ phi1
-            g[:, :-1] += penalty_grad(v[:, :-1], penalty)
-            g = g.reshape(-1)
+            g_weight, g_bias = penalised_gradient(phi, r, s, penalty, v[:, :-1], log_p)
+            g = torch.cat([g_weight, g_bias[:, None]], dim=1).reshape(-1)
             if float(g.abs().max()) <= tolerance_grad:
                 steps -= 1
                 break
-            d = _direction(_hessian(phi1, p, mass, penalty, v[:, :-1]), g)
+            d = _direction(_hessian(phi1, log_p.exp(), mass, penalty, v[:, :-1]), g)
             if d is None:
                 break
             d = d.view_as(v)
             candidates = [_stop_at_zero(v, d), d] if penalty[1] > 0.0 else [d]
             found = None
             for direction in candidates:
-                found = _line_search(phi1, r, s, penalty, v, loss, g, direction)
+                found = _line_search(phi, r, s, penalty, v, loss, g, direction)
                 if found is not None:
                     break
             if found is None:
