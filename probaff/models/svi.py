@@ -224,6 +224,8 @@ def _train(
             optimiser.step()
             model.update_variational(x_g[idx], x_e[idx], t[idx], scale=n / b, step=step)
             history.loss.append(float(loss.detach()) / n)
+        if fixed is not None:
+            fixed.store()
         model.update_variational(x_g, x_e, t)
     return history
 

@@ -1,4 +1,4 @@
-"""SVI steps of a variational mixture whose gate and hyperparameters stay where they are.
+r"""SVI steps of a variational mixture whose gate and hyperparameters stay where they are.
 
 When `probaff.models.fit_svi` starts from an exact mixture (its default), the gate, the
 kernels, the means, the noise and the inducing inputs are kept and only every q(u) moves.
@@ -6,7 +6,11 @@ Each expert's factor of :math:`K_{uu}` and the gate's log-probabilities of the t
 are then fixed, so they are computed once, and a minibatch step (the ELBO it records, the
 assignment posterior, the natural-gradient targets) is a few products with the minibatch's
 whitened projections :math:`A = L^{-1} K_{uf}` instead of a pass through gpytorch's
-variational strategy and Pyro's enumeration. The numbers are those of
+variational strategy and Pyro's enumeration. Every q(u) is held in natural parameters
+(precision :math:`\Lambda`, precision-times-mean :math:`\eta`, whitened), which the
+natural-gradient step mixes linearly, so a step costs one Cholesky factor and one
+triangular inverse of :math:`\Lambda` per expert and output; `store` writes the mean and
+covariance factor back into the model. The numbers are those of
 `VariationalMixtureOfGPExperts.model` under `pyro.infer.TraceEnum_ELBO` and of
 `VariationalMixtureOfGPExperts.update_variational`.
 """
@@ -16,9 +20,62 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from probaff.models.vi import VariationalMixtureOfGPExperts, expected_log_density
+from probaff.models.vi import SVGPExpert, VariationalMixtureOfGPExperts, expected_log_density
 
-__all__ = ["FixedHyperparameterSVI"]
+__all__ = ["FixedHyperparameterSVI", "WhitenedQ"]
+
+# Most bytes of whitened projections of all training rows kept between steps (above: each
+# minibatch's projection is computed when it is drawn).
+_PROJECTION_CACHE_BYTES = 256 * 2**20
+
+
+class WhitenedQ:
+    r"""One expert's whitened q(u) = N(m, S) in natural parameters, with what a step reads.
+
+    Args:
+        precision: :math:`\Lambda = S^{-1}`, `(E, K, K)`.
+        shift: :math:`\eta = \Lambda m`, `(E, K)`.
+
+    Attributes:
+        precision: :math:`\Lambda`, `(E, K, K)`.
+        shift: :math:`\eta`, `(E, K)`.
+        mean: `m`, `(E, K)`.
+        root: :math:`R = L_\Lambda^{-1}`, lower triangular with :math:`S = R^T R`, `(E, K, K)`.
+        kl: :math:`\mathrm{KL}(q(u) \Vert \mathcal N(0, I))` summed over the outputs (nats).
+    """
+
+    def __init__(self, precision: Tensor, shift: Tensor) -> None:
+        self.precision, self.shift = precision, shift
+        chol = torch.linalg.cholesky(0.5 * (precision + precision.mT))
+        eye = torch.eye(chol.shape[-1], dtype=chol.dtype, device=chol.device)
+        self.root = torch.linalg.solve_triangular(chol, eye, upper=False)
+        self.mean = torch.cholesky_solve(shift[..., None], chol)[..., 0]
+        log_det_precision = 2.0 * chol.diagonal(dim1=-2, dim2=-1).log().sum()
+        trace = self.root.square().sum()
+        size = chol.shape[-1] * chol.shape[0]
+        self.kl = 0.5 * float(trace + self.mean.square().sum() - size + log_det_precision)
+
+    @classmethod
+    def of(cls, expert: SVGPExpert) -> WhitenedQ:
+        """The natural parameters of `expert`'s current q(u)."""
+        variational = expert.variational_strategy._variational_distribution
+        with torch.no_grad():
+            precision = torch.cholesky_inverse(variational.chol_variational_covar.tril())
+            shift = (precision @ variational.variational_mean[..., None])[..., 0]
+        return cls(precision, shift)
+
+    def moved(self, precision: Tensor, shift: Tensor, step: float) -> WhitenedQ:
+        r"""This q(u) moved a natural-gradient step towards target natural parameters.
+
+        :math:`\theta \leftarrow (1 - \gamma)\theta + \gamma \theta^\star`, as in
+        `SVGPExpert.natural_step`; `step` is :math:`\gamma` in `(0, 1]`.
+        """
+        if step >= 1.0:
+            return WhitenedQ(precision, shift)
+        return WhitenedQ(
+            (1.0 - step) * self.precision + step * precision,
+            (1.0 - step) * self.shift + step * shift,
+        )
 
 
 class FixedHyperparameterSVI:
@@ -35,19 +92,35 @@ class FixedHyperparameterSVI:
         self, model: VariationalMixtureOfGPExperts, x_g: Tensor, x_e: Tensor, y: Tensor
     ) -> None:
         self.model, self.x_e, self.y = model, x_e, y
+        self.experts: list[SVGPExpert] = list(model.experts)
         with torch.no_grad():
             gate = model.built_gate()
             self.log_gate = gate.logits(x_g).log_softmax(-1)  # (N, M)
             penalty = gate.l2_ if model.gate_penalty is None else model.gate_penalty
             self.gate_term = float(0.5 * penalty * x_g.shape[0] * gate.weight.square().sum())
             self.noise = model.noise.detach()  # (M, E)
-        self.factors = [expert.inducing_factor() for expert in model.experts]  # (E, K, K) each
+        self.factors = [expert.inducing_factor() for expert in self.experts]  # (E, K, K) each
+        self.q = [WhitenedQ.of(expert) for expert in self.experts]
+        size = sum(f.shape[0] * f.shape[1] for f in self.factors) * x_e.shape[0]
+        self.projections: list[Tensor] | None = None
+        if size * x_e.element_size() <= _PROJECTION_CACHE_BYTES:
+            self.projections = [
+                e.projection(x_e, c) for e, c in zip(self.experts, self.factors, strict=True)
+            ]  # (E, K, N) each
+
+    def _projections(self, idx: Tensor) -> list[Tensor]:
+        """Every expert's whitened projection of the minibatch `idx`, `(E, K, B)` each."""
+        if self.projections is not None:
+            return [a[..., idx] for a in self.projections]
+        x = self.x_e[idx]
+        return [e.projection(x, c) for e, c in zip(self.experts, self.factors, strict=True)]
 
     def step(self, idx: Tensor, *, scale: float, step: float) -> float:
         """Move every q(u) a natural-gradient step on the minibatch `idx`, `(B,)`.
 
         The assignments are held at their posterior given the current q(u), as in
-        `VariationalMixtureOfGPExperts.update_variational`.
+        `VariationalMixtureOfGPExperts.update_variational`. The model's q(u) are updated by
+        `store`.
 
         Args:
             idx: Rows of the minibatch, `(B,)`.
@@ -59,22 +132,31 @@ class FixedHyperparameterSVI:
             rows, as `TraceEnum_ELBO.loss` gives it).
         """
         x, y = self.x_e[idx], self.y[idx]
-        experts = list(self.model.experts)
         with torch.no_grad():
-            proj = [e.projection(x, c) for e, c in zip(experts, self.factors, strict=True)]
+            proj = self._projections(idx)
             ell = torch.stack(
                 [
-                    expected_log_density(y, *e.projected_moments(x, a), self.noise[j])
-                    for j, (e, a) in enumerate(zip(experts, proj, strict=True))
+                    expected_log_density(y, *e.projected_moments(x, a, (q.mean, q.root)), noise)
+                    for e, a, q, noise in zip(self.experts, proj, self.q, self.noise, strict=True)
                 ],
                 dim=-1,
             )  # (B, M)
             joint = self.log_gate[idx] + ell
-            kl = sum(float(e.kl_divergence().sum()) for e in experts)
+            kl = sum(q.kl for q in self.q)
             data = scale * float(torch.logsumexp(joint, dim=-1).sum())
             resp = torch.softmax(joint, dim=-1)
-            for j, (expert, a) in enumerate(zip(experts, proj, strict=True)):
+            for j, (expert, a) in enumerate(zip(self.experts, proj, strict=True)):
                 precision, shift = expert.projected_target(a, y, resp[:, j], self.noise[j])
                 eye = torch.eye(a.shape[-2], dtype=a.dtype, device=a.device)
-                expert.natural_step(eye + scale * precision, scale * shift, step)
+                self.q[j] = self.q[j].moved(eye + scale * precision, scale * shift, step)
         return -(data - kl - self.gate_term)
+
+    def store(self) -> None:
+        """Write every q(u) into its expert's variational distribution (mean and factor)."""
+        with torch.no_grad():
+            for expert, q in zip(self.experts, self.q, strict=True):
+                variational = expert.variational_strategy._variational_distribution
+                variational.variational_mean.copy_(q.mean)
+                covar = q.root.mT @ q.root
+                variational.chol_variational_covar.copy_(torch.linalg.cholesky(covar))
+                expert.variational_strategy.variational_params_initialized.fill_(1)

@@ -199,23 +199,30 @@ class SVGPExpert(gpytorch.models.ApproximateGP):
             resid = y.T - self.mean_module.constant[:, None]  # (E, B)
             return (a * beta[:, None, :]) @ a.mT, (a @ (beta * resid)[..., None])[..., 0]
 
-    def projected_moments(self, x: Tensor, a: Tensor) -> tuple[Tensor, Tensor]:
+    def projected_moments(
+        self, x: Tensor, a: Tensor, q: tuple[Tensor, Tensor] | None = None
+    ) -> tuple[Tensor, Tensor]:
         r"""`moments` from the inputs' `projection` `a: (E, K, B)`: mean and variance `(B, E)`.
 
         The same numbers as gpytorch's whitened `VariationalStrategy` gives
         (:math:`\mu + A^T m` and :math:`k(x, x) + \text{jitter} + a^T (S - I) a`), without
         recomputing :math:`K_{uu}` and its factor for every batch.
+
+        Args:
+            x: Standardised expert inputs, `(B, D)`.
+            a: Their `projection`, `(E, K, B)`.
+            q: The whitened q(u) as its mean `m` `(E, K)` and a root `R` `(E, K, K)` of its
+                covariance, :math:`S = R^T R`; None for the expert's own q(u).
         """
         strategy = self.variational_strategy
         variational = strategy._variational_distribution
         with torch.no_grad():
+            if q is None:
+                q = (variational.variational_mean, variational.chol_variational_covar.tril().mT)
+            mean_u, root = q
             prior = self.covar_module(x.expand(self.n_outputs, *x.shape), diag=True)  # (E, B)
-            chol_s = variational.chol_variational_covar.tril()
-            mean = (
-                self.mean_module.constant[:, None]
-                + (variational.variational_mean[:, None, :] @ a)[:, 0, :]
-            )
-            var = prior + float(strategy.jitter_val) + (chol_s.mT @ a).square().sum(-2)
+            mean = self.mean_module.constant[:, None] + (mean_u[:, None, :] @ a)[:, 0, :]
+            var = prior + float(strategy.jitter_val) + (root @ a).square().sum(-2)
             var = var - a.square().sum(-2)
             return mean.T, var.clamp_min(0.0).T
 

@@ -6,9 +6,9 @@ import torch
 from pyro.infer import TraceEnum_ELBO
 
 from probaff._threads import torch_threads
-from probaff.models import MixtureOfGPExperts, fit_em
+from probaff.models import MixtureOfGPExperts, fit_em, svi_fixed
 from probaff.models.svi import fit_svi
-from probaff.models.svi_fixed import FixedHyperparameterSVI
+from probaff.models.svi_fixed import FixedHyperparameterSVI, WhitenedQ
 from probaff.models.synthetic import softmax_regimes
 from probaff.models.vi import VariationalMixtureOfGPExperts
 
@@ -52,7 +52,9 @@ def test_a_step_is_pyros_elbo_and_the_natural_update():
             )
         )
     reference.update_variational(x_g[idx], x_e[idx], t[idx], scale=scale, step=0.3)
-    loss = FixedHyperparameterSVI(vi, x_g, x_e, t).step(idx, scale=scale, step=0.3)
+    fixed = FixedHyperparameterSVI(vi, x_g, x_e, t)
+    loss = fixed.step(idx, scale=scale, step=0.3)
+    fixed.store()
     assert loss == pytest.approx(pyro_loss, rel=1e-10, abs=1e-8 * n)
     for ours, theirs in zip(_q(vi), _q(reference), strict=True):
         torch.testing.assert_close(ours, theirs, rtol=1e-8, atol=1e-10)
@@ -79,3 +81,36 @@ def test_fit_svi_from_an_exact_mixture_takes_the_fixed_path():
     nlpd_vi = -float(fits[0][1].mean())
     nlpd_em = -float(em.predict(xt).log_prob(yt).mean())
     assert nlpd_vi < nlpd_em + 0.1, (nlpd_vi, nlpd_em)  # held out
+
+
+def test_whitened_q_holds_gpytorchs_kl_and_moves_linearly():
+    vi, _, _, _ = _built()
+    expert = vi.experts[0]
+    with torch.no_grad():
+        expert.variational_strategy._variational_distribution.variational_mean.add_(0.3)
+    q = WhitenedQ.of(expert)
+    assert q.kl == pytest.approx(float(expert.kl_divergence().sum()), rel=1e-10)
+    torch.testing.assert_close(q.root.mT @ q.root, torch.linalg.inv(q.precision))
+    eye = torch.eye(q.precision.shape[-1], dtype=q.precision.dtype).expand_as(q.precision)
+    target = WhitenedQ(2.0 * eye, torch.zeros_like(q.shift))
+    half = q.moved(target.precision, target.shift, 0.5)
+    torch.testing.assert_close(half.precision, 0.5 * (q.precision + target.precision))
+    full = q.moved(target.precision, target.shift, 1.0)
+    torch.testing.assert_close(full.mean, torch.zeros_like(q.mean))
+
+
+def test_projections_kept_or_recomputed_give_the_same_steps(monkeypatch):
+    losses = []
+    for cache in (svi_fixed._PROJECTION_CACHE_BYTES, 0):
+        monkeypatch.setattr(svi_fixed, "_PROJECTION_CACHE_BYTES", cache)
+        vi, x_g, x_e, t = _built()
+        fixed = FixedHyperparameterSVI(vi, x_g, x_e, t)
+        assert (fixed.projections is None) == (cache == 0)
+        g = torch.Generator().manual_seed(0)
+        steps = [fixed.step(torch.randperm(90, generator=g)[:16], scale=90 / 16, step=0.2)]
+        steps += [fixed.step(torch.randperm(90, generator=g)[:16], scale=90 / 16, step=0.2)]
+        fixed.store()
+        losses.append((steps, _q(vi)))
+    assert losses[0][0] == pytest.approx(losses[1][0], rel=1e-12)
+    for ours, theirs in zip(losses[0][1], losses[1][1], strict=True):
+        torch.testing.assert_close(ours, theirs)
