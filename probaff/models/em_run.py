@@ -11,6 +11,7 @@ import copy
 import logging
 import math
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -169,7 +170,13 @@ def _beta(settings: RunSettings, iteration: int) -> float:
 
 
 class EMRun:
-    """One EM run from given responsibilities; it keeps the best state it reaches."""
+    """One EM run from given responsibilities; it keeps the best state it reaches.
+
+    With `active` experts the run starts with partial iterations (Ueda et al.'s partial EM
+    of split-and-merge): only those experts are refitted, and only they share out again
+    the responsibility they hold together; the other experts keep their hyperparameters
+    and responsibilities. `release` turns later iterations into full ones.
+    """
 
     def __init__(
         self,
@@ -182,14 +189,24 @@ class EMRun:
         init: str,
         seed: int,
         warm: bool = False,
+        active: Sequence[int] | None = None,
     ) -> None:
         self.model, self.x, self.y, self.resp = model, x, y, resp
         self.settings, self.init, self.seed, self.warm = settings, init, seed, warm
+        self.active = None if active is None else sorted(set(active))
         self.history = EMHistory(init=init)
         self.log_lik: Tensor | None = None  # (N, M) leave-one-out expert log densities
         self.best_state: tuple[dict[str, Any], Tensor, Tensor] | None = None
         self.iteration = 0
         self.done = False
+
+    def release(self) -> EMRun:
+        """End the partial phase: later iterations refit and reassign every expert."""
+        if self.active is not None:
+            self.active = None
+            self.done = self.iteration >= self.settings.max_iter
+            self.history.converged = False
+        return self
 
     @property
     def best(self) -> float:
@@ -209,7 +226,7 @@ class EMRun:
             weights = _pruned(self.resp, s.prune_below)
             self.model.fit_gate(self.x, self.resp, reuse_choice=it > 1)
             iters = s.warm_iters if (self.warm or it > 1) else s.first_iters
-            self.model.fit_experts(self.x, self.y, weights, max_iter=iters)
+            self.model.fit_experts(self.x, self.y, weights, max_iter=iters, only=self.active)
             log_joint, self.log_lik = loo_terms(self.model, self.x, self.y)
             total = float(torch.logsumexp(log_joint, dim=1).sum())
             self.history.objective.append(total)
@@ -221,7 +238,7 @@ class EMRun:
                     weights.clone(),
                     torch.softmax(log_joint, dim=1),
                 )
-            self.resp = torch.softmax(_beta(s, it + 1) * log_joint, dim=1)
+            self.resp = self._e_step(_beta(s, it + 1) * log_joint)
             prev = self.history.objective[-2] if it > 1 else None
             if (
                 prev is not None
@@ -232,6 +249,20 @@ class EMRun:
                 self.done = True
                 break
         return self
+
+    def _e_step(self, log_joint: Tensor) -> Tensor:
+        """New responsibilities `(N, M)` from log joint densities `(N, M)`.
+
+        In the partial phase only the active experts are reassigned, within the
+        responsibility they hold together (Ueda et al., 2000); the others keep theirs.
+        """
+        if self.active is None:
+            return torch.softmax(log_joint, dim=1)
+        resp = self.resp.clone()
+        mass = resp[:, self.active].sum(1, keepdim=True)
+        share = mass * torch.softmax(log_joint[:, self.active], dim=1)
+        resp[:, self.active] = share.clamp_max_(1.0)  # a product may round just above 1
+        return resp
 
     def _repair(self, it: int) -> None:
         """Split/merge every collapsed expert; re-seed it if no expert can donate."""

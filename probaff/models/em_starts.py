@@ -83,8 +83,10 @@ def _split_merge(
     After EM has converged, two experts that explain each other's samples best are merged
     (the smaller into the larger) and then either the merged expert or the expert that
     explains its own samples worst is split into the freed slot (Ueda et al., 2000, with
-    the experts' leave-one-out densities as the criteria); EM then runs from there,
-    warm-started. A move is kept only if it raises the objective, so the
+    the experts' leave-one-out densities as the criteria). A move is screened by
+    `_SCREEN_ITER` partial EM iterations that refit and reassign only the two or three
+    experts it touched (as in Ueda et al.'s partial EM), and full EM runs from those that
+    raise the objective, warm-started. A move is kept only if it raises the objective, so the
     result is never worse than the input.
     """
     m = model.n_experts
@@ -126,11 +128,21 @@ def _split_merge(
             )
             trial = copy.deepcopy(model)
             trial.experts[j].load_state_dict(model.experts[k].state_dict())
-            run = EMRun(trial, x, y, start, settings, init=history.init, seed=seed, warm=True)
+            run = EMRun(
+                trial,
+                x,
+                y,
+                start,
+                settings,
+                init=history.init,
+                seed=seed,
+                warm=True,
+                active=(i, j, k),
+            )
             run.step(_SCREEN_ITER)
             if run.best <= history.best:
                 continue
-            trial_history = run.step(settings.max_iter).finish()
+            trial_history = run.release().step(settings.max_iter).finish()
             if trial_history.best > history.best + settings.tol * n:
                 trial_history.candidates = history.candidates
                 trial_history.split_merge = [*history.split_merge, (i, j, k, trial_history.best)]

@@ -373,7 +373,13 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
 
     # --------------------------------------------------------------- fitting
     def fit_experts(
-        self, X: Tensor, Y: Tensor, weights: Tensor, *, max_iter: int | None = None
+        self,
+        X: Tensor,
+        Y: Tensor,
+        weights: Tensor,
+        *,
+        max_iter: int | None = None,
+        only: Sequence[int] | None = None,
     ) -> None:
         """Refit every expert on its weighted data (the experts' half of the M-step).
 
@@ -387,15 +393,22 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
             Y: Effects, `(N, E)`.
             weights: Non-negative weight of each sample for each expert, `(N, M)`.
             max_iter: L-BFGS iterations per expert; defaults to `gp_max_iter`.
+            only: Refit these experts only; the others keep their hyperparameters and are
+                conditioned on their column of `weights` (a partial M-step). None: all.
         """
         self.to(X.device)  # the mixture fits where its data lives
         x_e = X[:, self.expert_columns]
-        exact = [e for e in self.experts if isinstance(e, GPExpert)]
-        if len(exact) == len(self.experts):  # exact experts: one batched fit
-            fit_exact_experts(exact, x_e, Y, weights, max_iter=max_iter)
+        chosen = list(range(self.n_experts)) if only is None else sorted(set(only))
+        held = [j for j in range(self.n_experts) if j not in chosen]
+        fitted = [self.experts[j] for j in chosen]
+        if all(isinstance(e, GPExpert) for e in fitted):  # exact experts: one batched fit
+            exact = [e for e in fitted if isinstance(e, GPExpert)]
+            fit_exact_experts(exact, x_e, Y, weights[:, chosen], max_iter=max_iter)
         else:
-            for j, expert in enumerate(self.experts):
-                expert.fit(x_e, Y, weights[:, j], max_iter=max_iter)
+            for j in chosen:
+                self.experts[j].fit(x_e, Y, weights[:, j], max_iter=max_iter)
+        for j in held:
+            self.experts[j].condition(x_e, Y, weights[:, j])
         self._set_train_data(X, Y, weights)
 
     def condition(self, X: Tensor, Y: Tensor, weights: Tensor) -> None:

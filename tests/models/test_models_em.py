@@ -17,8 +17,11 @@ from probaff.data.generation import GenerateConfig, generate
 from probaff.errors import InputError
 from probaff.features import chapter5_features
 from probaff.models import MixtureOfGPExperts, fit_em, fit_em_path
+from probaff.models.em import _settings
+from probaff.models.em_run import EMRun, loo_terms
 from probaff.models.em_starts import _copy_state, _objective
 from probaff.models.initialization import initial_responsibilities, split_responsibilities
+from probaff.models.options import EMOptions
 from probaff.models.synthetic import piecewise_1d, softmax_regimes
 
 pytestmark = pytest.mark.slow
@@ -175,6 +178,33 @@ def test_tempered_e_step_starts_soft_and_ends_at_beta_one():
     assert annealed.n_iter >= 4  # cannot converge while beta < 1
     with pytest.raises(InputError, match="anneal_start"):
         fit_em(MixtureOfGPExperts(2), x, y, anneal=True, anneal_start=1.5)
+
+
+def test_partial_iterations_move_only_the_active_experts():
+    x, y, _ = piecewise_1d(90, seed=3)
+    model = MixtureOfGPExperts(3)
+    fit_em(model, x, y, init="effects", n_restarts=1, split_merge=0, **FAST)
+    x_t, y_t = torch.as_tensor(x), torch.as_tensor(y)
+    start = torch.softmax(loo_terms(model, x_t, y_t)[0], dim=1)
+    start[:, :2] = start[:, :2].mean(1, keepdim=True)  # experts 0 and 1 merged, as a trial does
+    before = [copy.deepcopy(e.state_dict()) for e in model.experts]
+    options = EMOptions(**{**FAST, "max_iter": 5})
+    run = EMRun(
+        model, x_t, y_t, start.clone(), _settings(model, options), init="t", seed=0, active=(0, 1)
+    )
+    run.step(2)
+    assert run.iteration == 2
+    torch.testing.assert_close(run.resp[:, 2], start[:, 2], rtol=0, atol=0)
+    torch.testing.assert_close(run.resp.sum(1), torch.ones(90, dtype=torch.float64))
+
+    def moved(j: int) -> bool:
+        state = model.experts[j].state_dict()
+        return any(not torch.equal(state[k], v) for k, v in before[j].items())
+
+    assert moved(0) and moved(1) and not moved(2)
+    run.release().step(1)  # full iterations again: every expert is reassigned
+    assert run.active is None and run.iteration == 3
+    assert not torch.equal(run.resp[:, 2], start[:, 2])
 
 
 def test_collapsed_expert_takes_half_of_a_donor():
