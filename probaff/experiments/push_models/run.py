@@ -59,7 +59,7 @@ __all__ = ["FoldTask", "run"]
 
 # Bumped whenever a change to the fitting code changes results, so stored tasks of an older
 # version are refitted rather than mixed in.
-_FIT_VERSION = 4
+_FIT_VERSION = 5
 
 
 @dataclass(frozen=True)
