@@ -42,6 +42,7 @@ __all__ = [
     "fit_exact_experts",
     "per_expert_fits",
     "predict_exact_experts",
+    "predict_exact_experts_with_loo",
     "stacked_log_likelihood",
 ]
 
@@ -536,27 +537,99 @@ def predict_exact_experts(
         NotFittedError: If an expert has no training data.
         NotPSDError: If a training covariance cannot be factorised at any jitter.
     """
+    return _predictions(experts, X, include_noise, loo=False)[0]
+
+
+def predict_exact_experts_with_loo(
+    experts: Sequence[GPExpert], X: Tensor
+) -> tuple[Normal, list[Normal]]:
+    """`predict_exact_experts` (noise included) and every expert's `GPExpert.loo_predict`.
+
+    Both come from one factorisation of each expert's training covariance (batched), so
+    the leave-one-out densities cost one triangular inverse more than the predictions.
+
+    Args:
+        experts: `M` fitted experts with the same `D`, `E` and options.
+        X: Expert features, `(N, D)`, on the experts' device.
+
+    Returns:
+        Normals with loc and scale `(N, M, E)`, and per expert the leave-one-out normals
+        `(n_j, E)` of its training rows, in output units.
+
+    Raises:
+        NotFittedError: If an expert has no training data.
+        NotPSDError: If a training covariance cannot be factorised at any jitter.
+    """
+    pred, loo = _predictions(experts, X, True, loo=True)
+    assert loo is not None
+    return pred, loo
+
+
+def _predictions(
+    experts: Sequence[GPExpert], X: Tensor, include_noise: bool, *, loo: bool
+) -> tuple[Normal, list[Normal] | None]:
     if not batching_enabled():
         preds = [e.predict(X, include_noise=include_noise) for e in experts]
-        return Normal(
+        pred = Normal(
             torch.stack([p.loc for p in preds], dim=1), torch.stack([p.scale for p in preds], dim=1)
         )
+        return pred, [e.loo_predict() for e in experts] if loo else None
     stack = ExpertStack.of(experts)
     n_test, e = X.shape[0], stack.y.shape[1]
     loc = X.new_empty(n_test, len(experts), e)
     scale = X.new_empty(n_test, len(experts), e)
+    loos: list[Normal | None] = [None] * len(experts)
     with torch.no_grad():
         for rows in stack.groups():
             group = [experts[j] for j in rows]
-            mean, std = _predict_group(group, stack.select(rows), X, include_noise)
+            mean, std, group_loo = _predict_group(group, stack.select(rows), X, include_noise, loo)
             loc[:, rows], scale[:, rows] = mean, std
-    return Normal(loc, scale)
+            for j, out in zip(rows, group_loo, strict=False):
+                loos[j] = out
+    if not loo:
+        return Normal(loc, scale), None
+    return Normal(loc, scale), [out for out in loos if out is not None]
+
+
+def _loo_group(
+    experts: Sequence[GPExpert],
+    stack: ExpertStack,
+    hyper: tuple[Tensor, Tensor, Tensor, Tensor],
+    chol: Tensor,
+    alpha: Tensor,
+) -> list[Normal]:
+    r"""`GPExpert.loo_predict` of a batch of experts from their training factors.
+
+    As `GPExpert.loo_predict` (Rasmussen & Williams, 2006, eq. 5.12): with :math:`A = K +
+    \sigma^2 W^{-1}`, the mean :math:`y_i - \alpha_i / [A^{-1}]_{ii}` and the latent
+    variance :math:`1/[A^{-1}]_{ii} - \sigma^2 / w_i`.
+    """
+    noise = hyper[2]  # (B, E)
+    eye = torch.eye(chol.shape[-1], dtype=chol.dtype, device=chol.device)
+    chol_inv = torch.linalg.solve_triangular(chol, eye.expand_as(chol), upper=False)
+    diag_inv = chol_inv.square().sum(-2)  # diag(A^-1), (B, E, n)
+    own = noise[..., None] * stack.noise_scale  # sigma^2 / w_i on real rows, (B, E, n)
+    mean = stack.y - alpha / diag_inv
+    var = (1.0 / diag_inv - own).clamp_min(_MIN_VARIANCE) + noise[..., None]
+    out = []
+    for b, expert in enumerate(experts):
+        n = int(stack.counts[b])
+        loc = mean[b, :, :n].T * expert.y_scaler.std + expert.y_scaler.mean
+        out.append(Normal(loc, var[b, :, :n].T.sqrt() * expert.y_scaler.std))
+    return out
 
 
 def _predict_group(
-    experts: Sequence[GPExpert], stack: ExpertStack, X: Tensor, include_noise: bool
-) -> tuple[Tensor, Tensor]:
-    """Predictive means and standard deviations `(N, B, E)` of a batch of experts."""
+    experts: Sequence[GPExpert],
+    stack: ExpertStack,
+    X: Tensor,
+    include_noise: bool,
+    loo: bool = False,
+) -> tuple[Tensor, Tensor, list[Normal]]:
+    """Predictive means and standard deviations `(N, B, E)` of a batch of experts.
+
+    With `loo`, also each expert's leave-one-out normals (`_loo_group`); else an empty list.
+    """
     hyper = _hyperparameters(experts)
     jitter = torch.stack([e.jitter for e in experts])
     _, chol, _, alpha, nan, failed = _train_factor(stack, hyper, jitter)
@@ -578,4 +651,9 @@ def _predict_group(
     var = var.clamp_min(_MIN_VARIANCE)
     y_mean = torch.stack([e.y_scaler.mean for e in experts])[..., None]
     y_std = torch.stack([e.y_scaler.std for e in experts])[..., None]
-    return (mean * y_std + y_mean).permute(2, 0, 1), (var.sqrt() * y_std).permute(2, 0, 1)
+    loos = _loo_group(experts, stack, hyper, chol, alpha) if loo else []
+    return (
+        (mean * y_std + y_mean).permute(2, 0, 1),
+        (var.sqrt() * y_std).permute(2, 0, 1),
+        loos,
+    )

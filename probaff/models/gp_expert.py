@@ -19,7 +19,7 @@ from torch.distributions import Normal
 
 from probaff.errors import NotFittedError
 from probaff.models.expert_base import WeightedExpert, noise_floor_vector
-from probaff.models.gaussian_density import gaussian_log_density
+from probaff.models.gaussian_density import gaussian_log_density, psd_cholesky
 from probaff.models.kernels import ard_se_kernel
 from probaff.models.likelihood import WeightedGaussianLikelihood
 from probaff.models.options import OUTPUTSCALE_BOUNDS, GPOptions, resolve_options
@@ -379,6 +379,9 @@ class GPExpert(WeightedExpert):
 
         Raises:
             NotFittedError: If the expert has no training data yet.
+            NotPSDError: If the training covariance cannot be factorised even with jitter
+                (the policy of the marginal likelihood: as it is, then with the expert's
+                jitter times 1, 10, 100).
         """
         if not self.is_fitted:
             raise NotFittedError("GPExpert has no training data; call fit first.")
@@ -391,12 +394,7 @@ class GPExpert(WeightedExpert):
             noise = self.likelihood.noise  # (E, 1)
             own = noise / self.likelihood.weights  # (E, n)
             eye = torch.eye(n, dtype=k.dtype, device=k.device)
-            a = k + torch.diag_embed(own)
-            chol, info = torch.linalg.cholesky_ex(a + float(self.jitter) * eye)
-            for jitter in _JITTERS:
-                if not bool(info.any()):
-                    break
-                chol, info = torch.linalg.cholesky_ex(a + jitter * eye)
+            chol = psd_cholesky(k + torch.diag_embed(own), float(self.jitter))
             resid = y - self.gp.mean_module.constant[:, None]
             alpha = torch.cholesky_solve(resid[..., None], chol)[..., 0]
             chol_inv = torch.linalg.solve_triangular(chol, eye.expand_as(chol), upper=False)

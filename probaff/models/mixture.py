@@ -12,7 +12,11 @@ from torch.distributions import Normal
 from probaff._checks import check_count
 from probaff.errors import InputError, NotFittedError
 from probaff.models.expert_base import noise_floor_vector
-from probaff.models.expert_batch import fit_exact_experts, predict_exact_experts
+from probaff.models.expert_batch import (
+    fit_exact_experts,
+    predict_exact_experts,
+    predict_exact_experts_with_loo,
+)
 from probaff.models.gate import GATE_KINDS, make_gate
 from probaff.models.gate_penalty import check_strength
 from probaff.models.gated import ExpertList, GatedMixture, gated_probs, mixture_distribution
@@ -510,16 +514,18 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         self.check_fitted()
         if self._train_weights is None or self._train_weights.shape[0] != X.shape[0]:
             raise InputError("loo_log_lik needs the training set the mixture was fitted on.")
-        if all(isinstance(e, GPExpert) for e in self.experts):  # one batched prediction
-            pred = self.expert_predictions(X)
+        x_e = self.features(X)[:, self.expert_columns]
+        exact = [e for e in self.experts if isinstance(e, GPExpert)]
+        loos: list[Normal] | None = None
+        if len(exact) == len(self.experts):  # one batched prediction, one factor per expert
+            pred, loos = predict_exact_experts_with_loo(exact, x_e)
             loc, scale = pred.loc.clone(), pred.scale.clone()
         else:  # sparse experts predict only the rows they do not hold
-            x_e = self.features(X)[:, self.expert_columns]
             loc = X.new_empty(X.shape[0], self.n_experts, Y.shape[1])
             scale = torch.empty_like(loc)
         for j, expert in enumerate(self.experts):
             held = self.train_weights[:, j] > 0
-            loo = expert.loo_predict()
+            loo = expert.loo_predict() if loos is None else loos[j]
             loc[held, j] = loo.loc
             scale[held, j] = loo.scale
             if not isinstance(expert, GPExpert) and not bool(held.all()):

@@ -13,6 +13,7 @@ from probaff.models.expert_batch import (
     fit_exact_experts,
     per_expert_fits,
     predict_exact_experts,
+    predict_exact_experts_with_loo,
     stacked_log_likelihood,
 )
 from probaff.models.synthetic import regime_features
@@ -122,6 +123,30 @@ def test_batched_predictions_match_each_expert(device: str) -> None:
             ref = expert.predict(x_test, include_noise=noise)
             torch.testing.assert_close(pred.loc[:, j], ref.loc, rtol=1e-9, atol=1e-9)
             torch.testing.assert_close(pred.scale[:, j], ref.scale, rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_batched_leave_one_out_matches_each_expert(device: str) -> None:
+    x, y, w = _problem(n=70, d=4, e=3)
+    experts = _experts(4, 3, 3, device=device)
+    for j, expert in enumerate(experts):
+        expert.condition(x.to(device), y.to(device), w[:, j].to(device))
+    assert len({e.n_train for e in experts}) > 1  # padded rows are cut out
+    x_test = torch.linspace(-1, 1, 4 * 25, dtype=torch.float64).reshape(25, 4).to(device)
+    pred, loos = predict_exact_experts_with_loo(experts, x_test)
+    plain = predict_exact_experts(experts, x_test)
+    torch.testing.assert_close(pred.loc, plain.loc, rtol=0, atol=0)
+    torch.testing.assert_close(pred.scale, plain.scale, rtol=0, atol=0)
+    assert len(loos) == 3
+    for expert, loo in zip(experts, loos, strict=True):
+        ref = expert.loo_predict()
+        assert loo.loc.shape == (expert.n_train, 3)
+        torch.testing.assert_close(loo.loc, ref.loc, rtol=1e-9, atol=1e-10)
+        torch.testing.assert_close(loo.scale, ref.scale, rtol=1e-9, atol=1e-10)
+    with per_expert_fits():  # the reference path gives the experts' own numbers
+        _, serial = predict_exact_experts_with_loo(experts, x_test)
+    for expert, loo in zip(experts, serial, strict=True):
+        torch.testing.assert_close(loo.loc, expert.loo_predict().loc, rtol=0, atol=0)
 
 
 def test_singular_expert_uses_the_jitter_of_a_separate_fit() -> None:
