@@ -150,7 +150,7 @@ def test_settings_keep_the_names_stored_results_were_keyed_by():
 
     view = settings_view(PushModelStudyConfig())
     assert view["em_iterations"] == 10 and view["em_restarts"] == 3 and view["em_init"] == "auto"
-    assert view["vi_steps"] == 400 and view["gp_max_iter"] == 50 and view["lengthscale_prior"]
+    assert view["vi_steps"] == 100 and view["gp_max_iter"] == 50 and view["lengthscale_prior"]
     assert not any(k.startswith(("em_tol", "svi_lr", "gp_noise")) for k in view)
     tuned = PushModelStudyConfig(em=dataclasses.replace(PushModelStudyConfig().em, tol=0.5))
     assert settings_view(tuned)["em_tol"] == 0.5  # a setting with no flag counts once changed
