@@ -109,13 +109,19 @@ def test_batched_fit_matches_separate_fits(device: str) -> None:
         assert float(a.jitter) == float(b.jitter)
 
 
-@pytest.mark.parametrize("device", DEVICES)
-def test_batched_predictions_match_each_expert(device: str) -> None:
+def _conditioned(device: str) -> tuple[list[GPExpert], torch.Tensor]:
+    """Three experts holding different rows of one problem, and 25 test inputs."""
     x, y, w = _problem(n=70, d=4, e=3)
     experts = _experts(4, 3, 3, device=device)
     for j, expert in enumerate(experts):
         expert.condition(x.to(device), y.to(device), w[:, j].to(device))
     x_test = torch.linspace(-1, 1, 4 * 25, dtype=torch.float64).reshape(25, 4).to(device)
+    return experts, x_test
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_batched_predictions_match_each_expert(device: str) -> None:
+    experts, x_test = _conditioned(device)
     for noise in (True, False):
         pred = predict_exact_experts(experts, x_test, include_noise=noise)
         assert pred.loc.shape == (25, 3, 3)
@@ -127,12 +133,8 @@ def test_batched_predictions_match_each_expert(device: str) -> None:
 
 @pytest.mark.parametrize("device", DEVICES)
 def test_batched_leave_one_out_matches_each_expert(device: str) -> None:
-    x, y, w = _problem(n=70, d=4, e=3)
-    experts = _experts(4, 3, 3, device=device)
-    for j, expert in enumerate(experts):
-        expert.condition(x.to(device), y.to(device), w[:, j].to(device))
+    experts, x_test = _conditioned(device)
     assert len({e.n_train for e in experts}) > 1  # padded rows are cut out
-    x_test = torch.linspace(-1, 1, 4 * 25, dtype=torch.float64).reshape(25, 4).to(device)
     pred, loos = predict_exact_experts_with_loo(experts, x_test)
     plain = predict_exact_experts(experts, x_test)
     torch.testing.assert_close(pred.loc, plain.loc, rtol=0, atol=0)
