@@ -34,6 +34,7 @@ from torch import Tensor
 from torch.distributions import Normal
 
 from probaff.errors import NotFittedError
+from probaff.models.gaussian_density import loo_moments
 from probaff.models.gp_expert import GPExpert
 
 __all__ = [
@@ -560,35 +561,34 @@ def predict_exact_experts_with_loo(
         NotFittedError: If an expert has no training data.
         NotPSDError: If a training covariance cannot be factorised at any jitter.
     """
-    pred, loo = _predictions(experts, X, True, loo=True)
-    assert loo is not None
-    return pred, loo
+    return _predictions(experts, X, True, loo=True)
 
 
 def _predictions(
     experts: Sequence[GPExpert], X: Tensor, include_noise: bool, *, loo: bool
-) -> tuple[Normal, list[Normal] | None]:
+) -> tuple[Normal, list[Normal]]:
+    """`predict_exact_experts`, and with `loo` every expert's leave-one-out normals.
+
+    Without `loo` the list is empty.
+    """
     if not batching_enabled():
         preds = [e.predict(X, include_noise=include_noise) for e in experts]
         pred = Normal(
             torch.stack([p.loc for p in preds], dim=1), torch.stack([p.scale for p in preds], dim=1)
         )
-        return pred, [e.loo_predict() for e in experts] if loo else None
+        return pred, [e.loo_predict() for e in experts] if loo else []
     stack = ExpertStack.of(experts)
     n_test, e = X.shape[0], stack.y.shape[1]
     loc = X.new_empty(n_test, len(experts), e)
     scale = X.new_empty(n_test, len(experts), e)
-    loos: list[Normal | None] = [None] * len(experts)
+    loos: dict[int, Normal] = {}
     with torch.no_grad():
         for rows in stack.groups():
             group = [experts[j] for j in rows]
             mean, std, group_loo = _predict_group(group, stack.select(rows), X, include_noise, loo)
             loc[:, rows], scale[:, rows] = mean, std
-            for j, out in zip(rows, group_loo, strict=False):
-                loos[j] = out
-    if not loo:
-        return Normal(loc, scale), None
-    return Normal(loc, scale), [out for out in loos if out is not None]
+            loos.update(zip(rows, group_loo, strict=False))
+    return Normal(loc, scale), [loos[j] for j in sorted(loos)]
 
 
 def _loo_group(
@@ -598,19 +598,14 @@ def _loo_group(
     chol: Tensor,
     alpha: Tensor,
 ) -> list[Normal]:
-    r"""`GPExpert.loo_predict` of a batch of experts from their training factors.
+    """`GPExpert.loo_predict` of a batch of experts from their training factors.
 
-    As `GPExpert.loo_predict` (Rasmussen & Williams, 2006, eq. 5.12): with :math:`A = K +
-    \sigma^2 W^{-1}`, the mean :math:`y_i - \alpha_i / [A^{-1}]_{ii}` and the latent
-    variance :math:`1/[A^{-1}]_{ii} - \sigma^2 / w_i`.
+    The moments are `probaff.models.gaussian_density.loo_moments`', in output units.
     """
     noise = hyper[2]  # (B, E)
-    eye = torch.eye(chol.shape[-1], dtype=chol.dtype, device=chol.device)
-    chol_inv = torch.linalg.solve_triangular(chol, eye.expand_as(chol), upper=False)
-    diag_inv = chol_inv.square().sum(-2)  # diag(A^-1), (B, E, n)
     own = noise[..., None] * stack.noise_scale  # sigma^2 / w_i on real rows, (B, E, n)
-    mean = stack.y - alpha / diag_inv
-    var = (1.0 / diag_inv - own).clamp_min(_MIN_VARIANCE) + noise[..., None]
+    mean, latent = loo_moments(chol, stack.y, alpha, own)  # (B, E, n) each
+    var = latent.clamp_min(_MIN_VARIANCE) + noise[..., None]
     out = []
     for b, expert in enumerate(experts):
         n = int(stack.counts[b])

@@ -17,7 +17,7 @@ import torch
 from linear_operator.utils.errors import NanError, NotPSDError
 from torch import Tensor
 
-__all__ = ["gaussian_log_density", "psd_cholesky"]
+__all__ = ["gaussian_log_density", "loo_moments", "psd_cholesky"]
 
 
 def psd_cholesky(a: Tensor, jitter: float, max_tries: int = 3) -> Tensor:
@@ -93,3 +93,26 @@ def gaussian_log_density(a: Tensor, r: Tensor, jitter: float = 1e-8) -> Tensor:
     """
     out: Tensor = _GaussianLogDensity.apply(a, r, float(jitter))
     return out
+
+
+def loo_moments(chol: Tensor, y: Tensor, alpha: Tensor, own: Tensor) -> tuple[Tensor, Tensor]:
+    r"""Leave-one-out means and latent variances of GP regressions from their factors.
+
+    Rasmussen & Williams (2006, eq. 5.12): with :math:`A = K + \sigma^2 W^{-1} = L L^T` and
+    :math:`\alpha = A^{-1}(y - m)`, sample `i` given all others has mean
+    :math:`y_i - \alpha_i / [A^{-1}]_{ii}` and latent variance
+    :math:`1/[A^{-1}]_{ii} - \sigma^2 / w_i`.
+
+    Args:
+        chol: Lower Cholesky factors `L`, `(*b, n, n)`.
+        y: Targets, `(*b, n)`.
+        alpha: :math:`A^{-1}(y - m)`, `(*b, n)`.
+        own: Each sample's own noise variance :math:`\sigma^2 / w_i`, `(*b, n)`.
+
+    Returns:
+        The means and the latent variances (not clamped), `(*b, n)` each.
+    """
+    eye = torch.eye(chol.shape[-1], dtype=chol.dtype, device=chol.device)
+    chol_inv = torch.linalg.solve_triangular(chol, eye.expand_as(chol), upper=False)
+    diag_inv = chol_inv.square().sum(-2)  # diag(A^-1)
+    return y - alpha / diag_inv, 1.0 / diag_inv - own

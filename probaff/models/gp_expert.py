@@ -19,7 +19,7 @@ from torch.distributions import Normal
 
 from probaff.errors import NotFittedError
 from probaff.models.expert_base import WeightedExpert, noise_floor_vector
-from probaff.models.gaussian_density import gaussian_log_density, psd_cholesky
+from probaff.models.gaussian_density import gaussian_log_density, loo_moments, psd_cholesky
 from probaff.models.kernels import ard_se_kernel
 from probaff.models.likelihood import WeightedGaussianLikelihood
 from probaff.models.options import OUTPUTSCALE_BOUNDS, GPOptions, resolve_options
@@ -393,15 +393,11 @@ class GPExpert(WeightedExpert):
             k = self.gp.covar_module(x.expand(self.n_outputs, n, x.shape[-1])).to_dense()
             noise = self.likelihood.noise  # (E, 1)
             own = noise / self.likelihood.weights  # (E, n)
-            eye = torch.eye(n, dtype=k.dtype, device=k.device)
             chol = psd_cholesky(k + torch.diag_embed(own), float(self.jitter))
             resid = y - self.gp.mean_module.constant[:, None]
             alpha = torch.cholesky_solve(resid[..., None], chol)[..., 0]
-            chol_inv = torch.linalg.solve_triangular(chol, eye.expand_as(chol), upper=False)
-            diag_inv = chol_inv.square().sum(-2)  # diag(A^-1), (E, n)
-            mean = y - alpha / diag_inv
-            latent = (1.0 / diag_inv - own).clamp_min(_MIN_VARIANCE)
-            var = latent + noise
+            mean, latent = loo_moments(chol, y, alpha, own)  # (E, n) each
+            var = latent.clamp_min(_MIN_VARIANCE) + noise
         mean = mean.T * self.y_scaler.std + self.y_scaler.mean
         std = var.T.sqrt() * self.y_scaler.std
         return Normal(mean, std)

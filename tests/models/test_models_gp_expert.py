@@ -8,7 +8,7 @@ from linear_operator.utils.errors import NotPSDError
 
 from probaff.errors import InputError
 from probaff.models import GPExpert, NotFittedError
-from probaff.models.gaussian_density import gaussian_log_density
+from probaff.models.gaussian_density import gaussian_log_density, loo_moments
 from probaff.models.gp_expert import exact_gp_settings
 from probaff.models.likelihood import WeightedNoise
 
@@ -215,3 +215,20 @@ def test_gaussian_log_density_gradient_is_exact():
     )
     with pytest.raises(NotPSDError):
         gaussian_log_density(-a.detach(), r.detach())
+
+
+def test_loo_moments_equal_conditioning_on_the_other_samples():
+    g = torch.Generator().manual_seed(1)
+    x = torch.rand(7, 1, generator=g, dtype=torch.float64)
+    k = torch.exp(-0.5 * (x - x.T).square() / 0.3**2)
+    own = torch.rand(7, generator=g, dtype=torch.float64) * 0.1 + 0.01
+    y = torch.randn(7, generator=g, dtype=torch.float64)
+    a = k + torch.diag(own)
+    chol = torch.linalg.cholesky(a)
+    mean, latent = loo_moments(chol, y, torch.cholesky_solve(y[:, None], chol)[:, 0], own)
+    for i in range(7):
+        rest = [j for j in range(7) if j != i]
+        solve = torch.linalg.solve(a[rest][:, rest], torch.stack([y[rest], k[rest, i]], 1))
+        assert float(mean[i]) == pytest.approx(float(k[i, rest] @ solve[:, 0]), rel=1e-9)
+        expected = float(k[i, i] - k[i, rest] @ solve[:, 1])
+        assert float(latent[i]) == pytest.approx(expected, rel=1e-9, abs=1e-12)
