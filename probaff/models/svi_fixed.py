@@ -7,9 +7,9 @@ are then fixed, so they are computed once, and a minibatch step (the ELBO it rec
 assignment posterior, the natural-gradient targets) is a few products with the minibatch's
 whitened projections :math:`A = L^{-1} K_{uf}` instead of a pass through gpytorch's
 variational strategy and Pyro's enumeration. Every q(u) is held in natural parameters
-(precision :math:`\Lambda`, precision-times-mean :math:`\eta`, whitened), which the
+(`probaff.models.vi.WhitenedQ`: precision and precision-times-mean), which the
 natural-gradient step mixes linearly, so a step costs one Cholesky factor and one
-triangular inverse of :math:`\Lambda` per expert and output; `store` writes the mean and
+triangular inverse of the precision per expert and output; `store` writes the mean and
 covariance factor back into the model. The numbers are those of
 `VariationalMixtureOfGPExperts.model` under `pyro.infer.TraceEnum_ELBO` and of
 `VariationalMixtureOfGPExperts.update_variational`.
@@ -20,62 +20,18 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from probaff.models.vi import SVGPExpert, VariationalMixtureOfGPExperts, expected_log_density
+from probaff.models.vi import (
+    SVGPExpert,
+    VariationalMixtureOfGPExperts,
+    WhitenedQ,
+    expected_log_density,
+)
 
-__all__ = ["FixedHyperparameterSVI", "WhitenedQ"]
+__all__ = ["FixedHyperparameterSVI"]
 
 # Most bytes of whitened projections of all training rows kept between steps (above: each
 # minibatch's projection is computed when it is drawn).
 _PROJECTION_CACHE_BYTES = 256 * 2**20
-
-
-class WhitenedQ:
-    r"""One expert's whitened q(u) = N(m, S) in natural parameters, with what a step reads.
-
-    Args:
-        precision: :math:`\Lambda = S^{-1}`, `(E, K, K)`.
-        shift: :math:`\eta = \Lambda m`, `(E, K)`.
-
-    Attributes:
-        precision: :math:`\Lambda`, `(E, K, K)`.
-        shift: :math:`\eta`, `(E, K)`.
-        mean: `m`, `(E, K)`.
-        root: :math:`R = L_\Lambda^{-1}`, lower triangular with :math:`S = R^T R`, `(E, K, K)`.
-        kl: :math:`\mathrm{KL}(q(u) \Vert \mathcal N(0, I))` summed over the outputs (nats).
-    """
-
-    def __init__(self, precision: Tensor, shift: Tensor) -> None:
-        self.precision, self.shift = precision, shift
-        chol = torch.linalg.cholesky(0.5 * (precision + precision.mT))
-        eye = torch.eye(chol.shape[-1], dtype=chol.dtype, device=chol.device)
-        self.root = torch.linalg.solve_triangular(chol, eye, upper=False)
-        self.mean = torch.cholesky_solve(shift[..., None], chol)[..., 0]
-        log_det_precision = 2.0 * chol.diagonal(dim1=-2, dim2=-1).log().sum()
-        trace = self.root.square().sum()
-        size = chol.shape[-1] * chol.shape[0]
-        self.kl = 0.5 * float(trace + self.mean.square().sum() - size + log_det_precision)
-
-    @classmethod
-    def of(cls, expert: SVGPExpert) -> WhitenedQ:
-        """The natural parameters of `expert`'s current q(u)."""
-        variational = expert.variational_strategy._variational_distribution
-        with torch.no_grad():
-            precision = torch.cholesky_inverse(variational.chol_variational_covar.tril())
-            shift = (precision @ variational.variational_mean[..., None])[..., 0]
-        return cls(precision, shift)
-
-    def moved(self, precision: Tensor, shift: Tensor, step: float) -> WhitenedQ:
-        r"""This q(u) moved a natural-gradient step towards target natural parameters.
-
-        :math:`\theta \leftarrow (1 - \gamma)\theta + \gamma \theta^\star`, as in
-        `SVGPExpert.natural_step`; `step` is :math:`\gamma` in `(0, 1]`.
-        """
-        if step >= 1.0:
-            return WhitenedQ(precision, shift)
-        return WhitenedQ(
-            (1.0 - step) * self.precision + step * precision,
-            (1.0 - step) * self.shift + step * shift,
-        )
 
 
 class FixedHyperparameterSVI:
@@ -153,10 +109,5 @@ class FixedHyperparameterSVI:
 
     def store(self) -> None:
         """Write every q(u) into its expert's variational distribution (mean and factor)."""
-        with torch.no_grad():
-            for expert, q in zip(self.experts, self.q, strict=True):
-                variational = expert.variational_strategy._variational_distribution
-                variational.variational_mean.copy_(q.mean)
-                covar = q.root.mT @ q.root
-                variational.chol_variational_covar.copy_(torch.linalg.cholesky(covar))
-                expert.variational_strategy.variational_params_initialized.fill_(1)
+        for expert, q in zip(self.experts, self.q, strict=True):
+            q.store(expert)

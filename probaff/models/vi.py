@@ -36,7 +36,7 @@ from probaff.models.gp_expert import GPExpert
 from probaff.models.kernels import ard_se_kernel
 from probaff.models.mixture import MixtureOfGPExperts
 
-__all__ = ["SVGPExpert", "VariationalMixtureOfGPExperts", "expected_log_density"]
+__all__ = ["SVGPExpert", "VariationalMixtureOfGPExperts", "WhitenedQ", "expected_log_density"]
 
 # Smallest noise variance of every expert (standardised units).
 _NOISE_FLOOR = 1e-6
@@ -64,6 +64,64 @@ def expected_log_density(y: Tensor, mean: Tensor, var: Tensor, noise: Tensor) ->
     """
     ll = -0.5 * (torch.log(2 * math.pi * noise) + ((y - mean).square() + var) / noise)
     return ll.sum(-1)
+
+
+class WhitenedQ:
+    r"""One expert's whitened q(u) = N(m, S) in natural parameters, with what a step reads.
+
+    Args:
+        precision: :math:`\Lambda = S^{-1}`, `(E, K, K)`.
+        shift: :math:`\eta = \Lambda m`, `(E, K)`.
+
+    Attributes:
+        precision: :math:`\Lambda`, `(E, K, K)`.
+        shift: :math:`\eta`, `(E, K)`.
+        mean: `m`, `(E, K)`.
+        root: :math:`R = L_\Lambda^{-1}`, lower triangular with :math:`S = R^T R`, `(E, K, K)`.
+        kl: :math:`\mathrm{KL}(q(u) \Vert \mathcal N(0, I))` summed over the outputs (nats).
+    """
+
+    def __init__(self, precision: Tensor, shift: Tensor) -> None:
+        self.precision, self.shift = precision, shift
+        chol = torch.linalg.cholesky(0.5 * (precision + precision.mT))
+        eye = torch.eye(chol.shape[-1], dtype=chol.dtype, device=chol.device)
+        self.root = torch.linalg.solve_triangular(chol, eye, upper=False)
+        self.mean = torch.cholesky_solve(shift[..., None], chol)[..., 0]
+        log_det_precision = 2.0 * chol.diagonal(dim1=-2, dim2=-1).log().sum()
+        trace = self.root.square().sum()
+        size = chol.shape[-1] * chol.shape[0]
+        self.kl = 0.5 * float(trace + self.mean.square().sum() - size + log_det_precision)
+
+    @classmethod
+    def of(cls, expert: SVGPExpert) -> WhitenedQ:
+        """The natural parameters of `expert`'s current q(u)."""
+        variational = expert.variational_strategy._variational_distribution
+        with torch.no_grad():
+            precision = torch.cholesky_inverse(variational.chol_variational_covar.tril())
+            shift = (precision @ variational.variational_mean[..., None])[..., 0]
+        return cls(precision, shift)
+
+    def store(self, expert: SVGPExpert) -> None:
+        """Write this q(u) into `expert`'s variational distribution (mean and factor)."""
+        variational = expert.variational_strategy._variational_distribution
+        with torch.no_grad():
+            variational.variational_mean.copy_(self.mean)
+            covar = self.root.mT @ self.root
+            variational.chol_variational_covar.copy_(torch.linalg.cholesky(covar))
+            expert.variational_strategy.variational_params_initialized.fill_(1)
+
+    def moved(self, precision: Tensor, shift: Tensor, step: float) -> WhitenedQ:
+        r"""This q(u) moved a natural-gradient step towards target natural parameters.
+
+        :math:`\theta \leftarrow (1 - \gamma)\theta + \gamma \theta^\star`, as in
+        `SVGPExpert.natural_step`; `step` is :math:`\gamma` in `(0, 1]`.
+        """
+        if step >= 1.0:
+            return WhitenedQ(precision, shift)
+        return WhitenedQ(
+            (1.0 - step) * self.precision + step * precision,
+            (1.0 - step) * self.shift + step * shift,
+        )
 
 
 class SVGPExpert(gpytorch.models.ApproximateGP):
@@ -232,28 +290,20 @@ class SVGPExpert(gpytorch.models.ApproximateGP):
         In natural parameters, :math:`\theta \leftarrow (1 - \gamma)\,\theta + \gamma\,
         \theta^\star`, the natural-gradient step of the ELBO in q(u) for a conjugate
         likelihood (Hensman et al., 2013); :math:`\gamma = 1` jumps to the target. The
-        result is stored as mean and Cholesky factor, so it is always a valid Gaussian.
+        result (`WhitenedQ`) is stored as mean and Cholesky factor, so it is always a valid
+        Gaussian.
 
         Args:
             precision: Target precision :math:`\Lambda^\star`, `(E, K, K)`.
             shift: Target precision-times-mean :math:`\eta^\star`, `(E, K)`.
             step: :math:`\gamma` in `(0, 1]`.
         """
-        variational = self.variational_strategy._variational_distribution
         with torch.no_grad():
             if step < 1.0:
-                chol_s = variational.chol_variational_covar.tril()
-                own = torch.cholesky_inverse(chol_s)
-                own_shift = (own @ variational.variational_mean[..., None])[..., 0]
-                precision = (1.0 - step) * own + step * precision
-                shift = (1.0 - step) * own_shift + step * shift
-            chol_p = torch.linalg.cholesky(0.5 * (precision + precision.transpose(-1, -2)))
-            variational.variational_mean.copy_(
-                torch.cholesky_solve(shift[..., None], chol_p)[..., 0]
-            )
-            covar = torch.cholesky_inverse(chol_p)
-            variational.chol_variational_covar.copy_(torch.linalg.cholesky(covar))
-            self.variational_strategy.variational_params_initialized.fill_(1)
+                q = WhitenedQ.of(self).moved(precision, shift, step)
+            else:
+                q = WhitenedQ(precision, shift)
+        q.store(self)
 
     def set_optimal_variational(self, x: Tensor, y: Tensor, weights: Tensor, noise: Tensor) -> None:
         r"""Set q(u) to the optimum of the collapsed bound for the current hyperparameters.

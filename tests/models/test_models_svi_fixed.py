@@ -8,9 +8,9 @@ from pyro.infer import TraceEnum_ELBO
 from probaff._threads import torch_threads
 from probaff.models import MixtureOfGPExperts, fit_em, svi_fixed
 from probaff.models.svi import fit_svi
-from probaff.models.svi_fixed import FixedHyperparameterSVI, WhitenedQ
+from probaff.models.svi_fixed import FixedHyperparameterSVI
 from probaff.models.synthetic import softmax_regimes
-from probaff.models.vi import VariationalMixtureOfGPExperts
+from probaff.models.vi import VariationalMixtureOfGPExperts, WhitenedQ
 
 
 @pytest.fixture(autouse=True, scope="module")
