@@ -4,8 +4,9 @@ A mixture's M-step refits `M` exact `GPExpert`\ s, each `E` independent GPs. At 
 of the push-model studies one evaluation of an expert's marginal likelihood is mostly fixed
 per-call overhead, so evaluating the `M` experts one by one costs about `M` times one batched
 evaluation. `fit_exact_experts` runs every expert's own L-BFGS (exactly the optimiser of
-`GPExpert.fit`, with its jitter fallback) in lock step: each optimiser waits at its
-evaluations, and all the pending evaluations are computed as one batched marginal likelihood
+`GPExpert.fit`, with its jitter fallback) in lock step: each optimiser is a coroutine
+(`GPExpert.optimisation`) that yields the points it wants evaluated, and each round of
+pending evaluations is computed as one batched marginal likelihood
 (`stacked_log_likelihood`). The iterates are those of separate fits, up to the rounding of
 batched arithmetic, so the fitted hyperparameters and everything downstream are the same.
 `predict_exact_experts` computes every expert's predictive distribution in one batch.
@@ -21,7 +22,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import threading
 import warnings
 from collections.abc import Iterator, Sequence
 from contextvars import ContextVar
@@ -35,7 +35,8 @@ from torch.distributions import Normal
 
 from probaff.errors import NotFittedError
 from probaff.models.gaussian_density import loo_moments
-from probaff.models.gp_expert import GPExpert
+from probaff.models.gp_expert import FitRequest, GPExpert
+from probaff.models.lbfgs import Evaluation, assign, flat_grad, lockstep
 
 __all__ = [
     "ExpertStack",
@@ -350,87 +351,47 @@ def stacked_log_likelihood(
     return value / n, nan, failed
 
 
-class _Lockstep:
-    """Runs the L-BFGS of every expert in its own thread, evaluating them as one batch.
+def _evaluate_batch(
+    experts: Sequence[GPExpert], stack: ExpertStack, batch: dict[int, FitRequest]
+) -> dict[int, Evaluation | BaseException]:
+    """Every pending evaluation of `GPExpert.optimisation` in `batch`, computed together.
 
-    Each worker blocks in `evaluate` until every worker still running is waiting or
-    finished; the main thread then computes all pending evaluations at once (so the
-    numbers cannot depend on the threads' timing) and wakes the workers.
+    Args:
+        experts: The experts being fitted.
+        stack: Their training data.
+        batch: Each pending expert's request ``(jitter, x)``, by index.
+
+    Returns:
+        Each expert's ``(loss, grad)`` as `GPExpert.evaluate` computes it, or the
+        ``NanError`` or ``NotPSDError`` it would raise.
     """
-
-    def __init__(self, experts: Sequence[GPExpert]) -> None:
-        self.experts = list(experts)
-        self.stack = ExpertStack.of(self.experts)
-        self.cond = threading.Condition()
-        self.pending: dict[int, tuple[float, bool]] = {}
-        self.results: dict[int, Tensor | Exception] = {}
-        self.active = set(range(len(self.experts)))
-
-    def evaluate(self, j: int, jitter: float, grad: bool) -> Tensor:
-        """Called by worker `j`: its loss (setting the gradients if `grad`)."""
-        with self.cond:
-            self.pending[j] = (jitter, grad)
-            self.cond.notify_all()
-            while j not in self.results:
-                self.cond.wait()
-            result = self.results.pop(j)
-        if isinstance(result, Exception):
-            raise result
-        return result
-
-    def finish(self, j: int) -> None:
-        """Called by worker `j` when its fit is over."""
-        with self.cond:
-            self.active.discard(j)
-            self.cond.notify_all()
-
-    def serve(self) -> None:
-        """Main thread: answer batches of evaluations until every worker has finished."""
-        while True:
-            with self.cond:
-                while self.active and len(self.pending) < len(self.active):
-                    self.cond.wait()
-                if not self.active:
-                    return
-                batch = dict(sorted(self.pending.items()))
-                self.pending.clear()
-            try:
-                results = self._compute(batch)
-            except Exception as exc:  # deliver to the workers, which re-raise it
-                results = dict.fromkeys(batch, exc)
-            with self.cond:
-                self.results.update(results)
-                self.cond.notify_all()
-
-    def _compute(self, batch: dict[int, tuple[float, bool]]) -> dict[int, Tensor | Exception]:
-        grad = any(g for _, g in batch.values())
-        out: dict[int, Tensor | Exception] = {}
-        with torch.set_grad_enabled(grad):
-            losses = []
-            for rows in self.stack.groups(list(batch)):
-                experts = [self.experts[j] for j in rows]
-                jitter = self.stack.x.new_tensor([batch[j][0] for j in rows])
-                value, nan, failed = stacked_log_likelihood(
-                    experts, self.stack.select(rows), jitter
+    out: dict[int, Evaluation | BaseException] = {}
+    params = {j: experts[j].trainable() for j in batch}
+    for j, (_, x) in batch.items():
+        assign(params[j], x)
+        for p in experts[j].parameters():
+            p.grad = None
+    losses, values = [], {}
+    for rows in stack.groups(list(batch)):
+        group = [experts[j] for j in rows]
+        jitter = stack.x.new_tensor([batch[j][0] for j in rows])
+        value, nan, failed = stacked_log_likelihood(group, stack.select(rows), jitter)
+        loss = -value.sum(-1)  # (B,)
+        losses.append(loss.sum())
+        for i, j in enumerate(rows):
+            if bool(nan[i]):
+                out[j] = NanError("the covariance matrix holds NaN.")
+            elif bool(failed[i]):
+                out[j] = NotPSDError(
+                    f"the covariance matrix is not positive definite even with jitter "
+                    f"{batch[j][0]}."
                 )
-                loss = -value.sum(-1)  # (B,)
-                losses.append(loss.sum())
-                for i, j in enumerate(rows):
-                    if bool(nan[i]):
-                        out[j] = NanError("the covariance matrix holds NaN.")
-                    elif bool(failed[i]):
-                        out[j] = NotPSDError(
-                            f"the covariance matrix is not positive definite even with jitter "
-                            f"{batch[j][0]}."
-                        )
-                    else:
-                        out[j] = loss[i].detach()
-            if grad:
-                for j in batch:
-                    for p in self.experts[j].parameters():
-                        p.grad = None
-                torch.stack(losses).sum().backward()
-        return out
+            else:
+                values[j] = loss[i]
+    torch.stack(losses).sum().backward()
+    for j, value in values.items():
+        out[j] = (float(value.detach()), flat_grad(params[j]))
+    return out
 
 
 def fit_exact_experts(
@@ -443,9 +404,9 @@ def fit_exact_experts(
 ) -> None:
     """Fit every expert on its weighted data, as `GPExpert.fit` would one by one.
 
-    Each expert runs its own L-BFGS with its own jitter fallback; their evaluations are
-    batched (see the module docstring). Inside `per_expert_fits` the experts are fitted one
-    after another by `GPExpert.fit`.
+    Each expert runs its own L-BFGS with its own jitter fallback (`GPExpert.optimisation`);
+    their evaluations are batched (see the module docstring). Inside `per_expert_fits` the
+    experts are fitted one after another by `GPExpert.fit`.
 
     Args:
         experts: `M` experts with the same `D`, `E` and options.
@@ -463,33 +424,10 @@ def fit_exact_experts(
         return
     for j, expert in enumerate(experts):
         expert.condition(X, Y, weights[:, j])
-    lockstep = _Lockstep(experts)
-    ok = [False] * len(experts)
-    errors: list[BaseException | None] = [None] * len(experts)
-
-    def work(j: int, expert: GPExpert) -> None:
-        def evaluate(jitter: float, grad: bool) -> Tensor:
-            return lockstep.evaluate(j, jitter, grad)
-
-        try:
-            iters = expert.max_iter if max_iter is None else int(max_iter)
-            ok[j] = expert.optimise(iters, evaluate)
-        except BaseException as exc:  # re-raised in the calling thread
-            errors[j] = exc
-        finally:
-            lockstep.finish(j)
-
-    threads = [
-        threading.Thread(target=work, args=(j, e), daemon=True) for j, e in enumerate(experts)
-    ]
-    for thread in threads:
-        thread.start()
-    lockstep.serve()
-    for thread in threads:
-        thread.join()
-    for error in errors:
-        if error is not None:
-            raise error
+    stack = ExpertStack.of(experts)
+    runs = [e.optimisation(e.max_iter if max_iter is None else int(max_iter)) for e in experts]
+    with torch.enable_grad():
+        ok = lockstep(runs, lambda batch: _evaluate_batch(experts, stack, batch))
     if not all(ok):
         warnings.warn(
             "GP hyperparameter optimisation failed at every jitter level; the previous "

@@ -5,10 +5,11 @@ from __future__ import annotations
 import contextlib
 import math
 import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Generator, Iterator
 from typing import Any, TypeAlias
 
 import gpytorch
+import numpy as np
 import torch
 from gpytorch.distributions import MultivariateNormal
 from gpytorch.means import ConstantMean
@@ -21,14 +22,15 @@ from probaff.errors import NotFittedError
 from probaff.models.expert_base import WeightedExpert, noise_floor_vector
 from probaff.models.gaussian_density import gaussian_log_density, loo_moments, psd_cholesky
 from probaff.models.kernels import ard_se_kernel
+from probaff.models.lbfgs import Evaluation, assign, drive, flat_grad, flatten, lbfgs_coroutine
 from probaff.models.likelihood import WeightedGaussianLikelihood
 from probaff.models.options import OUTPUTSCALE_BOUNDS, GPOptions, resolve_options
 from probaff.models.tensors import as_matrix
 
-__all__ = ["GPExpert", "LossFunction", "exact_gp_settings", "noise_floor_vector"]
+__all__ = ["FitRequest", "GPExpert", "exact_gp_settings", "noise_floor_vector"]
 
-LossFunction: TypeAlias = Callable[[float, bool], Tensor]
-"""``loss(jitter, grad)``: an expert's loss at a jitter, setting the gradients if ``grad``."""
+FitRequest: TypeAlias = tuple[float, np.ndarray]
+"""An evaluation `GPExpert.optimisation` asks for: a fallback jitter and flat parameters."""
 
 # Diagonal jitter levels tried in turn when a kernel matrix is numerically singular.
 _JITTERS = (1e-8, 1e-6, 1e-4, 1e-2)
@@ -209,56 +211,75 @@ class GPExpert(WeightedExpert):
             )
         return self
 
-    def optimise(self, max_iter: int, evaluate: LossFunction | None = None) -> bool:
+    def optimise(self, max_iter: int) -> bool:
         """Maximise the weighted marginal likelihood from the current hyperparameters.
 
         L-BFGS runs with the expert's first jitter; if the covariance cannot be factorised
         or anything becomes non-finite, the hyperparameters are restored and the next,
-        larger jitter is tried.
+        larger jitter is tried (`optimisation` is this fit as a coroutine).
 
         Args:
             max_iter: L-BFGS iterations.
-            evaluate: ``evaluate(jitter, grad)`` returns the loss, minus the sum over outputs
-                of `marginal_log_likelihood` at that jitter, as a detached scalar, and with
-                ``grad`` sets the gradients of the expert's parameters; it may raise
-                ``NotPSDError`` or ``NanError``. None evaluates this expert alone
-                (`probaff.models.expert_batch` batches the evaluations of several).
 
         Returns:
             Whether a jitter level succeeded; if none did, the hyperparameters are those
             before the call and the jitter is the largest level.
         """
-        evaluate = self._loss if evaluate is None else evaluate
-        params = [p for p in self.parameters() if p.requires_grad]
-        start = [p.detach().clone() for p in params]
+        return drive(self.optimisation(max_iter), self.evaluate, (NotPSDError, NanError))
+
+    def optimisation(self, max_iter: int) -> Generator[FitRequest, Evaluation, bool]:
+        """`optimise` as a coroutine that leaves the evaluations to its caller.
+
+        It yields ``(jitter, x)``, a fallback jitter and the flat trainable parameters `x`
+        `(P,)` (in the order of `trainable`) to evaluate, and is sent ``(loss, grad)``: minus
+        the sum over outputs of `marginal_log_likelihood` at that jitter and its gradient
+        `(P,)`, as `evaluate` computes them; ``NotPSDError`` or ``NanError`` thrown into it
+        abandon that jitter level. `probaff.models.expert_batch` runs many side by side
+        and evaluates them as one batch.
+
+        Returns:
+            Whether a jitter level succeeded (see `optimise`).
+        """
+        params = self.trainable()
+        start = flatten(params)
         for jitter in _JITTERS:
             self.train()
             try:
-                ok = self._lbfgs(params, max_iter, jitter, evaluate)
+                run = lbfgs_coroutine(
+                    start, max_iter=max_iter, tolerance_grad=1e-6, tolerance_change=1e-9
+                )
+                x = next(run)
+                while True:
+                    x = run.send((yield jitter, x))
+            except StopIteration as stop:
+                x, loss = stop.value
+                if math.isfinite(loss) and bool(np.isfinite(x).all()):
+                    assign(params, x)
+                    self.jitter.fill_(jitter)
+                    return True
             except (NotPSDError, NanError):
-                ok = False
+                pass
             finally:
                 self.eval()
-            if ok:
-                self.jitter.fill_(jitter)
-                return True
-            with torch.no_grad():
-                for p, p0 in zip(params, start, strict=True):
-                    p.copy_(p0)
+        assign(params, start)
         self.jitter.fill_(_JITTERS[-1])
         return False
 
-    def _loss(self, jitter: float, grad: bool) -> Tensor:
-        """Minus the summed `marginal_log_likelihood`; with `grad`, set the gradients."""
+    def trainable(self) -> list[torch.nn.Parameter]:
+        """The parameters the fit optimises, in the order of `optimisation`'s vectors."""
+        return [p for p in self.parameters() if p.requires_grad]
+
+    def evaluate(self, request: FitRequest) -> Evaluation:
+        """The loss and gradient `optimisation` asks for, ``(jitter, x)``, on this expert alone."""
+        jitter, x = request
+        params = self.trainable()
+        assign(params, x)
         with exact_gp_settings(jitter):
-            if not grad:
-                with torch.no_grad():
-                    return -self.marginal_log_likelihood(jitter).sum()
-            for p in self.parameters():
+            for p in params:
                 p.grad = None
             loss = -self.marginal_log_likelihood(jitter).sum()
             loss.backward()
-        return loss.detach()
+        return float(loss.detach()), flat_grad(params)
 
     def marginal_log_likelihood(self, jitter: float | None = None) -> Tensor:
         r"""Weighted log marginal likelihood (plus log prior) per output, divided by `n`.
@@ -295,44 +316,6 @@ class GPExpert(WeightedExpert):
             log_p = prior.log_prob(closure(module))
             res = res + log_p.reshape(self.n_outputs, -1).sum(-1)
         return res / n
-
-    def _lbfgs(
-        self,
-        params: list[torch.nn.Parameter],
-        max_iter: int,
-        jitter: float,
-        evaluate: LossFunction,
-    ) -> bool:
-        """Minimise the negative weighted marginal likelihood; return whether all stayed finite."""
-        optimiser = torch.optim.LBFGS(
-            params,
-            lr=1.0,
-            max_iter=max_iter,
-            line_search_fn="strong_wolfe",
-            tolerance_grad=1e-6,
-            tolerance_change=1e-9,
-        )
-
-        seen: list[tuple[list[Tensor], Tensor]] = []
-
-        def closure() -> Tensor:
-            loss = evaluate(jitter, True)
-            seen.append(([p.detach().clone() for p in params], loss))
-            return loss
-
-        optimiser.step(closure)
-        # L-BFGS ends on a point it evaluated (bit for bit); reuse that loss if it did.
-        final = next(
-            (
-                loss
-                for snapshot, loss in reversed(seen)
-                if all(torch.equal(a, p) for a, p in zip(snapshot, params, strict=True))
-            ),
-            None,
-        )
-        if final is None:
-            final = evaluate(jitter, False)
-        return bool(torch.isfinite(final)) and all(bool(torch.isfinite(p).all()) for p in params)
 
     # ------------------------------------------------------------- prediction
     def predict(self, X: Any, *, include_noise: bool = True) -> Normal:
