@@ -28,6 +28,7 @@ from contextvars import ContextVar
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 import torch
 from linear_operator.utils.errors import NanError, NotPSDError
 from torch import Tensor
@@ -36,7 +37,7 @@ from torch.distributions import Normal
 from probaff.errors import NotFittedError
 from probaff.models.gaussian_density import loo_moments
 from probaff.models.gp_expert import FitRequest, GPExpert
-from probaff.models.lbfgs import Evaluation, assign, flat_grad, lockstep
+from probaff.models.lbfgs import Evaluation, lockstep
 
 __all__ = [
     "ExpertStack",
@@ -174,24 +175,54 @@ class ExpertStack:
         return m[..., :, None] * m[..., None, :]
 
 
-def _hyperparameters(experts: Sequence[GPExpert]) -> tuple[Tensor, Tensor, Tensor, Tensor]:
+def _raw_parameters(experts: Sequence[GPExpert]) -> dict[str, Tensor]:
+    """Every expert's trainable raw parameters, stacked by name, each `(B, *shape)`."""
+    names = [n for n, p in experts[0].named_parameters() if p.requires_grad]
+    params = [dict(e.named_parameters()) for e in experts]
+    return {n: torch.stack([p[n] for p in params]) for n in names}
+
+
+def _floors(experts: Sequence[GPExpert]) -> Tensor:
+    """Every expert's noise-variance floor, `(B, E)`."""
+    return torch.stack([e.likelihood.noise_covar.floor[..., 0] for e in experts])
+
+
+def _hyperparameters(
+    ref: GPExpert, raw: dict[str, Tensor], floor: Tensor
+) -> tuple[Tensor, Tensor, Tensor, Tensor]:
     """Length scales `(B, E, D)`, amplitudes `(B, E)`, noise `(B, E)`, means `(B, E)`.
 
-    Differentiable in each expert's own raw parameters.
+    From the raw parameters `raw` of `B` experts (`_raw_parameters`, or the batched flat
+    vectors of `_split_flat`), through the constraints of `ref`; differentiable in `raw`.
     """
-    ref = experts[0]
     kernel, noise_model = ref.gp.covar_module, ref.likelihood.noise_covar
-    raw_ls = torch.stack(
-        [e.gp.covar_module.base_kernel.raw_lengthscale[..., 0, :] for e in experts]
+    mean = ref.gp.mean_module
+    lengthscale = kernel.base_kernel.raw_lengthscale_constraint.transform(
+        raw["gp.covar_module.base_kernel.raw_lengthscale"][..., 0, :]
     )
-    raw_os = torch.stack([e.gp.covar_module.raw_outputscale for e in experts])
-    raw_noise = torch.stack([e.likelihood.noise_covar.raw_noise[..., 0] for e in experts])
-    floor = torch.stack([e.likelihood.noise_covar.floor[..., 0] for e in experts])
-    lengthscale = kernel.base_kernel.raw_lengthscale_constraint.transform(raw_ls)
-    outputscale = kernel.raw_outputscale_constraint.transform(raw_os)
-    noise = noise_model.raw_noise_constraint.transform(raw_noise) + floor
-    constant = torch.stack([e.gp.mean_module.constant for e in experts])
-    return lengthscale, outputscale, noise, constant
+    outputscale = kernel.raw_outputscale_constraint.transform(
+        raw["gp.covar_module.raw_outputscale"]
+    )
+    noise = noise_model.raw_noise_constraint.transform(
+        raw["likelihood.noise_covar.raw_noise"][..., 0]
+    )
+    constant = raw["gp.mean_module.raw_constant"]
+    if hasattr(mean, "raw_constant_constraint"):
+        constant = mean.raw_constant_constraint.transform(constant)
+    return lengthscale, outputscale, noise + floor, constant
+
+
+def _split_flat(ref: GPExpert, flat: Tensor) -> dict[str, Tensor]:
+    """The raw parameters of `B` experts from their flat vectors `(B, P)` (views).
+
+    The order is that of `GPExpert.trainable`, which `GPExpert.optimisation` flattens.
+    """
+    out, offset = {}, 0
+    for name, p in ref.named_parameters():
+        if p.requires_grad:
+            out[name] = flat[:, offset : offset + p.numel()].view(-1, *p.shape)
+            offset += p.numel()
+    return out
 
 
 def _se_kernel(x1: Tensor, x2: Tensor, u: Tensor) -> Tensor:
@@ -333,7 +364,18 @@ def stacked_log_likelihood(
     stack = ExpertStack.of(experts) if stack is None else stack
     if jitter is None:
         jitter = torch.stack([e.jitter for e in experts])
-    lengthscale, outputscale, noise, constant = _hyperparameters(experts)
+    hyper = _hyperparameters(experts[0], _raw_parameters(experts), _floors(experts))
+    return _stacked_value(experts[0], hyper, stack, jitter)
+
+
+def _stacked_value(
+    ref: GPExpert,
+    hyper: tuple[Tensor, Tensor, Tensor, Tensor],
+    stack: ExpertStack,
+    jitter: Tensor,
+) -> tuple[Tensor, Tensor, Tensor]:
+    """`stacked_log_likelihood` from the hyperparameters `hyper` (`_hyperparameters`)."""
+    lengthscale, outputscale, noise, constant = hyper
     u = lengthscale.square().reciprocal()
     value, nan, failed = _StackedLogDensity.apply(u, outputscale, noise, constant, jitter, stack)
     n = stack.counts[:, None]  # (B, 1)
@@ -342,7 +384,7 @@ def stacked_log_likelihood(
     w_real = stack.weights.log().mul(stack.mask).sum(-1, keepdim=True)  # (B, 1)
     unused = (stack.mask * (1.0 - stack.weights)).sum(-1, keepdim=True)  # (B, 1)
     value = value + 0.5 * (unused * torch.log(2 * math.pi * noise) - w_real)
-    prior = getattr(experts[0].gp.covar_module.base_kernel, "lengthscale_prior", None)
+    prior = getattr(ref.gp.covar_module.base_kernel, "lengthscale_prior", None)
     if prior is not None:
         value = value + prior.log_prob(lengthscale).sum(-1)
     bad = nan | failed
@@ -351,47 +393,50 @@ def stacked_log_likelihood(
     return value / n, nan, failed
 
 
-def _evaluate_batch(
-    experts: Sequence[GPExpert], stack: ExpertStack, batch: dict[int, FitRequest]
-) -> dict[int, Evaluation | BaseException]:
-    """Every pending evaluation of `GPExpert.optimisation` in `batch`, computed together.
+@dataclass(frozen=True)
+class _Batch:
+    """What every round of a lockstep fit shares: the experts, their data and noise floors."""
 
-    Args:
-        experts: The experts being fitted.
-        stack: Their training data.
-        batch: Each pending expert's request ``(jitter, x)``, by index.
+    experts: Sequence[GPExpert]
+    stack: ExpertStack
+    floor: Tensor
 
-    Returns:
-        Each expert's ``(loss, grad)`` as `GPExpert.evaluate` computes it, or the
-        ``NanError`` or ``NotPSDError`` it would raise.
-    """
-    out: dict[int, Evaluation | BaseException] = {}
-    params = {j: experts[j].trainable() for j in batch}
-    for j, (_, x) in batch.items():
-        assign(params[j], x)
-        for p in experts[j].parameters():
-            p.grad = None
-    losses, values = [], {}
-    for rows in stack.groups(list(batch)):
-        group = [experts[j] for j in rows]
-        jitter = stack.x.new_tensor([batch[j][0] for j in rows])
-        value, nan, failed = stacked_log_likelihood(group, stack.select(rows), jitter)
-        loss = -value.sum(-1)  # (B,)
-        losses.append(loss.sum())
-        for i, j in enumerate(rows):
-            if bool(nan[i]):
-                out[j] = NanError("the covariance matrix holds NaN.")
-            elif bool(failed[i]):
-                out[j] = NotPSDError(
-                    f"the covariance matrix is not positive definite even with jitter "
-                    f"{batch[j][0]}."
-                )
-            else:
-                values[j] = loss[i]
-    torch.stack(losses).sum().backward()
-    for j, value in values.items():
-        out[j] = (float(value.detach()), flat_grad(params[j]))
-    return out
+    def evaluate(self, batch: dict[int, FitRequest]) -> dict[int, Evaluation | BaseException]:
+        """Every pending evaluation of `GPExpert.optimisation` in `batch`, computed together.
+
+        The flat parameter vectors of each group of similar-sized experts form one leaf
+        tensor `(B, P)`, so the experts' own parameters are not touched and one backward
+        pass gives every gradient.
+
+        Args:
+            batch: Each pending expert's request ``(jitter, x)``, by index.
+
+        Returns:
+            Each expert's ``(loss, grad)`` as `GPExpert.evaluate` computes it, or the
+            ``NanError`` or ``NotPSDError`` it would raise.
+        """
+        ref = self.experts[0]
+        out: dict[int, Evaluation | BaseException] = {}
+        for rows in self.stack.groups(list(batch)):
+            flat = torch.from_numpy(np.stack([batch[j][1] for j in rows]))
+            flat = flat.to(device=ref.device, dtype=ref.jitter.dtype).requires_grad_(True)
+            hyper = _hyperparameters(ref, _split_flat(ref, flat), self.floor[rows])
+            jitter = self.stack.x.new_tensor([batch[j][0] for j in rows])
+            value, nan, failed = _stacked_value(ref, hyper, self.stack.select(rows), jitter)
+            loss = -value.sum(-1)  # (B,)
+            (grad,) = torch.autograd.grad(loss.sum(), flat)
+            losses, grads = loss.detach().cpu().numpy(), grad.cpu().numpy()
+            for i, j in enumerate(rows):
+                if bool(nan[i]):
+                    out[j] = NanError("the covariance matrix holds NaN.")
+                elif bool(failed[i]):
+                    out[j] = NotPSDError(
+                        f"the covariance matrix is not positive definite even with jitter "
+                        f"{batch[j][0]}."
+                    )
+                else:
+                    out[j] = (float(losses[i]), grads[i].astype(np.float64))
+        return out
 
 
 def fit_exact_experts(
@@ -424,10 +469,10 @@ def fit_exact_experts(
         return
     for j, expert in enumerate(experts):
         expert.condition(X, Y, weights[:, j])
-    stack = ExpertStack.of(experts)
+    fits = _Batch(experts, ExpertStack.of(experts), _floors(experts).detach())
     runs = [e.optimisation(e.max_iter if max_iter is None else int(max_iter)) for e in experts]
     with torch.enable_grad():
-        ok = lockstep(runs, lambda batch: _evaluate_batch(experts, stack, batch))
+        ok = lockstep(runs, fits.evaluate)
     if not all(ok):
         warnings.warn(
             "GP hyperparameter optimisation failed at every jitter level; the previous "
@@ -563,7 +608,7 @@ def _predict_group(
 
     With `loo`, also each expert's leave-one-out normals (`_loo_group`); else an empty list.
     """
-    hyper = _hyperparameters(experts)
+    hyper = _hyperparameters(experts[0], _raw_parameters(experts), _floors(experts))
     jitter = torch.stack([e.jitter for e in experts])
     _, chol, _, alpha, nan, failed = _train_factor(stack, hyper, jitter)
     if bool((nan | failed).any()):

@@ -2,6 +2,7 @@ import copy
 import math
 import warnings
 
+import numpy as np
 import pytest
 import torch
 
@@ -9,6 +10,8 @@ from probaff.errors import InputError, NotFittedError
 from probaff.models import GPExpert, MixtureOfGPExperts, fit_em
 from probaff.models.expert_batch import (
     ExpertStack,
+    _Batch,
+    _floors,
     batching_enabled,
     fit_exact_experts,
     per_expert_fits,
@@ -16,6 +19,7 @@ from probaff.models.expert_batch import (
     predict_exact_experts_with_loo,
     stacked_log_likelihood,
 )
+from probaff.models.lbfgs import flatten
 from probaff.models.synthetic import regime_features
 
 DEVICES = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
@@ -274,3 +278,20 @@ def test_experts_of_very_different_sizes_are_batched_apart() -> None:
     pred = predict_exact_experts(experts, x[:7])
     for j, expert in enumerate(experts):
         torch.testing.assert_close(pred.loc[:, j], expert.predict(x[:7]).loc, rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_batched_evaluations_equal_each_experts_own(device: str) -> None:
+    # the lockstep fit evaluates flat parameter vectors without touching the experts
+    x, y, w = (t.to(device) for t in _problem())
+    experts = _experts(4, 2, 3, device=device)
+    for j, expert in enumerate(experts):
+        expert.condition(x, y, w[:, j])
+    starts = [flatten(e.trainable()) for e in experts]
+    requests = {j: (1e-6, s + 0.05 * (j + 1)) for j, s in enumerate(starts)}
+    together = _Batch(experts, ExpertStack.of(experts), _floors(experts)).evaluate(requests)
+    for j, expert in enumerate(experts):
+        np.testing.assert_array_equal(flatten(expert.trainable()), starts[j])  # untouched
+        loss, grad = expert.evaluate(requests[j])
+        assert together[j][0] == pytest.approx(loss, rel=1e-10)
+        np.testing.assert_allclose(together[j][1], grad, rtol=1e-8, atol=1e-10)
