@@ -3,8 +3,9 @@
 Data (``--data``):
 
 * ``regimes`` (default): `probaff.models.synthetic.regime_features` (three regimes chosen by
-  two feature columns, D = 101, E = 6 by default). One draw of ``max(sizes) + test`` rows is
-  made; the first `test` rows (1,000 by default) are the held-out set of every cell.
+  two feature columns, D = 101, E = 6 by default). One draw of ``max(REGIMES_POOL, sizes) +
+  test`` rows is made; the first `test` rows (1,000 by default) are the held-out set of every
+  cell.
 * ``randhie``: the RAND Health Insurance Experiment data shipped inside statsmodels
   (``statsmodels.api.datasets.randhie``, 20,190 rows, nothing downloaded): the target is
   ``log1p(mdvis)`` (E = 1), the other nine columns are the features (D = 9). The rows are
@@ -25,7 +26,9 @@ scored on the held-out rows by
 Each cell is one fit with one seed (``--seed``): the table carries no error bars, and a
 difference between methods smaller than the spread between seeds (not measured here) is not a
 finding. Each cell is written atomically as ``<out>/<data>/<method>_N<N>.json`` and skipped
-when that file exists, so an interrupted run resumes where it stopped; the table of every cell
+when that file holds a cell of the same draw and settings (`setup`), so an interrupted run
+resumes where it stopped and runs with different ``--sizes`` or ``--methods`` add to one
+table; a cell of another setup is recomputed. The table of every cell of the current setup
 found in ``<out>/<data>`` is printed and written as ``scaling.md`` and ``scaling.csv`` next to
 ``scaling.png``: fit CPU seconds, NLPD and RMSE against N per method, with N, the time and the
 RMSE on log axes (the NLPD axis is linear, as an NLPD can be negative).
@@ -347,8 +350,14 @@ class Data:
 
 
 def load_regimes(n_train: int, test: int, args: argparse.Namespace) -> Data:
-    """`regime_features` rows: `test` held out, then `n_train` for training."""
-    x, y, labels = regime_features(n_train + test, args.d, args.e, seed=args.seed)
+    """`regime_features` rows: `test` held out, then the training pool.
+
+    `regime_features` draws its regression weights after the features, so a draw depends on
+    its row count: the pool always holds ``max(n_train, REGIMES_POOL)`` rows, which makes
+    runs with different ``--sizes`` share the same function and held-out rows.
+    """
+    rows = max(n_train, REGIMES_POOL) + test
+    x, y, labels = regime_features(rows, args.d, args.e, seed=args.seed)
     return Data("regimes", x[:test], y[:test], x[test:], y[test:], labels[test:])
 
 
@@ -372,6 +381,8 @@ DATA: dict[str, Callable[[int, int, argparse.Namespace], Data]] = {
     "randhie": load_randhie,
 }
 DEFAULT_TEST = {"regimes": 1000, "randhie": 2000}
+REGIMES_POOL = 100_000
+"""Training rows drawn for ``regimes`` whatever the sizes (more if a size is larger)."""
 RANDHIE_ROWS = 20190
 
 
@@ -404,6 +415,22 @@ def _settings(args: argparse.Namespace) -> dict[str, Any]:
     }
 
 
+def setup(data: Data, args: argparse.Namespace) -> dict[str, Any]:
+    """What a cell's numbers depend on besides its method and N: the draw and the settings.
+
+    A stored cell is reused, and shown in the table, only under the same setup.
+    """
+    return {
+        "data": data.name,
+        "pool_rows": int(data.x.shape[0]),
+        "n_test": int(data.x_test.shape[0]),
+        "d": int(data.x.shape[1]),
+        "e": int(data.y.shape[1]),
+        **_settings(args),
+        **{k: getattr(args, k) for k in ("init", "max_iter", "n_restarts", "split_merge")},
+    }
+
+
 def run_cell(name: str, n: int, data: Data, args: argparse.Namespace) -> dict[str, Any]:
     """Fit method `name` on the first `n` pool rows of `data`, score it on the held-out rows."""
     x, y = data.x[:n], data.y[:n]
@@ -416,6 +443,7 @@ def run_cell(name: str, n: int, data: Data, args: argparse.Namespace) -> dict[st
         "d": int(x.shape[1]),
         "e": int(y.shape[1]),
         **_settings(args),
+        "setup": setup(data, args),
     }
     if n > SKIP_ABOVE.get(name, math.inf):
         return {**record, "skipped": f"too large: {name} runs up to N = {SKIP_ABOVE[name]}"}
@@ -453,10 +481,20 @@ def peak_memory_gib() -> float:
     return kib / 2.0**20
 
 
-def read_cells(out: Path) -> list[dict[str, Any]]:
-    """Every cell stored in `out`, sorted by method and N."""
+def read_cells(out: Path, current: dict[str, Any] | None = None) -> list[dict[str, Any]]:
+    """Every cell stored in `out` (of the `setup` `current`, if given), by method and N."""
     rows = [json.loads(p.read_text()) for p in sorted(out.glob("*_N*.json"))]
+    if current is not None:
+        rows = [r for r in rows if r.get("setup") == current]
     return sorted(rows, key=lambda r: (r["method"], r["n"]))
+
+
+def _stored(cell: Path, current: dict[str, Any]) -> bool:
+    """Whether `cell` holds a result of the setup `current` (an unreadable file does not)."""
+    try:
+        return bool(json.loads(cell.read_text()).get("setup") == current)
+    except (OSError, ValueError, AttributeError):
+        return False
 
 
 def _num(row: dict[str, Any], key: str, fmt: str) -> str:
@@ -632,10 +670,11 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out) / args.data
     out.mkdir(parents=True, exist_ok=True)
     data = DATA[args.data](max(sizes, default=0), args.test, args)
+    current = setup(data, args)
     for n in sorted(sizes):
         for name in names:
             cell = out / f"{name}_N{n}.json"
-            if cell.exists():
+            if _stored(cell, current):
                 continue
             record = run_cell(name, n, data, args)
             atomic_write_text(cell, json.dumps(record, indent=1) + "\n")
@@ -647,7 +686,7 @@ def main(argv: list[str] | None = None) -> int:
                     f"NLPD {record['nlpd']:.3f}, RMSE {record['rmse']:.3f}",
                     flush=True,
                 )
-    rows = read_cells(out)
+    rows = read_cells(out, current)
     atomic_write_text(out / "scaling.md", table_markdown(rows, args.data))
     atomic_write_text(out / "scaling.csv", table_csv(rows))
     plot(rows, args.data, out / "scaling.png")

@@ -101,3 +101,33 @@ def test_bad_flags_exit_2_with_one_line(scale, tmp_path, capsys, flags, word):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and word in err and err.startswith("mixture_scale: error:")
     assert not any(tmp_path.iterdir())
+
+
+def test_regimes_draw_does_not_depend_on_the_sizes(scale):
+    args = scale.parse_args(["--smoke"])
+    scale._complete(args)
+    small = scale.load_regimes(60, 50, args)
+    large = scale.load_regimes(scale.REGIMES_POOL + 10, 50, args)
+    assert small.x.shape[0] == scale.REGIMES_POOL and small.x_test.shape == (50, 16)
+    # past the pool the draw is larger; the features of the shared rows agree
+    assert small.x_test.equal(large.x_test) and large.x.shape[0] == scale.REGIMES_POOL + 10
+    # at or below the pool size every run draws the same rows: held-out set and function
+    again = scale.load_regimes(120, 50, args)
+    assert small.x_test.equal(again.x_test) and small.y.equal(again.y)
+
+
+def test_cells_of_another_setup_are_recomputed_and_left_out(scale, tmp_path, capsys):
+    base = ["--smoke", "--data", "randhie", "--methods", "svgp", "--sizes", "60"]
+    assert scale.main([*base, "--out", str(tmp_path)]) == 0
+    cell = tmp_path / "randhie" / "svgp_N60.json"
+    first = json.loads(cell.read_text())
+    assert first["setup"]["seed"] == 0 and first["setup"]["pool_rows"] == 60
+    # another seed: another shuffle of the rows, so the stored cell is fitted again
+    assert scale.main([*base, "--seed", "1", "--out", str(tmp_path)]) == 0
+    second = json.loads(cell.read_text())
+    assert second["setup"]["seed"] == 1 and second["nlpd"] != first["nlpd"]
+    # the table of a setup shows only that setup's cells
+    assert scale.read_cells(tmp_path / "randhie", first["setup"]) == []
+    assert [r["nlpd"] for r in scale.read_cells(tmp_path / "randhie", second["setup"])] == [
+        second["nlpd"]
+    ]
