@@ -25,7 +25,7 @@ import math
 import warnings
 from collections.abc import Iterator, Sequence
 from contextvars import ContextVar
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -63,6 +63,8 @@ _PREDICT_BLOCK = 2**24
 _GROUP_RATIO = 0.75
 # ... or if the largest holds at most this many (then fixed per-call costs dominate).
 _GROUP_SMALL = 64
+# Exponent of the SE kernel at padded rows: its exponential is 0 in every float type.
+_PADDED = -1e4
 
 
 @contextlib.contextmanager
@@ -168,17 +170,11 @@ class ExpertStack:
         """``1 / w_i`` on real rows and 0 on padded ones, `(B, 1, n)`."""
         return (self.mask / self.weights)[:, None, :]
 
-    @property
-    def pair(self) -> Tensor:
-        """1 where both rows are real, `(B, 1, n, n)`."""
-        m = self.mask[:, None, :]
-        return m[..., :, None] * m[..., None, :]
-
 
 def _raw_parameters(experts: Sequence[GPExpert]) -> dict[str, Tensor]:
     """Every expert's trainable raw parameters, stacked by name, each `(B, *shape)`."""
-    names = [n for n, p in experts[0].named_parameters() if p.requires_grad]
-    params = [dict(e.named_parameters()) for e in experts]
+    names = [name for name, _ in experts[0].named_trainable()]
+    params = [dict(e.named_trainable()) for e in experts]
     return {n: torch.stack([p[n] for p in params]) for n in names}
 
 
@@ -218,26 +214,42 @@ def _split_flat(ref: GPExpert, flat: Tensor) -> dict[str, Tensor]:
     The order is that of `GPExpert.trainable`, which `GPExpert.optimisation` flattens.
     """
     out, offset = {}, 0
-    for name, p in ref.named_parameters():
-        if p.requires_grad:
-            out[name] = flat[:, offset : offset + p.numel()].view(-1, *p.shape)
-            offset += p.numel()
+    for name, p in ref.named_trainable():
+        out[name] = flat[:, offset : offset + p.numel()].view(-1, *p.shape)
+        offset += p.numel()
     return out
 
 
-def _se_kernel(x1: Tensor, x2: Tensor, u: Tensor) -> Tensor:
+def _se_kernel(x1: Tensor, x2: Tensor, u: Tensor, mask1: Tensor | None = None) -> Tensor:
     """``exp(-sum_d u_d (x1_id - x2_jd)^2 / 2)`` for `x1: (B, n, D)`, `x2: (B, k, D)`.
 
-    `u` holds the inverse squared length scales, `(B, E, D)`; the result is `(B, E, n, k)`,
-    by the quadratic expansion that gpytorch's ``sq_dist`` uses.
+    `u` holds the inverse squared length scales, `(B, E, D)`; the result is `(B, E, n, k)`.
+    With the inputs scaled, ``s = x sqrt(u)``, the exponent is ``s_i . s_j - |s_i|^2 / 2 -
+    |s_j|^2 / 2`` (the quadratic expansion that gpytorch's ``sq_dist`` uses), which one
+    matrix product of ``[s_i, -|s_i|^2 / 2, 1]`` and ``[s_j, 1, -|s_j|^2 / 2]`` gives
+    whole, so the `(n, k)` matrices are written once and exponentiated in place. Rows of
+    `x1` where `mask1` `(B, n)` is 0 (and, when `x2` is `x1`, those columns) are 0.
     """
-    a1 = u @ x1.square().mT  # (B, E, n)
-    a2 = a1 if x2 is x1 else u @ x2.square().mT
-    cross = (x1[:, None] * u[:, :, None, :]) @ x2[:, None].mT  # (B, E, n, k)
-    sq = (a1[..., :, None] + a2[..., None, :]).sub_(cross, alpha=2.0).clamp_min_(0.0)
+    root = u.sqrt()[:, :, None, :]  # (B, E, 1, D)
+    s1 = x1[:, None] * root  # (B, E, n, D)
+    half1 = s1.square().sum(-1, keepdim=True).mul_(-0.5)  # (B, E, n, 1)
+    if mask1 is not None:  # exp(_PADDED) is 0: the masked rows drop out of the product
+        half1 = torch.where(mask1[:, None, :, None] > 0, half1, _PADDED)
+    one1 = torch.ones_like(half1)
     if x2 is x1:
-        sq.diagonal(dim1=-2, dim2=-1).zero_()
-    return sq.mul_(-0.5).exp_()
+        s2, half2, one2 = s1, half1, one1
+    else:
+        s2 = x2[:, None] * root
+        half2 = s2.square().sum(-1, keepdim=True).mul_(-0.5)
+        one2 = torch.ones_like(half2)
+    exponent = torch.cat([s1, half1, one1], -1) @ torch.cat([s2, one2, half2], -1).mT
+    if x2 is x1:  # exactly 0 on the diagonal (_PADDED on masked rows)
+        diagonal = exponent.diagonal(dim1=-2, dim2=-1)
+        if mask1 is None:
+            diagonal.zero_()
+        else:
+            diagonal.copy_(torch.where(mask1[:, None, :] > 0, 0.0, _PADDED))
+    return exponent.clamp_max_(0.0).exp_()
 
 
 def _cholesky_per_member(a: Tensor, jitter: Tensor) -> tuple[Tensor, Tensor, Tensor]:
@@ -284,7 +296,7 @@ def _train_factor(
         failure flags `(B,)` of `_cholesky_per_member`.
     """
     lengthscale, outputscale, noise, constant = hyper
-    kse = _se_kernel(stack.x, stack.x, lengthscale.square().reciprocal()).mul_(stack.pair)
+    kse = _se_kernel(stack.x, stack.x, lengthscale.square().reciprocal(), stack.mask)
     a = kse * outputscale[..., None, None]
     diag = noise[..., None] * stack.noise_scale + (1.0 - stack.mask)[:, None, :]
     a.diagonal(dim1=-2, dim2=-1).add_(diag)
@@ -332,15 +344,20 @@ class _StackedLogDensity(torch.autograd.Function):
         kse, chol, alpha, outputscale = ctx.saved_tensors
         stack: ExpertStack = ctx.stack
         half = 0.5 * grad
+        n = chol.shape[-1]
         ainv = torch.cholesky_inverse(chol)
         diag_g = half[..., None] * (alpha.square() - ainv.diagonal(dim1=-2, dim2=-1))
         grad_noise = (diag_g * stack.noise_scale).sum(-1)
-        g = ainv.neg_().add_(alpha[..., :, None] * alpha[..., None, :])
-        h = g.mul_(half[..., None, None]).mul_(kse)  # G o K_se, (B, E, n, n)
-        grad_os = h.sum((-2, -1))
-        h.mul_(outputscale[..., None, None])  # G o K
+        # alpha alpha^T - A^{-1} (= 2 G / grad) in place, then its product with K_se.
+        col = alpha.reshape(-1, n, 1)
+        g = ainv.view(-1, n, n).baddbmm_(col, col.mT, beta=-1.0).view_as(kse).mul_(kse)
         x = stack.x
-        grad_u = ((h @ x[:, None]) * x[:, None]).sum(-2) - h.sum(-1) @ x.square()
+        # (G o K_se) [x, 1]: the row sums ride along as a last column of ones.
+        hx = g @ torch.cat([x, torch.ones_like(x[..., :1])], -1)[:, None]  # (B, E, n, D + 1)
+        rows = hx[..., -1]  # (B, E, n)
+        grad_os = half * rows.sum(-1)
+        scale = (half * outputscale)[..., None]
+        grad_u = scale * ((hx[..., :-1] * x[:, None]).sum(-2) - rows @ x.square())
         grad_c = grad * alpha.sum(-1)
         return grad_u, grad_os, grad_noise, grad_c, None, None
 
@@ -400,6 +417,10 @@ class _Batch:
     experts: Sequence[GPExpert]
     stack: ExpertStack
     floor: Tensor
+    # The stacks of the groups met so far (a group's experts recur round after round).
+    selected: dict[tuple[int, ...], ExpertStack] = field(
+        default_factory=dict, compare=False, repr=False
+    )
 
     def evaluate(self, batch: dict[int, FitRequest]) -> dict[int, Evaluation | BaseException]:
         """Every pending evaluation of `GPExpert.optimisation` in `batch`, computed together.
@@ -422,7 +443,10 @@ class _Batch:
             flat = flat.to(device=ref.device, dtype=ref.jitter.dtype).requires_grad_(True)
             hyper = _hyperparameters(ref, _split_flat(ref, flat), self.floor[rows])
             jitter = self.stack.x.new_tensor([batch[j][0] for j in rows])
-            value, nan, failed = _stacked_value(ref, hyper, self.stack.select(rows), jitter)
+            key = tuple(rows)
+            if key not in self.selected:
+                self.selected[key] = self.stack.select(rows)
+            value, nan, failed = _stacked_value(ref, hyper, self.selected[key], jitter)
             loss = -value.sum(-1)  # (B,)
             (grad,) = torch.autograd.grad(loss.sum(), flat)
             losses, grads = loss.detach().cpu().numpy(), grad.cpu().numpy()
@@ -435,7 +459,7 @@ class _Batch:
                         f"{batch[j][0]}."
                     )
                 else:
-                    out[j] = (float(losses[i]), grads[i].astype(np.float64))
+                    out[j] = (float(losses[i]), np.asarray(grads[i], dtype=np.float64))
         return out
 
 
@@ -496,7 +520,7 @@ def _predict_block(
     """
     lengthscale, outputscale, _, constant = hyper
     u = lengthscale.square().reciprocal()
-    cross = _se_kernel(stack.x, z_test, u).mul_(stack.mask[:, None, :, None])
+    cross = _se_kernel(stack.x, z_test, u, stack.mask)
     cross.mul_(outputscale[..., None, None])  # (B, E, n, k)
     mean = constant[..., None] + (alpha[..., None, :] @ cross)[..., 0, :]
     v = torch.linalg.solve_triangular(chol, cross, upper=False)

@@ -265,9 +265,13 @@ class GPExpert(WeightedExpert):
         self.jitter.fill_(_JITTERS[-1])
         return False
 
+    def named_trainable(self) -> list[tuple[str, torch.nn.Parameter]]:
+        """`trainable` with each parameter's name, in the order of `optimisation`'s vectors."""
+        return [(name, p) for name, p in self.named_parameters() if p.requires_grad]
+
     def trainable(self) -> list[torch.nn.Parameter]:
         """The parameters the fit optimises, in the order of `optimisation`'s vectors."""
-        return [p for p in self.parameters() if p.requires_grad]
+        return [p for _, p in self.named_trainable()]
 
     def evaluate(self, request: FitRequest) -> Evaluation:
         """The loss and gradient `optimisation` asks for, ``(jitter, x)``, on this expert alone."""

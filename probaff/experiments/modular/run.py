@@ -53,7 +53,7 @@ from probaff.experiments.modular.trials import (
 
 __all__ = ["modular_task", "run"]
 
-_VERSION = 4  # 2: reaction along the path, hand mode; 3: partial-EM SMEM; 4: L-BFGS coroutines
+_VERSION = 5  # 2: path reaction, hand mode; 3: SMEM by partial EM; 4: L-BFGS coroutines; 5: fused
 _TEST_SEED_OFFSET = 1000  # test datasets use seed + this, so they never share a draw
 _WORLD = (
     "scenes/modular_push.yaml",

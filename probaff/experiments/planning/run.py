@@ -78,7 +78,7 @@ _EDGE_WORLD = (
 )
 _TOOL_WORLD = ("scenes/tool_push.yaml", "tabletop.yaml", "objects.yaml")
 _TOOL_GROUPS = ("f_o", "f_c")
-_VERSION = 4  # 3: split-and-merge screened by partial EM; 4: L-BFGS coroutines
+_VERSION = 5  # 3: SMEM screened by partial EM; 4: L-BFGS coroutines; 5: fused batched kernel
 _KEEP_TRAJECTORIES = 6  # episodes per planner whose full trajectories are stored (figures)
 
 

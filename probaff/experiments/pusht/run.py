@@ -56,7 +56,7 @@ from probaff.models import save as save_model
 
 __all__ = ["episode_task", "run"]
 
-_VERSION = 3  # 2: split-and-merge screened by partial EM; 3: L-BFGS coroutines
+_VERSION = 4  # 2: SMEM screened by partial EM; 3: L-BFGS coroutines; 4: fused batched kernel
 _DATA_FIELDS = ("seed", "primitives", "chunk")
 _MODEL_FIELDS = (*_DATA_FIELDS, "experts", "em")
 
