@@ -7,7 +7,6 @@ it reaches; `EMHistory` records the kept run. `probaff.models.em` drives the run
 
 from __future__ import annotations
 
-import copy
 import logging
 import math
 import warnings
@@ -234,7 +233,7 @@ class EMRun:
             if total > self.history.best:
                 self.history.best = total
                 self.best_state = (
-                    copy.deepcopy(self.model.state_dict()),
+                    {k: v.clone() for k, v in self.model.state_dict().items()},
                     weights.clone(),
                     torch.softmax(log_joint, dim=1),
                 )

@@ -45,7 +45,7 @@ __all__ = [
     "fit_exact_experts",
     "per_expert_fits",
     "predict_exact_experts",
-    "predict_exact_experts_with_loo",
+    "predict_exact_experts_out_of_sample",
     "stacked_log_likelihood",
 ]
 
@@ -545,57 +545,74 @@ def predict_exact_experts(
         NotFittedError: If an expert has no training data.
         NotPSDError: If a training covariance cannot be factorised at any jitter.
     """
-    return _predictions(experts, X, include_noise, loo=False)[0]
+    return _predictions(experts, X, include_noise)
 
 
-def predict_exact_experts_with_loo(
-    experts: Sequence[GPExpert], X: Tensor
-) -> tuple[Normal, list[Normal]]:
-    """`predict_exact_experts` (noise included) and every expert's `GPExpert.loo_predict`.
+def predict_exact_experts_out_of_sample(
+    experts: Sequence[GPExpert], X: Tensor, held: Tensor
+) -> Normal:
+    """Every expert's predictive distribution of every training row without that row.
 
-    Both come from one factorisation of each expert's training covariance (batched), so
-    the leave-one-out densities cost one triangular inverse more than the predictions.
+    Where expert `j` holds row `i` (``held[i, j]``) it is `GPExpert.loo_predict`'s
+    leave-one-out normal; elsewhere `GPExpert.predict`'s (noise included), which is already
+    out of sample. Both come from one factorisation of each expert's training covariance
+    (batched), and each expert predicts only the rows it does not hold.
 
     Args:
         experts: `M` fitted experts with the same `D`, `E` and options.
-        X: Expert features, `(N, D)`, on the experts' device.
+        X: Expert features of the training rows, `(N, D)`, on the experts' device.
+        held: Whether each expert holds each row (its training rows, in order), `(N, M)`.
 
     Returns:
-        Normals with loc and scale `(N, M, E)`, and per expert the leave-one-out normals
-        `(n_j, E)` of its training rows, in output units.
+        Normals with loc and scale `(N, M, E)`, in output units.
 
     Raises:
         NotFittedError: If an expert has no training data.
         NotPSDError: If a training covariance cannot be factorised at any jitter.
     """
-    return _predictions(experts, X, True, loo=True)
+    n_rows, e = X.shape[0], experts[0].n_outputs
+    loc = X.new_empty(n_rows, len(experts), e)
+    scale = X.new_empty(n_rows, len(experts), e)
+    free = [(~held[:, j]).nonzero()[:, 0] for j in range(len(experts))]
+    if not batching_enabled():
+        for j, expert in enumerate(experts):
+            loo = expert.loo_predict()
+            loc[held[:, j], j], scale[held[:, j], j] = loo.loc, loo.scale
+            if len(free[j]):
+                pred = expert.predict(X[free[j]])
+                loc[free[j], j], scale[free[j], j] = pred.loc, pred.scale
+        return Normal(loc, scale)
+    stack = ExpertStack.of(experts)
+    with torch.no_grad():
+        for rows in stack.groups():
+            group = [experts[j] for j in rows]
+            mean, std, loos = _predict_group(
+                group, stack.select(rows), X, True, True, [free[j] for j in rows]
+            )
+            for b, j in enumerate(rows):
+                k = len(free[j])
+                loc[free[j], j], scale[free[j], j] = mean[:k, b], std[:k, b]
+                loc[held[:, j], j], scale[held[:, j], j] = loos[b].loc, loos[b].scale
+    return Normal(loc, scale)
 
 
-def _predictions(
-    experts: Sequence[GPExpert], X: Tensor, include_noise: bool, *, loo: bool
-) -> tuple[Normal, list[Normal]]:
-    """`predict_exact_experts`, and with `loo` every expert's leave-one-out normals.
-
-    Without `loo` the list is empty.
-    """
+def _predictions(experts: Sequence[GPExpert], X: Tensor, include_noise: bool) -> Normal:
+    """`predict_exact_experts`."""
     if not batching_enabled():
         preds = [e.predict(X, include_noise=include_noise) for e in experts]
-        pred = Normal(
+        return Normal(
             torch.stack([p.loc for p in preds], dim=1), torch.stack([p.scale for p in preds], dim=1)
         )
-        return pred, [e.loo_predict() for e in experts] if loo else []
     stack = ExpertStack.of(experts)
     n_test, e = X.shape[0], stack.y.shape[1]
     loc = X.new_empty(n_test, len(experts), e)
     scale = X.new_empty(n_test, len(experts), e)
-    loos: dict[int, Normal] = {}
     with torch.no_grad():
         for rows in stack.groups():
             group = [experts[j] for j in rows]
-            mean, std, group_loo = _predict_group(group, stack.select(rows), X, include_noise, loo)
+            mean, std, _ = _predict_group(group, stack.select(rows), X, include_noise)
             loc[:, rows], scale[:, rows] = mean, std
-            loos.update(zip(rows, group_loo, strict=False))
-    return Normal(loc, scale), [loos[j] for j in sorted(loos)]
+    return Normal(loc, scale)
 
 
 def _loo_group(
@@ -627,10 +644,14 @@ def _predict_group(
     X: Tensor,
     include_noise: bool,
     loo: bool = False,
+    rows: Sequence[Tensor] | None = None,
 ) -> tuple[Tensor, Tensor, list[Normal]]:
     """Predictive means and standard deviations `(N, B, E)` of a batch of experts.
 
     With `loo`, also each expert's leave-one-out normals (`_loo_group`); else an empty list.
+    With `rows` (per expert, indices into `X`), expert `b` predicts only ``X[rows[b]]``,
+    and the first ``len(rows[b])`` of the `K = max len(rows[b])` rows returned are its
+    `(K, B, E)`.
     """
     hyper = _hyperparameters(experts[0], _raw_parameters(experts), _floors(experts))
     jitter = torch.stack([e.jitter for e in experts])
@@ -640,14 +661,21 @@ def _predict_group(
     mean_x = torch.stack([e.x_scaler.mean for e in experts])[:, None, :]
     std_x = torch.stack([e.x_scaler.std for e in experts])[:, None, :]
     b, e, n = stack.y.shape
+    if rows is None:
+        x = X[None]  # (1, N, D), the same rows for every expert
+    else:  # each expert's own rows, padded with row 0 to the longest
+        index = torch.zeros(b, max(len(r) for r in rows), dtype=torch.long, device=X.device)
+        for i, r in enumerate(rows):
+            index[i, : len(r)] = r
+        x = X[index]  # (B, K, D)
     step = max(1, _PREDICT_BLOCK // max(1, b * e * n))
-    means, variances = [], []
-    for start in range(0, X.shape[0], step):
-        z = (X[None, start : start + step] - mean_x) / std_x
+    means, variances = [X.new_empty(b, e, 0)], [X.new_empty(b, e, 0)]
+    for start in range(0, x.shape[1], step):
+        z = (x[:, start : start + step] - mean_x) / std_x
         mean, var = _predict_block(stack, z, hyper, alpha, chol)
         means.append(mean)
         variances.append(var)
-    mean, var = torch.cat(means, -1), torch.cat(variances, -1)  # (B, E, N)
+    mean, var = torch.cat(means, -1), torch.cat(variances, -1)  # (B, E, K)
     if include_noise:
         var = var + hyper[2][..., None]
     var = var.clamp_min(_MIN_VARIANCE)

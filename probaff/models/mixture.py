@@ -15,7 +15,7 @@ from probaff.models.expert_base import noise_floor_vector
 from probaff.models.expert_batch import (
     fit_exact_experts,
     predict_exact_experts,
-    predict_exact_experts_with_loo,
+    predict_exact_experts_out_of_sample,
 )
 from probaff.models.gate import GATE_KINDS, make_gate
 from probaff.models.gate_penalty import check_strength
@@ -516,19 +516,17 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
             raise InputError("loo_log_lik needs the training set the mixture was fitted on.")
         x_e = self.features(X)[:, self.expert_columns]
         exact = [e for e in self.experts if isinstance(e, GPExpert)]
-        loos: list[Normal] | None = None
         if len(exact) == len(self.experts):  # one batched prediction, one factor per expert
-            pred, loos = predict_exact_experts_with_loo(exact, x_e)
-            loc, scale = pred.loc.clone(), pred.scale.clone()
-        else:  # sparse experts predict only the rows they do not hold
-            loc = X.new_empty(X.shape[0], self.n_experts, Y.shape[1])
-            scale = torch.empty_like(loc)
-        for j, expert in enumerate(self.experts):
+            pred = predict_exact_experts_out_of_sample(exact, x_e, self.train_weights > 0)
+            return pred.log_prob(Y[:, None, :]).sum(-1)
+        loc = X.new_empty(X.shape[0], self.n_experts, Y.shape[1])
+        scale = torch.empty_like(loc)
+        for j, expert in enumerate(self.experts):  # each predicts the rows it does not hold
             held = self.train_weights[:, j] > 0
-            loo = expert.loo_predict() if loos is None else loos[j]
+            loo = expert.loo_predict()
             loc[held, j] = loo.loc
             scale[held, j] = loo.scale
-            if not isinstance(expert, GPExpert) and not bool(held.all()):
+            if not bool(held.all()):
                 out = expert.predict(x_e[~held])
                 loc[~held, j] = out.loc
                 scale[~held, j] = out.scale

@@ -16,7 +16,7 @@ from probaff.models.expert_batch import (
     fit_exact_experts,
     per_expert_fits,
     predict_exact_experts,
-    predict_exact_experts_with_loo,
+    predict_exact_experts_out_of_sample,
     stacked_log_likelihood,
 )
 from probaff.models.lbfgs import flatten
@@ -136,23 +136,32 @@ def test_batched_predictions_match_each_expert(device: str) -> None:
 
 
 @pytest.mark.parametrize("device", DEVICES)
-def test_batched_leave_one_out_matches_each_expert(device: str) -> None:
-    experts, x_test = _conditioned(device)
+def test_batched_out_of_sample_matches_each_expert(device: str) -> None:
+    """Leave-one-out where an expert holds a row, its prediction elsewhere."""
+    x, y, w = _problem(n=70, d=4, e=3)
+    w[:5, 0] = 1.0  # expert 0 holds the first rows, expert 1 none of them
+    w[:5, 1] = 0.0
+    w[:, 2] = 1.0  # expert 2 holds every row: nothing left for it to predict
+    x, w = x.to(device), w.to(device)
+    experts = _experts(4, 3, 3, device=device)
+    for j, expert in enumerate(experts):
+        expert.condition(x, y.to(device), w[:, j])
+    held = w > 0
     assert len({e.n_train for e in experts}) > 1  # padded rows are cut out
-    pred, loos = predict_exact_experts_with_loo(experts, x_test)
-    plain = predict_exact_experts(experts, x_test)
-    torch.testing.assert_close(pred.loc, plain.loc, rtol=0, atol=0)
-    torch.testing.assert_close(pred.scale, plain.scale, rtol=0, atol=0)
-    assert len(loos) == 3
-    for expert, loo in zip(experts, loos, strict=True):
-        ref = expert.loo_predict()
-        assert loo.loc.shape == (expert.n_train, 3)
-        torch.testing.assert_close(loo.loc, ref.loc, rtol=1e-9, atol=1e-10)
-        torch.testing.assert_close(loo.scale, ref.scale, rtol=1e-9, atol=1e-10)
+    assert bool((~held[:, :2]).any()) and bool(held[:, 2].all())
+    pred = predict_exact_experts_out_of_sample(experts, x, held)
+    assert pred.loc.shape == (70, 3, 3)
+    for j, expert in enumerate(experts):
+        loo, plain = expert.loo_predict(), expert.predict(x)
+        h = held[:, j]
+        torch.testing.assert_close(pred.loc[h, j], loo.loc, rtol=1e-9, atol=1e-10)
+        torch.testing.assert_close(pred.scale[h, j], loo.scale, rtol=1e-9, atol=1e-10)
+        torch.testing.assert_close(pred.loc[~h, j], plain.loc[~h], rtol=1e-9, atol=1e-9)
+        torch.testing.assert_close(pred.scale[~h, j], plain.scale[~h], rtol=1e-9, atol=1e-9)
     with per_expert_fits():  # the reference path gives the experts' own numbers
-        _, serial = predict_exact_experts_with_loo(experts, x_test)
-    for expert, loo in zip(experts, serial, strict=True):
-        torch.testing.assert_close(loo.loc, expert.loo_predict().loc, rtol=0, atol=0)
+        serial = predict_exact_experts_out_of_sample(experts, x, held)
+    torch.testing.assert_close(serial.loc, pred.loc, rtol=1e-9, atol=1e-10)
+    torch.testing.assert_close(serial.scale, pred.scale, rtol=1e-9, atol=1e-10)
 
 
 def test_singular_expert_uses_the_jitter_of_a_separate_fit() -> None:
