@@ -25,7 +25,7 @@ from probaff.models.likelihood import WeightedGaussianLikelihood
 from probaff.models.options import NOISE_BOUNDS, GPOptions
 from probaff.models.tensors import as_matrix, as_vector, check_to_device
 
-__all__ = ["WeightedExpert", "noise_floor_vector"]
+__all__ = ["WeightedExpert", "noise_floor_vector", "out_of_sample"]
 
 
 def noise_floor_vector(
@@ -168,6 +168,14 @@ class WeightedExpert(torch.nn.Module):
         """
         raise NotImplementedError
 
+    def loo_predict(self) -> Normal:
+        """Leave-one-out predictive distribution of every training row (each subclass's own).
+
+        Returns:
+            Independent normals with loc and scale `(n, E)`, in training-row order.
+        """
+        raise NotImplementedError
+
     def log_prob(self, X: Any, Y: Any) -> Tensor:
         """Predictive log density of each row of `Y` (noise included, summed over outputs).
 
@@ -188,3 +196,31 @@ class WeightedExpert(torch.nn.Module):
     def noise(self) -> Tensor:
         """Observation noise variances in output units, `(E,)`."""
         return self.likelihood.noise.detach()[..., 0] * self.y_scaler.std.square()
+
+
+def out_of_sample(experts: Sequence[WeightedExpert], X: Tensor, held: Tensor) -> Normal:
+    """Every expert's predictive distribution of every training row without that row.
+
+    Where expert `j` holds row `i` (``held[i, j]``) it is its `loo_predict` normal;
+    elsewhere its `predict` (noise included), which is already out of sample. One expert
+    at a time; `probaff.models.expert_batch.predict_exact_experts_out_of_sample` batches
+    exact experts.
+
+    Args:
+        experts: `M` fitted experts with the same `E`.
+        X: Expert features of the training rows, `(N, D)`, on the experts' device.
+        held: Whether each expert holds each row (its training rows, in order), `(N, M)`.
+
+    Returns:
+        Normals with loc and scale `(N, M, E)`, in output units.
+    """
+    loc = X.new_empty(X.shape[0], len(experts), experts[0].n_outputs)
+    scale = torch.empty_like(loc)
+    for j, expert in enumerate(experts):
+        own = held[:, j]
+        loo = expert.loo_predict()
+        loc[own, j], scale[own, j] = loo.loc, loo.scale
+        if not bool(own.all()):
+            pred = expert.predict(X[~own])
+            loc[~own, j], scale[~own, j] = pred.loc, pred.scale
+    return Normal(loc, scale)

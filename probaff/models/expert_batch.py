@@ -35,6 +35,7 @@ from torch import Tensor
 from torch.distributions import Normal
 
 from probaff.errors import NotFittedError
+from probaff.models.expert_base import out_of_sample
 from probaff.models.gaussian_density import loo_moments
 from probaff.models.gp_expert import FitRequest, GPExpert
 from probaff.models.lbfgs import Evaluation, lockstep
@@ -570,18 +571,11 @@ def predict_exact_experts_out_of_sample(
         NotFittedError: If an expert has no training data.
         NotPSDError: If a training covariance cannot be factorised at any jitter.
     """
-    n_rows, e = X.shape[0], experts[0].n_outputs
-    loc = X.new_empty(n_rows, len(experts), e)
-    scale = X.new_empty(n_rows, len(experts), e)
-    free = [(~held[:, j]).nonzero()[:, 0] for j in range(len(experts))]
     if not batching_enabled():
-        for j, expert in enumerate(experts):
-            loo = expert.loo_predict()
-            loc[held[:, j], j], scale[held[:, j], j] = loo.loc, loo.scale
-            if len(free[j]):
-                pred = expert.predict(X[free[j]])
-                loc[free[j], j], scale[free[j], j] = pred.loc, pred.scale
-        return Normal(loc, scale)
+        return out_of_sample(experts, X, held)
+    loc = X.new_empty(X.shape[0], len(experts), experts[0].n_outputs)
+    scale = torch.empty_like(loc)
+    free = [(~held[:, j]).nonzero()[:, 0] for j in range(len(experts))]
     stack = ExpertStack.of(experts)
     with torch.no_grad():
         for rows in stack.groups():

@@ -11,7 +11,7 @@ from torch.distributions import Normal
 
 from probaff._checks import check_count
 from probaff.errors import InputError, NotFittedError
-from probaff.models.expert_base import noise_floor_vector
+from probaff.models.expert_base import noise_floor_vector, out_of_sample
 from probaff.models.expert_batch import (
     fit_exact_experts,
     predict_exact_experts,
@@ -515,22 +515,13 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         if self._train_weights is None or self._train_weights.shape[0] != X.shape[0]:
             raise InputError("loo_log_lik needs the training set the mixture was fitted on.")
         x_e = self.features(X)[:, self.expert_columns]
+        held = self.train_weights > 0
         exact = [e for e in self.experts if isinstance(e, GPExpert)]
         if len(exact) == len(self.experts):  # one batched prediction, one factor per expert
-            pred = predict_exact_experts_out_of_sample(exact, x_e, self.train_weights > 0)
-            return pred.log_prob(Y[:, None, :]).sum(-1)
-        loc = X.new_empty(X.shape[0], self.n_experts, Y.shape[1])
-        scale = torch.empty_like(loc)
-        for j, expert in enumerate(self.experts):  # each predicts the rows it does not hold
-            held = self.train_weights[:, j] > 0
-            loo = expert.loo_predict()
-            loc[held, j] = loo.loc
-            scale[held, j] = loo.scale
-            if not bool(held.all()):
-                out = expert.predict(x_e[~held])
-                loc[~held, j] = out.loc
-                scale[~held, j] = out.scale
-        return Normal(loc, scale).log_prob(Y[:, None, :]).sum(-1)
+            pred = predict_exact_experts_out_of_sample(exact, x_e, held)
+        else:  # sparse experts, one at a time
+            pred = out_of_sample(list(self.experts), x_e, held)
+        return pred.log_prob(Y[:, None, :]).sum(-1)
 
     def lengthscales(self) -> list[Tensor]:
         """ARD length scales of every expert (standardised units; short means relevant).
