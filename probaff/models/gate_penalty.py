@@ -48,26 +48,27 @@ Penalty = tuple[float, float]
 """Strengths `(l2, l1)` of the ridge and the lasso penalty of a gate's weights."""
 
 
-def penalty_value(weight: Tensor, penalty: Penalty) -> Tensor:
+def penalty_value(weight: Tensor, penalty: Penalty, *, smoothing: float = L1_SMOOTHING) -> Tensor:
     r"""The smoothed elastic-net penalty of `weight` `(M, P)` at strengths `penalty`.
 
     :math:`\tfrac{\lambda_2}{2} \lVert W \rVert^2 + \lambda_1 \sum_k
-    (\sqrt{W_k^2 + \epsilon^2} - \epsilon)` with :math:`\epsilon` = `L1_SMOOTHING`.
+    (\sqrt{W_k^2 + \epsilon^2} - \epsilon)` with :math:`\epsilon` = `smoothing`
+    (the gate's objective uses `L1_SMOOTHING`; a solver may pass a wider one on its way there).
     """
     l2, l1 = penalty
     value = 0.5 * l2 * weight.square().sum()
     if l1 > 0.0:
-        smooth = (weight.square() + L1_SMOOTHING**2).sqrt() - L1_SMOOTHING
+        smooth = (weight.square() + smoothing**2).sqrt() - smoothing
         value = value + l1 * smooth.sum()
     return value
 
 
-def penalty_grad(weight: Tensor, penalty: Penalty) -> Tensor:
+def penalty_grad(weight: Tensor, penalty: Penalty, *, smoothing: float = L1_SMOOTHING) -> Tensor:
     """Gradient of `penalty_value` with respect to `weight` (same shape)."""
     l2, l1 = penalty
     grad = l2 * weight
     if l1 > 0.0:
-        grad = grad + l1 * weight / (weight.square() + L1_SMOOTHING**2).sqrt()
+        grad = grad + l1 * weight / (weight.square() + smoothing**2).sqrt()
     return grad
 
 
@@ -78,22 +79,38 @@ def log_softmax_last(logits: Tensor) -> Tensor:
 
 
 def penalised_objective(
-    phi: Tensor, r: Tensor, s: Tensor, penalty: Penalty, weight: Tensor, bias: Tensor
+    phi: Tensor,
+    r: Tensor,
+    s: Tensor,
+    penalty: Penalty,
+    weight: Tensor,
+    bias: Tensor,
+    *,
+    smoothing: float = L1_SMOOTHING,
 ) -> tuple[Tensor, Tensor]:
     """The fitting objective of `SoftmaxGate` at `weight` `(M, P)` and `bias` `(M,)`.
 
     The weighted cross-entropy of targets `r` `(N, M)` under the softmax of the basis `phi`
-    `(N, P)`, with sample weights `s` `(N,)` that sum to 1, plus `penalty_value` of `weight`.
+    `(N, P)`, with sample weights `s` `(N,)` that sum to 1, plus `penalty_value` of `weight`
+    (lasso smoothing `smoothing`).
 
     Returns:
         The loss (a scalar tensor) and the gate's log-probabilities `(N, M)`.
     """
     log_p = log_softmax_last(torch.addmm(bias, phi, weight.T))
-    return -(s * (r * log_p).sum(-1)).sum() + penalty_value(weight, penalty), log_p
+    value = penalty_value(weight, penalty, smoothing=smoothing)
+    return -(s * (r * log_p).sum(-1)).sum() + value, log_p
 
 
 def penalised_gradient(
-    phi: Tensor, r: Tensor, s: Tensor, penalty: Penalty, weight: Tensor, log_p: Tensor
+    phi: Tensor,
+    r: Tensor,
+    s: Tensor,
+    penalty: Penalty,
+    weight: Tensor,
+    log_p: Tensor,
+    *,
+    smoothing: float = L1_SMOOTHING,
 ) -> tuple[Tensor, Tensor]:
     """Gradient of `penalised_objective` in closed form, from its log-probabilities `log_p`.
 
@@ -102,7 +119,7 @@ def penalised_gradient(
     """
     mass = s[:, None] * r.sum(-1, keepdim=True)  # (N, 1)
     residual = log_p.exp() * mass - s[:, None] * r  # d loss / d logits, (N, M)
-    return penalty_grad(weight, penalty) + residual.T @ phi, residual.sum(0)
+    return penalty_grad(weight, penalty, smoothing=smoothing) + residual.T @ phi, residual.sum(0)
 
 
 def penalised_loss(

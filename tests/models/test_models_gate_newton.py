@@ -3,7 +3,7 @@ import torch
 
 import probaff.models.gate as gate_module
 from probaff.models import SoftmaxGate
-from probaff.models.gate_newton import newton_fit
+from probaff.models.gate_newton import _rescale_zeroed, newton_fit
 from probaff.models.gate_penalty import penalised_loss, penalty_grad, penalty_value
 
 
@@ -55,7 +55,42 @@ def test_newton_reaches_the_optimum_in_few_steps(penalty):
     grad_w = (s[:, None] * residual).T @ x + penalty_grad(weight, penalty)
     grad_b = (s[:, None] * residual).sum(0)
     assert float(torch.cat([grad_w.reshape(-1), grad_b]).abs().max()) <= 1e-8
-    assert 1 <= steps <= (20 if penalty[1] == 0.0 else 200)
+    assert 1 <= steps <= (20 if penalty[1] == 0.0 else 30)
+
+
+@pytest.mark.parametrize(("seed", "l1"), [(0, 1e-2), (2, 1e-1), (3, 1e-2), (3, 1e-1)])
+def test_newton_lasso_reaches_the_optimum_from_a_dense_start(seed, l1):
+    # From weights far from the sparse optimum the smoothed lasso's curvature changes
+    # within eps of zero and Newton's line search keeps shrinking the steps; the
+    # continuation in the smoothing must still reach the optimum, with the small-drop
+    # stop of a real fit in force.
+    x, r, s = _problem(200, seed)
+    g = torch.Generator().manual_seed(seed)
+    weight = 0.3 * torch.randn(3, 40, generator=g, dtype=torch.float64)
+    bias = torch.zeros(3, dtype=torch.float64)
+    steps = newton_fit(
+        x, r, s, (0.0, l1), weight, bias, max_iter=100, tolerance_grad=1e-6, tolerance_change=1e-9
+    )
+    assert steps <= 80
+    ours = penalised_loss(x, r, s, (0.0, l1), weight, bias)
+    assert abs(ours - _reference(x, r, s, (0.0, l1))) < 1e-8
+
+
+def test_rescaled_zero_weights_keep_their_penalty_gradient():
+    # At a fixed data gradient a weight the smoothed lasso holds near zero is proportional
+    # to the smoothing, so the continuation's rescaling lands it on the stationary point
+    # of the new smoothing: the lasso's gradient is unchanged.
+    w = torch.tensor([[-3e-3, -1e-4, 0.0, 2e-4, 4e-3, 0.8]], dtype=torch.float64)
+    v = torch.cat([w, torch.tensor([[0.5]], dtype=torch.float64)], dim=1)
+    wide, narrow = 1e-2, 1e-4
+    back = _rescale_zeroed(v, wide, narrow)
+    torch.testing.assert_close(back[:, -1], v[:, -1])  # the intercept is kept
+    assert float(back[0, -2]) == 0.8  # beyond the band: a weight the lasso does not zero
+    zeroed = slice(0, 5)
+    torch.testing.assert_close(
+        penalty_grad(back[:, zeroed], (0.0, 1.0), smoothing=narrow),
+        penalty_grad(w[:, zeroed], (0.0, 1.0), smoothing=wide),
+    )
 
 
 def test_newton_lasso_zeroes_the_irrelevant_columns():

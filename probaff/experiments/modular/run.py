@@ -53,7 +53,7 @@ from probaff.experiments.modular.trials import (
 
 __all__ = ["modular_task", "run"]
 
-_VERSION = 5  # 2: path reaction, hand mode; 3: SMEM by partial EM; 4: L-BFGS coroutines; 5: fused
+_VERSION = 6  # 2: path reaction, hand mode; 3: SMEM by partial EM; 4: coroutines; 5: fused; 6: l1
 _TEST_SEED_OFFSET = 1000  # test datasets use seed + this, so they never share a draw
 _WORLD = (
     "scenes/modular_push.yaml",

@@ -59,7 +59,7 @@ __all__ = ["FoldTask", "run"]
 
 # Bumped whenever a change to the fitting code changes results, so stored tasks of an older
 # version are refitted rather than mixed in.
-_FIT_VERSION = 7  # 6: L-BFGS coroutines; 7: fused batched kernel and gradient (rounding level)
+_FIT_VERSION = 8  # 6: L-BFGS coroutines; 7: fused batched kernel and gradient; 8: l1 continuation
 
 
 @dataclass(frozen=True)

@@ -56,7 +56,7 @@ from probaff.models import save as save_model
 
 __all__ = ["episode_task", "run"]
 
-_VERSION = 4  # 2: SMEM screened by partial EM; 3: L-BFGS coroutines; 4: fused batched kernel
+_VERSION = 5  # 2: SMEM by partial EM; 3: L-BFGS coroutines; 4: fused kernel; 5: lasso continuation
 _DATA_FIELDS = ("seed", "primitives", "chunk")
 _MODEL_FIELDS = (*_DATA_FIELDS, "experts", "em")
 
