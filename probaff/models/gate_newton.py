@@ -257,6 +257,7 @@ def newton_fit(
         )
         if shrunk:  # continuation: a wider smoothing first, then back
             wide = _WIDENING * L1_SMOOTHING
+            start = v
             v, wide_steps, _ = _newton(
                 problem,
                 _rescale_zeroed(v, L1_SMOOTHING, wide),
@@ -276,6 +277,12 @@ def newton_fit(
                 stop_on_shrink=False,
             )
             steps += wide_steps + last_steps
+            # the stages can run out of steps before they pass their start: keep the better
+            if (
+                _objective(problem, start, L1_SMOOTHING)[0]
+                < _objective(problem, v, L1_SMOOTHING)[0]
+            ):
+                v = start
         weight.copy_(v[:, :-1])
         bias.copy_(v[:, -1])
     return steps

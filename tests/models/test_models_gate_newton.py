@@ -76,6 +76,29 @@ def test_newton_lasso_reaches_the_optimum_from_a_dense_start(seed, l1):
     assert abs(ours - _reference(x, r, s, (0.0, l1))) < 1e-8
 
 
+@pytest.mark.parametrize("max_iter", [1, 2, 3])
+def test_newton_lasso_never_ends_above_its_start(max_iter):
+    # With few steps allowed, the continuation's stages may stop before they pass the
+    # start; the fit then keeps the start rather than a worse point.
+    x, r, s = _problem(200, 0)
+    g = torch.Generator().manual_seed(0)
+    weight = 0.3 * torch.randn(3, 40, generator=g, dtype=torch.float64)
+    bias = torch.zeros(3, dtype=torch.float64)
+    before = penalised_loss(x, r, s, (0.0, 1e-2), weight, bias)
+    newton_fit(
+        x,
+        r,
+        s,
+        (0.0, 1e-2),
+        weight,
+        bias,
+        max_iter=max_iter,
+        tolerance_grad=1e-6,
+        tolerance_change=1e-9,
+    )
+    assert penalised_loss(x, r, s, (0.0, 1e-2), weight, bias) <= before
+
+
 def test_rescaled_zero_weights_keep_their_penalty_gradient():
     # At a fixed data gradient a weight the smoothed lasso holds near zero is proportional
     # to the smoothing, so the continuation's rescaling lands it on the stationary point
