@@ -546,7 +546,21 @@ def predict_exact_experts(
         NotFittedError: If an expert has no training data.
         NotPSDError: If a training covariance cannot be factorised at any jitter.
     """
-    return _predictions(experts, X, include_noise)
+    if not batching_enabled():
+        preds = [e.predict(X, include_noise=include_noise) for e in experts]
+        return Normal(
+            torch.stack([p.loc for p in preds], dim=1), torch.stack([p.scale for p in preds], dim=1)
+        )
+    stack = ExpertStack.of(experts)
+    n_test, e = X.shape[0], stack.y.shape[1]
+    loc = X.new_empty(n_test, len(experts), e)
+    scale = X.new_empty(n_test, len(experts), e)
+    with torch.no_grad():
+        for rows in stack.groups():
+            group = [experts[j] for j in rows]
+            mean, std, _ = _predict_group(group, stack.select(rows), X, include_noise)
+            loc[:, rows], scale[:, rows] = mean, std
+    return Normal(loc, scale)
 
 
 def predict_exact_experts_out_of_sample(
@@ -587,25 +601,6 @@ def predict_exact_experts_out_of_sample(
                 k = len(free[j])
                 loc[free[j], j], scale[free[j], j] = mean[:k, b], std[:k, b]
                 loc[held[:, j], j], scale[held[:, j], j] = loos[b].loc, loos[b].scale
-    return Normal(loc, scale)
-
-
-def _predictions(experts: Sequence[GPExpert], X: Tensor, include_noise: bool) -> Normal:
-    """`predict_exact_experts`."""
-    if not batching_enabled():
-        preds = [e.predict(X, include_noise=include_noise) for e in experts]
-        return Normal(
-            torch.stack([p.loc for p in preds], dim=1), torch.stack([p.scale for p in preds], dim=1)
-        )
-    stack = ExpertStack.of(experts)
-    n_test, e = X.shape[0], stack.y.shape[1]
-    loc = X.new_empty(n_test, len(experts), e)
-    scale = X.new_empty(n_test, len(experts), e)
-    with torch.no_grad():
-        for rows in stack.groups():
-            group = [experts[j] for j in rows]
-            mean, std, _ = _predict_group(group, stack.select(rows), X, include_noise)
-            loc[:, rows], scale[:, rows] = mean, std
     return Normal(loc, scale)
 
 

@@ -157,15 +157,16 @@ def _newton(
     tolerance_grad: float,
     tolerance_change: float,
     stop_on_shrink: bool,
-) -> tuple[Tensor, int, bool]:
+) -> tuple[Tensor, float, int, bool]:
     """Damped Newton steps from `v` `(M, P + 1)` at lasso smoothing `smoothing`.
 
     A step's small loss drop ends the fit only after a full step: a drop after the line
     search shrank the step says nothing of how far the optimum is.
 
     Returns:
-        The last parameters, the Newton steps taken, and whether the fit stopped (with
-        `stop_on_shrink`) at a step the line search had to shrink, before taking it.
+        The last parameters and their loss, the Newton steps taken, and whether the fit
+        stopped (with `stop_on_shrink`) at a step the line search had to shrink, before
+        taking it.
     """
     phi, r, s, penalty = problem.phi, problem.r, problem.s, problem.penalty
     loss, log_p = _objective(problem, v, smoothing)
@@ -176,7 +177,7 @@ def _newton(
         )
         g = torch.cat([g_weight, g_bias[:, None]], dim=1).reshape(-1)
         if float(g.abs().max()) <= tolerance_grad:
-            return v, steps - 1, False
+            return v, float(loss), steps - 1, False
         h = _hessian(problem.phi1, log_p.exp(), problem.mass, penalty, v[:, :-1], smoothing)
         d = _direction(h, g)
         if d is None:
@@ -192,12 +193,12 @@ def _newton(
             break
         trial, new_loss, new_log_p, step = found
         if stop_on_shrink and step < 1.0:
-            return v, steps, True
+            return v, float(loss), steps, True
         drop = float(loss - new_loss)
         v, loss, log_p = trial, new_loss, new_log_p
         if step == 1.0 and drop <= tolerance_change * max(abs(float(loss)), 1.0):
             break
-    return v, steps, False
+    return v, float(loss), steps, False
 
 
 def _rescale_zeroed(v: Tensor, smoothing: float, target: float) -> Tensor:
@@ -246,7 +247,7 @@ def newton_fit(
         phi1 = torch.cat([phi, torch.ones_like(phi[:, :1])], dim=1)  # (N, P + 1)
         problem = _Problem(phi, phi1, r, s, s * r.sum(-1), penalty)
         v = torch.cat([weight.detach(), bias.detach()[:, None]], dim=1)  # (M, P + 1)
-        v, steps, shrunk = _newton(
+        v, loss, steps, shrunk = _newton(
             problem,
             v,
             L1_SMOOTHING,
@@ -257,8 +258,8 @@ def newton_fit(
         )
         if shrunk:  # continuation: a wider smoothing first, then back
             wide = _WIDENING * L1_SMOOTHING
-            start = v
-            v, wide_steps, _ = _newton(
+            start, start_loss = v, loss
+            v, _, wide_steps, _ = _newton(
                 problem,
                 _rescale_zeroed(v, L1_SMOOTHING, wide),
                 wide,
@@ -267,7 +268,7 @@ def newton_fit(
                 tolerance_change=tolerance_change,
                 stop_on_shrink=False,
             )
-            v, last_steps, _ = _newton(
+            v, loss, last_steps, _ = _newton(
                 problem,
                 _rescale_zeroed(v, wide, L1_SMOOTHING),
                 L1_SMOOTHING,
@@ -278,10 +279,7 @@ def newton_fit(
             )
             steps += wide_steps + last_steps
             # the stages can run out of steps before they pass their start: keep the better
-            if (
-                _objective(problem, start, L1_SMOOTHING)[0]
-                < _objective(problem, v, L1_SMOOTHING)[0]
-            ):
+            if start_loss < loss:
                 v = start
         weight.copy_(v[:, :-1])
         bias.copy_(v[:, -1])
