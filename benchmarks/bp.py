@@ -4,7 +4,11 @@ Run with ``python benchmarks/bp.py`` (about two minutes on a 2-core CPU). Prints
 
 (a) milliseconds per BP iteration on a 1000x1000 Ising grid (one direction, every cell
     occupied, random unaries, B = 1): the grid fast path, the generic edge-list path and a
-    naive per-edge log-domain reference, with ratios;
+    naive per-edge log-domain reference, with ratios. With ``--device cuda`` (or
+    ``cuda:N``) the grid fast path and the generic edge-list path also run on that device,
+    in the same process and on the same problem: their milliseconds per iteration are
+    printed next to the CPU's with the ratio CPU / device, and the device's marginals are
+    compared with the CPU's (a converged grid solve, and 10 generic iterations);
 (b) the time to score every single-variable observation of one 12x12 warehouse map
     (each variable clamped to 1 and to 0, one batched BP call, plus map entropies), next to
     gtsam exact inference on the same conditioned graphs;
@@ -12,8 +16,15 @@ Run with ``python benchmarks/bp.py`` (about two minutes on a 2-core CPU). Prints
     grid layout, checked by running a 2000x2000 grid in a fresh process and reading its
     peak RSS (printed first).
 
+Options: ``--grid``, ``--boxes`` and ``--memory-grid`` set the sizes of (a), (b) and (c);
+``--device`` (default ``cpu``) adds the device timings to (a); ``--quick`` runs (a) alone
+(its CPU timings, the naive reference included, take most of its time; the device's part
+takes seconds). A device that is malformed or that this machine does not have
+(``--device cuda`` without CUDA) is refused with one line and exit status 2, before any
+work.
+
 Timings are minima over repeats: the machine may be shared, and the minimum is the least
-disturbed measurement.
+disturbed measurement. Device timings synchronise the device before each clock reading.
 """
 
 from __future__ import annotations
@@ -31,8 +42,11 @@ import gtsam
 import numpy as np
 import torch
 
+from probaff._cli_errors import run_cli
+from probaff.errors import InputError
 from probaff.maps import (
     AffordanceGraph,
+    BeliefPropagationResult,
     BPOptions,
     affordance_marginals,
     exact_marginals,
@@ -118,7 +132,90 @@ def naive_bp_iteration_ms(
     return statistics.median(times) * 1e3
 
 
-def bench_grid(n: int) -> None:
+def bench_device(name: str) -> torch.device:
+    """The device that ``--device`` names: the CPU or a CUDA device this machine has.
+
+    Raises:
+        InputError: For a malformed name, a device this machine lacks, or another kind.
+    """
+    if name == "cpu":
+        return torch.device("cpu")
+    from probaff.models.tensors import resolve_device  # only here: it loads probaff.models
+
+    device = resolve_device("--device", name)
+    if device.type not in ("cpu", "cuda"):
+        raise InputError(f"--device {name!r} is not supported here; use 'cpu' or 'cuda[:N]'.")
+    return device
+
+
+def synchronize(device: torch.device) -> None:
+    """Wait for the work queued on `device` (a no-op on the CPU)."""
+    if device.type == "cuda":
+        torch.cuda.synchronize(device)
+
+
+def bench_grid_device(
+    problem: tuple[torch.Tensor, torch.Tensor, torch.Tensor],
+    device: torch.device,
+    cpu_ms: tuple[float, float],
+    threads: int,
+    cpu_solve: BeliefPropagationResult,
+) -> None:
+    """Part (a) on `device`: ms per iteration next to the CPU's, and the marginals' agreement.
+
+    Args:
+        problem: The CPU ``(n, n, 2)`` unaries, ``(E, 2)`` edges and ``(E, 2, 2)`` tables.
+        device: A CUDA device.
+        cpu_ms: The CPU's ms per iteration of the grid fast path (`threads` threads) and of
+            the generic edge-list path.
+        threads: Torch threads of the CPU timings.
+        cpu_solve: The CPU's converged grid solve of the same problem.
+    """
+    unary, edges, pairwise = problem
+    dev_unary = unary.to(device)
+    dev_flat = dev_unary.reshape(-1, 2)
+    dev_edges, dev_pairwise = edges.to(device), pairwise.to(device)
+
+    def grid(iters: int) -> BeliefPropagationResult:
+        opts = BPOptions(tol=0.0, max_iterations=iters)
+        result = grid_belief_propagation(dev_unary, COUPLING, options=opts)
+        synchronize(device)
+        return result
+
+    def generic(iters: int) -> BeliefPropagationResult:
+        opts = BPOptions(tol=0.0, max_iterations=iters)
+        result = loopy_belief_propagation(dev_flat, dev_edges, dev_pairwise, options=opts)
+        synchronize(device)
+        return result
+
+    grid(2)  # warm-up: the context, the kernels and the caching allocator
+    generic(2)
+    fast = per_iteration_ms(grid, 1, 101, repeats=5)
+    edge_list = per_iteration_ms(generic, 1, 101, repeats=5)
+    name = torch.cuda.get_device_name(device) if device.type == "cuda" else str(device)
+    print(f"    on {device} ({name}), the same problem, float32, ms/iter:")
+    print(f"    {'':18s} {'CPU':>9s} {device!s:>9s}   CPU / {device}")
+    for label, cpu, dev in (
+        ("grid fast path", cpu_ms[0], fast),
+        ("generic edge list", cpu_ms[1], edge_list),
+    ):
+        ratio = cpu / dev if dev > 0 else math.nan
+        print(f"    {label:18s} {cpu:9.2f} {dev:9.3f}   {ratio:.1f}x")
+    print(f"    (CPU: the grid fast path on {threads} threads, as above)")
+    solve = grid_belief_propagation(dev_unary, COUPLING)  # default options, as on the CPU
+    synchronize(device)
+    err = (solve.marginals.cpu() - cpu_solve.marginals).abs().max()
+    print(
+        f"    full solve on {device}: converged={solve.converged} after {solve.iterations} "
+        f"iterations (CPU: {cpu_solve.iterations}); max |{device} - CPU| marginal {float(err):.1e}"
+    )
+    opts = BPOptions(tol=0.0, max_iterations=10)
+    cpu_generic = loopy_belief_propagation(unary.reshape(-1, 2), edges, pairwise, options=opts)
+    err = (generic(10).marginals.cpu() - cpu_generic.marginals).abs().max()
+    print(f"    generic edge list, 10 iterations: max |{device} - CPU| marginal {float(err):.1e}")
+
+
+def bench_grid(n: int, device: torch.device) -> None:
     unary, edges, pairwise = grid_problem(n)
     flat_unary = unary.reshape(-1, 2)
     print(f"(a) BP iteration time, {n}x{n} Ising grid, J={COUPLING}, B=1, float32")
@@ -151,6 +248,8 @@ def bench_grid(n: int) -> None:
         f"    full solve: converged={converged.converged} after {converged.iterations} "
         f"iterations (max_delta {converged.max_delta:.1e})"
     )
+    if device.type != "cpu":
+        bench_grid_device((unary, edges, pairwise), device, (fast, edge_list), threads, converged)
 
 
 def warehouse_map(rng: np.random.Generator, size: int, boxes: int) -> np.ndarray:
@@ -300,20 +399,31 @@ def main() -> None:
     parser.add_argument("--grid", type=int, default=1000, help="side of the timing grid")
     parser.add_argument("--boxes", type=int, default=25, help="boxes of the scoring map")
     parser.add_argument("--memory-grid", type=int, default=2000, help="side of the RSS check")
+    parser.add_argument(
+        "--device",
+        default="cpu",
+        help="also time part (a) on this device (cuda or cuda:N) next to the CPU",
+    )
+    parser.add_argument("--quick", action="store_true", help="run part (a) alone")
     parser.add_argument("--memory-probe", type=int, default=0, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.memory_probe:
         memory_probe(args.memory_probe)
         return
+    device = bench_device(args.device)
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads")
+    if device.type == "cuda":
+        print(f"device {device}: {torch.cuda.get_device_name(device)}, CUDA {torch.version.cuda}")
     start = time.perf_counter()
-    # First, while this process is small: a child's getrusage peak starts at the RSS its
-    # parent had when it was forked.
-    bench_memory(args.memory_grid)
-    bench_grid(args.grid)
-    bench_candidates(args.boxes)
+    if not args.quick:
+        # First, while this process is small: a child's getrusage peak starts at the RSS
+        # its parent had when it was forked.
+        bench_memory(args.memory_grid)
+    bench_grid(args.grid, device)
+    if not args.quick:
+        bench_candidates(args.boxes)
     print(f"total benchmark time {time.perf_counter() - start:.0f} s")
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(run_cli(main))

@@ -4,6 +4,7 @@ Usage::
 
     python benchmarks/mixture_fit.py [--n 321] [--d 101] [--e 6] [--sklearn-restarts 0]
     python benchmarks/mixture_fit.py --batched-vs-reference [--sizes 250,500,1000] [--repeats 2]
+    python benchmarks/mixture_fit.py --device cuda [--n 321] [--d 101] [--repeats 1]
 
 The data come from `probaff.models.synthetic.regime_features`: three regimes selected by
 the first two feature columns, each mapping its own four columns to the E effects. The
@@ -18,6 +19,15 @@ With ``--batched-vs-reference`` it instead times, at each N of `--sizes` and alt
 `probaff.models.expert_batch`) against the reference path that fits and predicts the experts
 one at a time (`per_expert_fits`), in this one process, and prints both wall and CPU times,
 their ratio, and both fits' final objective and held-out NLPD (which should agree).
+
+With ``--device cuda`` (or ``cuda:N``; the default ``cpu`` runs the comparison above) it
+instead times the same EM fit as the first mode (same data, model and iterations) on the CPU
+(`--threads` threads) and on that device, alternating `--repeats` times in this one process,
+after a small warm-up fit on each; device times synchronise the device before the clock is
+read. It prints each fit's wall seconds (the least over repeats), best objective and held-out
+NLPD, the ratio CPU / device, and the largest relative difference between the two objective
+traces, which should be small (float64 on both). A device that is malformed or that this
+machine does not have is refused with one line and exit status 2 before any work.
 """
 
 from __future__ import annotations
@@ -25,6 +35,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
+import sys
 import time
 
 import numpy as np
@@ -35,10 +46,13 @@ from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 from sklearn.preprocessing import StandardScaler
 from threadpoolctl import threadpool_limits
 
+from probaff._cli_errors import run_cli
 from probaff._threads import torch_threads
+from probaff.errors import InputError
 from probaff.models import MixtureOfGPExperts, fit_em
 from probaff.models.expert_batch import per_expert_fits
 from probaff.models.synthetic import regime_features
+from probaff.models.tensors import resolve_device
 
 
 def purity(assign: np.ndarray, labels: np.ndarray) -> float:
@@ -113,6 +127,92 @@ def batched_vs_reference(args: argparse.Namespace) -> None:
         )
 
 
+def bench_device(name: str) -> torch.device:
+    """The device that ``--device`` names: the CPU or a CUDA device this machine has.
+
+    Raises:
+        InputError: For a malformed name, a device this machine lacks, or another kind.
+    """
+    device = resolve_device("--device", name)
+    if device.type not in ("cpu", "cuda"):
+        raise InputError(f"--device {name!r} is not supported here; use 'cpu' or 'cuda[:N]'.")
+    return device
+
+
+def synchronize(device: torch.device) -> None:
+    """Wait for the work queued on `device` (a no-op on the CPU)."""
+    if device.type == "cuda":
+        torch.cuda.synchronize(device)
+
+
+def _mixture(args: argparse.Namespace, device: torch.device) -> MixtureOfGPExperts:
+    """The mixture of the first mode, on `device`."""
+    return MixtureOfGPExperts(
+        args.experts,
+        groups={"f_x": slice(0, 3)},
+        gate_features=("f_x",),
+        expert_features=None,
+        lengthscale_prior=args.lengthscale_prior,
+    ).to(device)
+
+
+def _fit_on(
+    args: argparse.Namespace, data: tuple[torch.Tensor, ...], device: torch.device
+) -> tuple[float, list[float], float, float]:
+    """One EM fit on `device`: (wall seconds, objective trace, best objective, held-out NLPD)."""
+    x_tr, y_tr, x_te, y_te = (t.to(device) for t in data)
+    model = _mixture(args, device)
+    synchronize(device)
+    start = time.perf_counter()
+    history = fit_em(model, x_tr, y_tr, max_iter=args.em_iter, tol=0.0)
+    synchronize(device)
+    wall = time.perf_counter() - start
+    nlpd = -float(model.predict(x_te).log_prob(y_te).mean())
+    return wall, list(history.objective), history.best, nlpd
+
+
+def cpu_vs_device(
+    args: argparse.Namespace, data: tuple[torch.Tensor, ...], device: torch.device
+) -> None:
+    """Time the first mode's EM fit on the CPU and on `device`, side by side."""
+    cpu = torch.device("cpu")
+    name = torch.cuda.get_device_name(device) if device.type == "cuda" else str(device)
+    print(
+        f"EM: M={args.experts}, {args.em_iter} iterations, float64; CPU on {args.threads} "
+        f"thread(s) vs {device} ({name}), best of {args.repeats} alternating repeat(s)"
+    )
+    x_tr, y_tr = data[0], data[1]
+    for dev in (cpu, device):  # warm-up: one-time imports, kernels and allocations
+        fit_em(_mixture(args, dev), x_tr[:40].to(dev), y_tr[:40].to(dev), max_iter=1)
+    runs: dict[torch.device, list[tuple[float, list[float], float, float]]] = {
+        cpu: [],
+        device: [],
+    }
+    for _ in range(args.repeats):
+        for dev in (cpu, device):
+            runs[dev].append(_fit_on(args, data, dev))
+    print(f"  {'device':8s} | wall s | best objective | held-out NLPD")
+    for dev in (cpu, device):
+        wall = min(run[0] for run in runs[dev])
+        _, _, best, nlpd = runs[dev][-1]
+        print(f"  {dev!s:8s} | {wall:6.2f} | {best:14.6f} | {nlpd:.6f}")
+    cpu_wall, dev_wall = (min(run[0] for run in runs[d]) for d in (cpu, device))
+    cpu_trace, dev_trace = runs[cpu][-1][1], runs[device][-1][1]
+    if len(cpu_trace) == len(dev_trace):
+        diff = max(
+            (abs(a - b) / max(abs(a), 1.0) for a, b in zip(cpu_trace, dev_trace, strict=True)),
+            default=0.0,
+        )
+        agree = f"largest relative objective difference over the trace {diff:.1e}"
+    else:
+        agree = f"traces of different lengths: {len(cpu_trace)} vs {len(dev_trace)} iterations"
+    nlpd_diff = abs(runs[cpu][-1][3] - runs[device][-1][3])
+    print(
+        f"  CPU / {device} = {cpu_wall / dev_wall:.2f}x (wall); {agree}; "
+        f"|NLPD difference| {nlpd_diff:.1e}"
+    )
+
+
 def time_sklearn(
     args: argparse.Namespace, x: np.ndarray, y: np.ndarray
 ) -> tuple[GaussianProcessRegressor, float]:
@@ -153,8 +253,25 @@ def main() -> None:
         help="time batched EM against fitting the experts one at a time",
     )
     parser.add_argument("--sizes", default="250,500,1000", help="N values (comma-separated)")
-    parser.add_argument("--repeats", type=int, default=2, help="alternating repeats per N")
+    parser.add_argument(
+        "--repeats",
+        type=int,
+        default=None,
+        help="alternating repeats per N (default 2), or per device with --device (default 1)",
+    )
+    parser.add_argument(
+        "--device",
+        default="cpu",
+        help="cuda or cuda:N: time the EM fit on the CPU and on this device side by side",
+    )
     args = parser.parse_args()
+    device = bench_device(args.device)
+    if device.type != "cpu" and args.batched_vs_reference:
+        raise InputError("--device compares the CPU with a device; omit --batched-vs-reference.")
+    if args.repeats is None:
+        args.repeats = 1 if device.type != "cpu" else 2
+    if args.repeats < 1:
+        raise InputError(f"--repeats must be a positive integer, got {args.repeats}.")
     if args.batched_vs_reference:
         with torch_threads(args.threads), threadpool_limits(args.threads):
             batched_vs_reference(args)
@@ -166,6 +283,10 @@ def main() -> None:
     x_tr, y_tr, x_te, y_te = xs[: args.n], y[: args.n], xs[args.n :], y[args.n :]
     print(f"data: N={args.n} D={args.d} E={args.e}, {args.n_test} held-out samples")
 
+    if device.type != "cpu":
+        with torch_threads(args.threads), threadpool_limits(args.threads):
+            cpu_vs_device(args, (x_tr, y_tr, x_te, y_te), device)
+        return
     with torch_threads(args.threads), threadpool_limits(args.threads):
         model, em_time = time_em(args, x_tr, y_tr, labels[: args.n].numpy())
         print(f"  held-out NLPD {-float(model.predict(x_te).log_prob(y_te).mean()):.3f}")
@@ -178,4 +299,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(run_cli(main))
