@@ -30,7 +30,13 @@ Subpackages, low layers first (each imports only from those above it in this lis
         ``study``).
 
 Errors: every error probaff raises on purpose is a `ProbaffError`.
+
+Threads: model fits on at most 20,000 rows run on one torch and BLAS thread, larger ones with
+torch's count (`probaff._threads.ONE_THREAD_MAX_ROWS`); `set_fit_threads` (or the environment
+variable ``PROBAFF_FIT_THREADS``) sets the count of every fit instead.
 """
+
+from typing import TYPE_CHECKING, Any
 
 from probaff.errors import (
     ConfigError,
@@ -48,6 +54,20 @@ __all__ = [
     "NotFittedError",
     "ProbaffError",
     "UnreachablePoseError",
+    "set_fit_threads",
 ]
+
+if TYPE_CHECKING:
+    from probaff._threads import set_fit_threads
+
+
+def __getattr__(name: str) -> Any:
+    """`set_fit_threads`, imported on first use (``import probaff`` alone loads no torch)."""
+    if name == "set_fit_threads":
+        from probaff._threads import set_fit_threads
+
+        return set_fit_threads
+    raise AttributeError(f"module 'probaff' has no attribute {name!r}")
+
 
 __version__ = "0.1.0"

@@ -21,6 +21,7 @@ from sklearn.svm import SVC
 from torch.distributions import MixtureSameFamily, Normal
 
 from probaff._checks import check_count
+from probaff._threads import threads_by_rows
 from probaff.errors import InputError, NotFittedError
 from probaff.models.gated import gated_probs, mixture_distribution
 from probaff.models.gp_expert import GPExpert
@@ -87,6 +88,7 @@ class ClusteredGPModel:
         if not self.is_fitted:
             raise NotFittedError("ClusteredGPModel is not fitted; call fit first.")
 
+    @threads_by_rows("X")
     def fit(self, X: Any, Y: Any) -> ClusteredGPModel:
         """Cluster, fit the experts and the gate.
 

@@ -18,6 +18,7 @@ from linear_operator.utils.errors import NanError, NotPSDError
 from torch import Tensor
 from torch.distributions import Normal
 
+from probaff._threads import threads_by_rows
 from probaff.errors import NotFittedError
 from probaff.models.expert_base import WeightedExpert, noise_floor_vector
 from probaff.models.gaussian_density import gaussian_log_density, loo_moments, psd_cholesky
@@ -187,6 +188,7 @@ class GPExpert(WeightedExpert):
         return self
 
     # ---------------------------------------------------------------- fitting
+    @threads_by_rows("X")
     def fit(
         self, X: Any, Y: Any, weights: Any | None = None, *, max_iter: int | None = None
     ) -> GPExpert:

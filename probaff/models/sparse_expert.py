@@ -29,6 +29,7 @@ import torch
 from torch import Tensor
 from torch.distributions import Normal
 
+from probaff._threads import threads_by_rows
 from probaff.errors import InputError, NotFittedError
 from probaff.models.expert_base import WeightedExpert
 from probaff.models.kernels import ard_se_kernel
@@ -397,6 +398,7 @@ class SparseGPExpert(WeightedExpert):
             self.inducing.data = z
 
     # ---------------------------------------------------------------- fitting
+    @threads_by_rows("X")
     def fit(
         self, X: Any, Y: Any, weights: Any | None = None, *, max_iter: int | None = None
     ) -> SparseGPExpert:

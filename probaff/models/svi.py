@@ -21,6 +21,7 @@ from pyro.infer import TraceEnum_ELBO
 from torch import Tensor
 
 from probaff._checks import check_probability
+from probaff._threads import threads_by_rows
 from probaff.errors import InputError
 from probaff.models.em import fit_em
 from probaff.models.gated import mixture_payload
@@ -95,6 +96,7 @@ def _start(
     return torch.softmax(exact.log_joint(x, y), dim=1), exact
 
 
+@threads_by_rows("X")
 def fit_svi(
     model: VariationalMixtureOfGPExperts,
     X: Any,

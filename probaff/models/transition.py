@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from probaff._threads import threads_by_rows
 from probaff.errors import InputError
 from probaff.models.monolithic import MonolithicTransitionModel
 from probaff.models.options import EMOptions, resolve_options
@@ -46,6 +47,7 @@ __all__ = [
 ]
 
 
+@threads_by_rows("X")
 def fit_transition(
     model: SkillTransitionModel | MonolithicTransitionModel,
     X: Any,
