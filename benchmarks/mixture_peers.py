@@ -7,14 +7,18 @@ each data set, in the same run, and scored on the held-out fold by
   summed over the outputs, averaged over test points; the joint ``-log p(y)`` of the full
   predictive is recorded too (``nlpd_joint``; equal to NLPD for a single Gaussian);
 * RMSE of the predictive mean per output, and their mean after dividing each by the standard
-  deviation of that output over the whole data set (``srmse``);
+  deviation of that output over the whole data set (``srmse``); the point is the model's
+  point prediction (`probaff.models.point_prediction`: ``em_stacked``'s stacked point, see
+  `probaff.models.point`; the predictive mean for every other model), and ``srmse_mean``
+  (in ``peers.csv``) is the same for the predictive mean;
 * coverage of the central 90 % predictive interval, averaged over the outputs;
 * wall-clock seconds of fit plus predict (one torch and one BLAS thread per task; each
   process first fits every model once on a tiny problem, untimed, so that imports and other
   one-time costs do not land on the first fold).
 
 Models (``MODELS``; each is ``fit_predict(X_train, Y_train, X_test, seed, *, n_experts,
-budget) -> Distribution`` with batch shape ``(N_test,)`` and event shape ``(E,)``):
+budget) -> Prediction``: a distribution with batch shape ``(N_test,)`` and event shape
+``(E,)``, or that distribution and the model's point prediction ``(N_test, E)``):
 
 * ``single_gp``: one `GPExpert` (independent SE-ARD GPs per output, length-scale prior).
 * ``ccr``: cluster-classify-regress. ``[X, Y]`` are standardised jointly and clustered by a
@@ -32,6 +36,9 @@ budget) -> Distribution`` with batch shape ``(N_test,)`` and event shape ``(E,)`
   initialisation.
 * ``em_finish2``: the default EM with its two best screened starts run to convergence
   (``n_finish=2``).
+* ``em_stacked``: the default EM fit of a mixture with ``point="stacked"``: the same
+  distribution (NLPD) as ``em``, with RMSE scored on the mean stacked with a single GP
+  (`probaff.models.point`).
 * ``vi``: `VariationalMixtureOfGPExperts` (``min(32, N)`` inducing points) fitted by
   `fit_svi`.
 
@@ -63,9 +70,40 @@ Usage::
 
     python benchmarks/mixture_peers.py [--datasets ch5,synthetic] [--models em,ccr]
         [--folds 5] [--seed 0] [--out results/mixture_peers] [--workers 0] [--smoke]
+        [--rows N] [--write-reference FILE] [--reference FILE [--tolerance NATS]
+        [--rmse-tolerance REL]]
 
 ``--smoke`` uses 60 rows per data set, 2 folds (unless ``--folds`` is given) and a few
-optimiser iterations; ``--workers K`` runs the fits on a local Dask cluster of K processes.
+optimiser iterations; ``--rows N`` caps the rows per data set at N with the full optimiser
+budget (ch5 and ch4 generate N pushes); ``--workers K`` runs the fits on a local Dask cluster
+of K processes.
+
+Regression guard: ``--write-reference FILE`` writes the run's means with their 95 %
+half-widths per data set, model and metric (NLPD, SRMSE, RMSE per output; `reference_text`),
+headed by the run's settings (folds, seed, rows, smoke, budget, data sets, models and the
+data sets' shapes), atomically. ``--reference FILE`` checks before any fit that the table was
+made with the same folds, seed, rows, smoke and budget, on data of the same shapes, and holds
+every (data set, model) of the run; after the run it prints (and saves as
+``OUT/peers_vs_reference.md``) each mean beside the reference's, and exits with status 1 if a
+mean NLPD exceeds the reference's by more than ``--tolerance`` (`NLPD_TOLERANCE`, 0.05 nats
+per test point), a mean SRMSE or per-output RMSE exceeds the reference's times ``1 +
+--rmse-tolerance`` (`RMSE_TOLERANCE`, 0.05), or fewer folds were scored
+(`compare_with_reference`). The folds, seeds and data are fixed, so an unchanged code base
+reproduces its reference; the tolerances absorb platform rounding, not sampling noise.
+Committed references live in ``benchmarks/reference/``: ``mixture_peers_fast.csv`` (CI's
+subset, checked by ``tests/test_benchmark_mixture_peers.py``)::
+
+    python benchmarks/mixture_peers.py --datasets engel,motorcycle,synthetic \
+        --models em,single_gp --folds 2 --rows 200 --out results/mixture_peers_fast \
+        --write-reference benchmarks/reference/mixture_peers_fast.csv
+
+and ``mixture_peers.csv`` (every data set and model, 5 folds; 20+ minutes)::
+
+    python benchmarks/mixture_peers.py --out results/mixture_peers \
+        --write-reference benchmarks/reference/mixture_peers.csv
+
+Exit status: 0, 1 for a regression (or a reference left unwritten because a fit failed), 2
+for a user's error (one line on stderr).
 """
 
 from __future__ import annotations
@@ -96,8 +134,10 @@ from sklearn.model_selection import KFold
 from threadpoolctl import threadpool_limits
 from torch.distributions import Distribution, Independent, Normal
 
+from probaff._checks import check_output_file
 from probaff._io import atomic_save_figure, atomic_write_text
 from probaff._threads import torch_threads
+from probaff.errors import InputError
 from probaff.eval.metrics import interval_coverage, nlpd, rmse
 from probaff.eval.tasks import ResultStore, run_tasks
 from probaff.models import (
@@ -107,8 +147,12 @@ from probaff.models import (
     VariationalMixtureOfGPExperts,
     fit_em,
     fit_svi,
+    point_prediction,
 )
 from probaff.models.mixture import mixture_distribution
+
+Prediction = Distribution | tuple[Distribution, torch.Tensor]
+"""What a model of the benchmark returns: its distribution, or it and its point prediction."""
 
 SMOKE_ROWS = 60
 """Rows per data set under ``--smoke``."""
@@ -171,7 +215,7 @@ class FitPredict:
         fit_predict: The model, on a `Fold`.
     """
 
-    fit_predict: Callable[[Fold], Distribution]
+    fit_predict: Callable[[Fold], Prediction]
 
     def __call__(
         self,
@@ -272,16 +316,17 @@ def clustered(fold: Fold) -> Distribution:
     return model.fit(fold.X_train, fold.Y_train).predict(fold.X_test)
 
 
-def _em(fold: Fold, fit: Callable[..., Any] = fit_em) -> Distribution:
+def _em(fold: Fold, fit: Callable[..., Any] = fit_em, point: str = "mean") -> Prediction:
     """probaff's mixture of GP experts fitted by EM (`fit` is `fit_em` or a partial of it)."""
     model = MixtureOfGPExperts(
         fold.n_experts,
         gp_max_iter=fold.budget.gp_iter,
         lengthscale_prior=True,
         noise_floor="auto" if fold.noise_floor is None else fold.noise_floor,
+        **({} if point == "mean" else {"point": point}),
     )
     fit(model, fold.X_train, fold.Y_train, seed=fold.seed, max_iter=fold.budget.em_iter)
-    return model.predict(fold.X_test)
+    return model.predict(fold.X_test), point_prediction(model, fold.X_test)
 
 
 em = FitPredict(_em)
@@ -323,6 +368,8 @@ if fit_em_accepts("n_finish"):
     MODELS["em_finish2"] = FitPredict(
         functools.partial(_em, fit=functools.partial(fit_em, n_finish=2))
     )
+if "point" in inspect.signature(MixtureOfGPExperts).parameters:
+    MODELS["em_stacked"] = FitPredict(functools.partial(_em, point="stacked"))
 MODELS["vi"] = vi
 
 
@@ -499,6 +546,14 @@ def _warm_up(model: str) -> None:
         MODELS[model](x[:16], y[:16], x[16:], 0, n_experts=2, budget=SMOKE)
 
 
+def _split_prediction(pred: Prediction) -> tuple[Distribution, torch.Tensor | None]:
+    """A model's distribution and its point prediction (None: the distribution's mean)."""
+    if isinstance(pred, tuple):
+        dist, point = pred
+        return dist, torch.as_tensor(point, dtype=torch.float64).detach()
+    return pred, None
+
+
 def fit_and_score(task: dict[str, Any]) -> dict[str, Any]:
     """Fit one model on one training fold and score it on the held-out fold."""
     X, Y = np.asarray(task["X"]), np.asarray(task["Y"])
@@ -528,14 +583,16 @@ def fit_and_score(task: dict[str, Any]) -> dict[str, Any]:
         warnings.simplefilter("always")
         start = time.perf_counter()
         try:
-            pred = fn(
-                X[train],
-                Y[train],
-                X[test],
-                int(task["seed"]),
-                n_experts=int(task["M"]),
-                budget=budget,
-                noise_floor=task["noise_floor"],
+            pred, point = _split_prediction(
+                fn(
+                    X[train],
+                    Y[train],
+                    X[test],
+                    int(task["seed"]),
+                    n_experts=int(task["M"]),
+                    budget=budget,
+                    noise_floor=task["noise_floor"],
+                )
             )
             seconds = time.perf_counter() - start
             n_test, e = len(test), Y.shape[1]
@@ -546,12 +603,14 @@ def fit_and_score(task: dict[str, Any]) -> dict[str, Any]:
                 )
             y = torch.as_tensor(Y[test], dtype=torch.float64)
             with torch.no_grad():
-                per_output_rmse = rmse(pred, y).numpy()
+                per_output_rmse = rmse(pred if point is None else point, y).numpy()
+                y_std = np.asarray(task["y_std"])
                 row.update(
                     seconds=seconds,
                     nlpd=float(nlpd(pred, y).sum()),
                     nlpd_joint=float(-pred.log_prob(y).mean()),
-                    srmse=float(np.mean(per_output_rmse / np.asarray(task["y_std"]))),
+                    srmse=float(np.mean(per_output_rmse / y_std)),
+                    srmse_mean=float(np.mean(rmse(pred, y).numpy() / y_std)),
                     coverage90=float(interval_coverage(pred, y, 0.9).mean()),
                     rmse=[float(v) for v in per_output_rmse],
                 )
@@ -619,6 +678,7 @@ def _csv(results: list[dict[str, Any]], datasets: list[Dataset]) -> str:
         "nlpd",
         "nlpd_joint",
         "srmse",
+        "srmse_mean",
         "coverage90",
         "seconds",
         *rmse_cols,
@@ -648,7 +708,10 @@ def mean_ci(values: list[float]) -> tuple[float, float]:
 
 
 def summarise(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Per (data set, model): folds scored, mean and 95 % t-interval of each metric."""
+    """Per (data set, model): folds scored, mean and 95 % t-interval of each metric.
+
+    ``rmse`` and ``rmse_ci`` are lists, one mean and half-width per output.
+    """
     groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
     for r in results:
         groups.setdefault((r["dataset"], r["model"]), []).append(r)
@@ -665,11 +728,9 @@ def summarise(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
         }
         for metric in ("nlpd", "nlpd_joint", "srmse", "coverage90", "seconds"):
             row[metric], row[f"{metric}_ci"] = mean_ci([r[metric] for r in ok])
-        row["rmse"] = (
-            np.mean([r["rmse"] for r in ok], axis=0).tolist()
-            if ok
-            else [math.nan] * len(row["outputs"])
-        )
+        per_output = [mean_ci([r["rmse"][j] for r in ok]) for j in range(len(row["outputs"]))]
+        row["rmse"] = [m for m, _ in per_output]
+        row["rmse_ci"] = [h for _, h in per_output]
         rows.append(row)
     return rows
 
@@ -777,6 +838,455 @@ def plot(
     atomic_save_figure(fig, path, dpi=120)
 
 
+# ---------------------------------------------------------------------------- reference
+REFERENCE_VERSION = 1
+"""Format version of a reference table (`reference_text`, `parse_reference`)."""
+
+NLPD_TOLERANCE = 0.05
+"""Default ``--tolerance``: nats per test point by which a mean NLPD may exceed the reference's.
+
+The folds, seeds and data are fixed, so a rerun of unchanged code on the same platform
+reproduces the reference to a few digits; the tolerance absorbs the last digits of other BLAS
+builds and CPUs, not sampling noise, and is far below the differences between models
+(tenths of a nat)."""
+
+RMSE_TOLERANCE = 0.05
+"""Default ``--rmse-tolerance``: relative amount (5 %) by which a mean SRMSE or per-output
+RMSE may exceed the reference's."""
+
+REFERENCE_COLUMNS = ("dataset", "model", "metric", "folds", "mean", "half_width")
+"""Columns of a reference table: one row per data set, model and metric (``nlpd``, ``srmse``,
+``rmse.<output>``), the folds scored, the mean over folds and the 95 % t half-width."""
+
+_SETTINGS_LINE = "# settings: "
+_LIKE_WITH_LIKE = ("folds", "seed", "rows", "smoke", "budget")
+"""Settings a run must share with its reference (the data sets' shapes are checked too)."""
+
+
+@dataclass(frozen=True)
+class Regression:
+    """A mean that is worse than its reference beyond the tolerance.
+
+    Attributes:
+        dataset: Data set.
+        model: Model.
+        metric: ``nlpd``, ``srmse``, ``rmse.<output>``, or ``folds`` (fits that failed).
+        reference: The reference's value.
+        now: This run's value.
+        limit: The worst value accepted.
+    """
+
+    dataset: str
+    model: str
+    metric: str
+    reference: float
+    now: float
+    limit: float
+
+    def __str__(self) -> str:
+        return (
+            f"{self.dataset}/{self.model} {self.metric}: now {self.now:.4g}, reference "
+            f"{self.reference:.4g}, worst accepted {self.limit:.4g}"
+        )
+
+
+def check_tolerance(option: str, value: Any) -> float:
+    """`value` as a float, or `InputError` naming `option` unless it is a finite number >= 0.
+
+    Args:
+        option: The option's name (``"--tolerance"``).
+        value: The number, or its text as typed.
+
+    Returns:
+        The tolerance.
+    """
+    try:
+        tol = float(value)
+    except (TypeError, ValueError):
+        tol = math.nan
+    if isinstance(value, bool) or not math.isfinite(tol) or tol < 0:
+        raise InputError(f"{option} must be a finite number >= 0, got {value!r}.")
+    return tol
+
+
+def run_settings(
+    datasets: list[Dataset],
+    models: list[str],
+    folds: int,
+    seed: int,
+    rows: int | None,
+    smoke: bool,
+    budget: Budget,
+) -> dict[str, Any]:
+    """The settings a reference records, so that a comparison compares like with like."""
+    return {
+        "version": REFERENCE_VERSION,
+        "folds": folds,
+        "seed": seed,
+        "rows": rows,
+        "smoke": smoke,
+        "budget": asdict(budget),
+        "datasets": [ds.name for ds in datasets],
+        "models": list(models),
+        "shapes": {ds.name: [*ds.X.shape, ds.Y.shape[1]] for ds in datasets},
+    }
+
+
+def _metrics(row: dict[str, Any]) -> list[tuple[str, float, float]]:
+    """(metric, mean, half-width) of a summary row: NLPD, SRMSE, then RMSE per output."""
+    halves = row.get("rmse_ci") or [math.nan] * len(row["rmse"])
+    return [
+        ("nlpd", row["nlpd"], row["nlpd_ci"]),
+        ("srmse", row["srmse"], row["srmse_ci"]),
+        *((f"rmse.{o}", m, h) for o, m, h in zip(row["outputs"], row["rmse"], halves, strict=True)),
+    ]
+
+
+def reference_text(settings: dict[str, Any], rows: list[dict[str, Any]]) -> str:
+    """A reference table: comment lines, the settings as JSON, then `REFERENCE_COLUMNS`.
+
+    Args:
+        settings: `run_settings` of the run.
+        rows: `summarise` rows of the run.
+    """
+    buf = io.StringIO()
+    buf.write(
+        "# Reference of benchmarks/mixture_peers.py (written by --write-reference; compared by "
+        "--reference). Lower is better for every metric.\n"
+    )
+    buf.write(_SETTINGS_LINE + json.dumps(settings, sort_keys=True) + "\n")
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(REFERENCE_COLUMNS)
+    for row in rows:
+        for metric, mean, half in _metrics(row):
+            writer.writerow(
+                [row["dataset"], row["model"], metric, row["folds"], f"{mean:.8g}", f"{half:.8g}"]
+            )
+    return buf.getvalue()
+
+
+def _parse_settings(lines: list[str], name: str) -> dict[str, Any]:
+    """The settings line of a reference table, checked."""
+    found = [line[len(_SETTINGS_LINE) :] for line in lines if line.startswith(_SETTINGS_LINE)]
+    if len(found) != 1:
+        raise InputError(
+            f"{name} has {len(found)} '{_SETTINGS_LINE.strip()}' lines, not one; it is not a "
+            "reference table of --write-reference (write it again)."
+        )
+    try:
+        settings = json.loads(found[0])
+    except json.JSONDecodeError as exc:
+        raise InputError(
+            f"{name}: its settings line is not JSON ({exc}); write it again."
+        ) from None
+    kinds: dict[str, Any] = {
+        "version": int,
+        "folds": int,
+        "seed": int,
+        "rows": (int, type(None)),
+        "smoke": bool,
+        "budget": dict,
+        "datasets": list,
+        "models": list,
+        "shapes": dict,
+    }
+    bad = [
+        k
+        for k, t in kinds.items()
+        if not isinstance(settings, dict) or k not in settings or not isinstance(settings[k], t)
+    ]
+    if bad:
+        raise InputError(
+            f"{name}: its settings lack or mistype {bad}; write it again with --write-reference."
+        )
+    if settings["version"] != REFERENCE_VERSION:
+        raise InputError(
+            f"{name} is of format version {settings['version']}, this script reads version "
+            f"{REFERENCE_VERSION}; write it again with --write-reference."
+        )
+    return settings
+
+
+def _parse_record(record: dict[str, Any], where: str) -> tuple[str, str, str, int, float, float]:
+    """One line of a reference table: (dataset, model, metric, folds, mean, half-width)."""
+    dataset, model, metric = record["dataset"], record["model"], record["metric"]
+    if not dataset or not model or not (metric in ("nlpd", "srmse") or metric.startswith("rmse.")):
+        raise InputError(f"{where}: expected a data set, a model and a metric, got {record}.")
+    try:
+        folds, mean, half = int(record["folds"]), float(record["mean"]), float(record["half_width"])
+    except (TypeError, ValueError):
+        raise InputError(
+            f"{where}: folds, mean and half_width must be numbers, got {record}."
+        ) from None
+    if folds < 1 or not math.isfinite(mean) or half < 0:
+        raise InputError(
+            f"{where}: needs folds >= 1, a finite mean and a half-width >= 0, got {record}."
+        )
+    return dataset, model, metric, folds, mean, half
+
+
+def parse_reference(text: str, name: str = "--reference") -> tuple[dict[str, Any], list[dict]]:
+    """Read a reference table (`reference_text`).
+
+    Args:
+        text: The file's text.
+        name: How errors name it (the option and the file).
+
+    Returns:
+        The settings and one row per (data set, model) with the keys of a `summarise` row
+        that a comparison reads: ``folds``, ``nlpd``, ``nlpd_ci``, ``srmse``, ``srmse_ci``,
+        ``outputs``, ``rmse`` and ``rmse_ci``.
+
+    Raises:
+        InputError: For a table that is not one, or is damaged.
+    """
+    lines = text.splitlines()
+    settings = _parse_settings(lines, name)
+    reader = csv.DictReader([line for line in lines if not line.startswith("#")])
+    if tuple(reader.fieldnames or ()) != REFERENCE_COLUMNS:
+        raise InputError(
+            f"{name}: its columns are {reader.fieldnames}, expected {list(REFERENCE_COLUMNS)}; "
+            "write it again with --write-reference."
+        )
+    groups: dict[tuple[str, str], dict[str, Any]] = {}
+    try:
+        records = list(reader)
+    except csv.Error as exc:
+        raise InputError(f"{name} is not a readable CSV table ({exc}).") from None
+    for i, record in enumerate(records, start=1):
+        if None in record or None in record.values():
+            raise InputError(f"{name} row {i}: expected {len(REFERENCE_COLUMNS)} cells.")
+        dataset, model, metric, folds, mean, half = _parse_record(record, f"{name} row {i}")
+        row = groups.setdefault(
+            (dataset, model), {"dataset": dataset, "model": model, "folds": folds, "metrics": {}}
+        )
+        if metric in row["metrics"] or folds != row["folds"]:
+            raise InputError(
+                f"{name} row {i}: {dataset}/{model} {metric} repeats or disagrees on its folds."
+            )
+        row["metrics"][metric] = (mean, half)
+    rows = []
+    for (dataset, model), group in groups.items():
+        metrics = group.pop("metrics")
+        outputs = [m[len("rmse.") :] for m in metrics if m.startswith("rmse.")]
+        if "nlpd" not in metrics or "srmse" not in metrics or not outputs:
+            raise InputError(
+                f"{name}: {dataset}/{model} lacks nlpd, srmse or rmse.<output>; write it again."
+            )
+        rows.append(
+            {
+                **group,
+                "nlpd": metrics["nlpd"][0],
+                "nlpd_ci": metrics["nlpd"][1],
+                "srmse": metrics["srmse"][0],
+                "srmse_ci": metrics["srmse"][1],
+                "outputs": outputs,
+                "rmse": [metrics[f"rmse.{o}"][0] for o in outputs],
+                "rmse_ci": [metrics[f"rmse.{o}"][1] for o in outputs],
+            }
+        )
+    if not rows:
+        raise InputError(f"{name} holds no results; write it again with --write-reference.")
+    return settings, rows
+
+
+def load_reference(path: str | Path, option: str = "--reference") -> tuple[dict[str, Any], list]:
+    """Read the reference table at `path` (see `parse_reference`).
+
+    Raises:
+        InputError: Naming `option` and the file, for a missing, unreadable or damaged file.
+    """
+    name = f"{option} {path}"
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(
+            f"{name} does not exist; give a table written by --write-reference "
+            "(benchmarks/reference/ holds the committed ones)."
+        ) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{name} cannot be read ({exc}).") from None
+    return parse_reference(text, name)
+
+
+def check_reference(
+    settings: dict[str, Any],
+    reference: tuple[dict[str, Any], list[dict[str, Any]]],
+    pairs: list[tuple[str, str]],
+    name: str = "--reference",
+) -> None:
+    """Raise `InputError` unless `reference` was made like this run and covers its pairs.
+
+    Args:
+        settings: `run_settings` of this run.
+        reference: What `load_reference` returned.
+        pairs: The run's (data set, model) pairs.
+        name: How the error names the reference (the option and the file).
+    """
+    made, rows = reference
+    differ = [k for k in _LIKE_WITH_LIKE if made[k] != settings[k]]
+    if differ:
+        was = ", ".join(f"{k}={json.dumps(made[k])}" for k in differ)
+        now = ", ".join(f"{k}={json.dumps(settings[k])}" for k in differ)
+        raise InputError(
+            f"{name} was made with {was} but this run has {now}; run with the reference's "
+            "settings, or write a new reference with --write-reference."
+        )
+    shapes = {
+        n: (made["shapes"][n], shape)
+        for n, shape in settings["shapes"].items()
+        if n in made["shapes"] and made["shapes"][n] != shape
+    }
+    if shapes:
+        raise InputError(
+            f"{name}: the data changed (N, D, E was, now: {shapes}); write a new reference "
+            "with --write-reference."
+        )
+    have = {(r["dataset"], r["model"]) for r in rows}
+    missing = [f"{d}/{m}" for d, m in pairs if (d, m) not in have]
+    if missing:
+        raise InputError(
+            f"{name} lacks {', '.join(missing)}; it covers data sets {made['datasets']} and "
+            f"models {made['models']}: choose --datasets and --models among those, or write a "
+            "new reference with --write-reference."
+        )
+
+
+def comparison_rows(
+    summary_rows: list[dict[str, Any]],
+    reference_rows: list[dict[str, Any]],
+    nlpd_tol: float = NLPD_TOLERANCE,
+    rmse_tol: float = RMSE_TOLERANCE,
+) -> list[dict[str, Any]]:
+    """Each mean of a run beside its reference's.
+
+    Args:
+        summary_rows: `summarise` rows of the run.
+        reference_rows: Rows of `load_reference` (or `summarise` rows of another run).
+        nlpd_tol: Nats per point by which a mean NLPD may exceed the reference's.
+        rmse_tol: Relative amount by which a mean SRMSE or RMSE may exceed the reference's.
+
+    Returns:
+        One row per data set, model and metric (``nlpd``, ``srmse``, ``rmse.<output>``):
+        ``folds`` and ``folds_reference`` (folds scored), ``reference``, ``reference_ci``,
+        ``now``, ``now_ci`` (means and 95 % half-widths), ``difference`` (now minus
+        reference), ``limit`` (the worst mean accepted) and ``status``: ``"worse"`` beyond
+        the limit (or not scored), ``"better"`` by more than the tolerance, else ``"ok"``.
+
+    Raises:
+        InputError: For a tolerance that is not a finite number >= 0, or a (data set,
+            model) of `summary_rows` that the reference lacks or scores on other outputs.
+    """
+    nlpd_tol = check_tolerance("nlpd_tol", nlpd_tol)
+    rmse_tol = check_tolerance("rmse_tol", rmse_tol)
+    refs = {(r["dataset"], r["model"]): r for r in reference_rows}
+    out = []
+    for row in summary_rows:
+        ref = refs.get((row["dataset"], row["model"]))
+        if ref is None or list(ref["outputs"]) != list(row["outputs"]):
+            raise InputError(
+                f"the reference lacks {row['dataset']}/{row['model']} with outputs "
+                f"{list(row['outputs'])}; compare with a reference of the same data sets."
+            )
+        for (metric, now, now_half), (_, was, was_half) in zip(
+            _metrics(row), _metrics(ref), strict=True
+        ):
+            if metric == "nlpd":
+                limit, gain = was + nlpd_tol, was - nlpd_tol
+            else:
+                limit, gain = was * (1 + rmse_tol), was * (1 - rmse_tol)
+            status = "worse" if not now <= limit else "better" if now < gain else "ok"
+            out.append(
+                {
+                    "dataset": row["dataset"],
+                    "model": row["model"],
+                    "metric": metric,
+                    "folds": row["folds"],
+                    "folds_reference": ref["folds"],
+                    "reference": was,
+                    "reference_ci": was_half,
+                    "now": now,
+                    "now_ci": now_half,
+                    "difference": now - was,
+                    "limit": limit,
+                    "status": status,
+                }
+            )
+    return out
+
+
+def compare_with_reference(
+    summary_rows: list[dict[str, Any]],
+    reference_rows: list[dict[str, Any]],
+    nlpd_tol: float = NLPD_TOLERANCE,
+    rmse_tol: float = RMSE_TOLERANCE,
+) -> list[Regression]:
+    """The regressions of a run against a reference (empty: none).
+
+    A mean NLPD above the reference's plus `nlpd_tol`, a mean SRMSE or per-output RMSE above
+    the reference's times ``1 + rmse_tol``, a metric that could not be scored, and fewer folds
+    scored than the reference's (fits that failed) are regressions; improvements never are.
+
+    Args:
+        summary_rows: `summarise` rows of the run.
+        reference_rows: Rows of `load_reference` (or `summarise` rows of another run).
+        nlpd_tol: Nats per point (`NLPD_TOLERANCE` by default).
+        rmse_tol: Relative (`RMSE_TOLERANCE` by default).
+
+    Raises:
+        InputError: As `comparison_rows`.
+    """
+    lines = comparison_rows(summary_rows, reference_rows, nlpd_tol, rmse_tol)
+    folds = {
+        (r["dataset"], r["model"]): Regression(
+            r["dataset"],
+            r["model"],
+            "folds",
+            r["folds_reference"],
+            r["folds"],
+            r["folds_reference"],
+        )
+        for r in lines
+        if r["folds"] < r["folds_reference"]
+    }
+    worse = [
+        Regression(r["dataset"], r["model"], r["metric"], r["reference"], r["now"], r["limit"])
+        for r in lines
+        if r["status"] == "worse"
+    ]
+    return [*folds.values(), *worse]
+
+
+def comparison_markdown(
+    lines: list[dict[str, Any]], reference: str, nlpd_tol: float, rmse_tol: float
+) -> str:
+    """`comparison_rows` as a Markdown table, with a heading naming the reference file."""
+    out = [
+        f"# Compared with {reference}",
+        "",
+        f"Worse: NLPD above the reference + {nlpd_tol:g} nats, SRMSE or RMSE above the "
+        f"reference x {1 + rmse_tol:g}, or fewer folds scored. Cells: mean ± 95 % half-width.",
+        "",
+        "| data set | model | metric | folds | reference | now | now - reference | worst "
+        "accepted | status |",
+        "|" + "---|" * 9,
+    ]
+    for r in lines:
+        cells = [
+            r["dataset"],
+            r["model"],
+            r["metric"],
+            f"{r['folds']}/{r['folds_reference']}",
+            _fmt(r["reference"], r["reference_ci"], 4),
+            _fmt(r["now"], r["now_ci"], 4),
+            f"{r['difference']:+.4f}",
+            f"{r['limit']:.4f}",
+            "**WORSE**" if r["status"] == "worse" else r["status"],
+        ]
+        out.append("| " + " | ".join(cells) + " |")
+    return "\n".join(out) + "\n"
+
+
 # ---------------------------------------------------------------------------------- CLI
 def comma_names(text: str, known: dict[str, Any], unknown: str) -> list[str]:
     """The distinct comma-separated names in `text`, each a key of `known`, in order.
@@ -819,12 +1329,99 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         action="store_true",
         help=f"{SMOKE_ROWS} rows per data set, 2 folds, a few iterations",
     )
+    ap.add_argument(
+        "--rows",
+        type=int,
+        help=f"at most this many rows per data set, the full budget kept ({SMOKE_ROWS} with "
+        "--smoke, else all); ch5 and ch4 generate this many pushes",
+    )
+    ap.add_argument(
+        "--write-reference",
+        metavar="FILE",
+        help="write the run's means per data set and model, with its settings, as a "
+        "reference table for --reference (atomically)",
+    )
+    ap.add_argument(
+        "--reference",
+        metavar="FILE",
+        help="compare the run with this reference table (made with the same --folds, "
+        "--seed, --rows and --smoke); exit status 1 for a regression",
+    )
+    ap.add_argument(
+        "--tolerance",
+        metavar="NATS",
+        help=f"with --reference: nats per test point a mean NLPD may exceed the reference's "
+        f"by ({NLPD_TOLERANCE:g})",
+    )
+    ap.add_argument(
+        "--rmse-tolerance",
+        metavar="REL",
+        help="with --reference: relative amount a mean SRMSE or per-output RMSE may exceed "
+        f"the reference's by ({RMSE_TOLERANCE:g}, i.e. {100 * RMSE_TOLERANCE:g} %%)",
+    )
     ap.add_argument("--no-progress", action="store_true", help="hide progress bars")
     return ap.parse_args(argv)
 
 
+def _tolerances(args: argparse.Namespace) -> tuple[float, float]:
+    """``--tolerance`` and ``--rmse-tolerance`` (defaults if not given), checked."""
+    if args.reference is None:
+        given = [
+            o
+            for o, v in (("--tolerance", args.tolerance), ("--rmse-tolerance", args.rmse_tolerance))
+            if v is not None
+        ]
+        if given:
+            raise InputError(f"{given[0]} applies only with --reference FILE; add one.")
+    nlpd_tol = NLPD_TOLERANCE if args.tolerance is None else args.tolerance
+    rmse_tol = RMSE_TOLERANCE if args.rmse_tolerance is None else args.rmse_tolerance
+    return (
+        check_tolerance("--tolerance", nlpd_tol),
+        check_tolerance("--rmse-tolerance", rmse_tol),
+    )
+
+
+def _check_against(
+    rows: list[dict[str, Any]],
+    reference: tuple[dict[str, Any], list[dict[str, Any]]],
+    args: argparse.Namespace,
+    out: Path,
+) -> int:
+    """Print and save the run beside its reference; 1 for a regression, else 0."""
+    nlpd_tol, rmse_tol = _tolerances(args)
+    lines = comparison_rows(rows, reference[1], nlpd_tol, rmse_tol)
+    text = comparison_markdown(lines, args.reference, nlpd_tol, rmse_tol)
+    atomic_write_text(out / "peers_vs_reference.md", text)
+    print(text)
+    regressions = compare_with_reference(rows, reference[1], nlpd_tol, rmse_tol)
+    for r in regressions:
+        print(f"mixture_peers: regression: {r}", file=sys.stderr)
+    return 1 if regressions else 0
+
+
+def _write_reference(
+    path: str, settings: dict[str, Any], results: list[dict[str, Any]], rows: list[dict]
+) -> int:
+    """Write the reference table at `path`; 1 (and no file) if a fit failed, else 0."""
+    failed = sum(bool(r["error"]) for r in results)
+    if failed:
+        print(
+            f"mixture_peers: {failed} fit(s) failed (see peers.md); --write-reference {path} "
+            "was not written",
+            file=sys.stderr,
+        )
+        return 1
+    atomic_write_text(path, reference_text(settings, rows))
+    print(f"wrote reference {path}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run (or resume) the comparison and write the CSV, Markdown and PNG; return the status."""
+    """Run (or resume) the comparison and write the CSV, Markdown and PNG; return the status.
+
+    The status is 0, 1 for a regression against ``--reference`` (or a ``--write-reference``
+    left unwritten because a fit failed), and 2 for a user's error (one line on stderr).
+    """
     args = parse_args(argv)
     try:
         dataset_names = _names(args.datasets, DATASETS, "data set")
@@ -834,11 +1431,17 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError(f"--folds must be at least 2, got {folds}")
         if args.workers < 0:
             raise ValueError(f"--workers must be >= 0, got {args.workers}")
-    except ValueError as exc:
+        if args.rows is not None and args.rows < folds:
+            raise ValueError(f"--rows must be at least --folds ({folds}), got {args.rows}")
+        _tolerances(args)
+        if args.write_reference is not None:
+            check_output_file("--write-reference", args.write_reference)
+        reference = None if args.reference is None else load_reference(args.reference)
+    except ValueError as exc:  # InputError included
         print(f"mixture_peers: {exc}", file=sys.stderr)
         return 2
     budget = SMOKE if args.smoke else FULL
-    rows_cap = SMOKE_ROWS if args.smoke else None
+    rows_cap = args.rows if args.rows is not None else SMOKE_ROWS if args.smoke else None
     out = Path(args.out)
     progress = not args.no_progress
 
@@ -852,6 +1455,14 @@ def main(argv: list[str] | None = None) -> int:
             )
             return 2
         tasks += make_tasks(ds, model_names, folds, args.seed, budget)
+    settings = run_settings(datasets, model_names, folds, args.seed, rows_cap, args.smoke, budget)
+    if reference is not None:
+        try:
+            pairs = [(d, m) for d in dataset_names for m in model_names]
+            check_reference(settings, reference, pairs, f"--reference {args.reference}")
+        except InputError as exc:
+            print(f"mixture_peers: {exc}", file=sys.stderr)
+            return 2
     results = run_tasks(
         fit_and_score,
         tasks,
@@ -868,7 +1479,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     plot(results, rows, datasets, out / "peers.png")
     print(f"wrote {out / 'peers.csv'}, {out / 'peers.md'} and {out / 'peers.png'}")
-    return 0
+    status = 0 if reference is None else _check_against(rows, reference, args, out)
+    if args.write_reference is not None:
+        status = max(status, _write_reference(args.write_reference, settings, results, rows))
+    return status
 
 
 if __name__ == "__main__":

@@ -5,6 +5,7 @@ Modules:
     run: the episodes and trials as resumable tasks, the planner models, and `run`.
     report: the success rates with their intervals, the failures' blame, the summary.
     figures: success rates, pushes per trial, planned against executed episodes.
+    reference: a run's success counts against a stored reference (``--reference``).
     demo: one planned episode, drawn (``probaff demo``).
 """
 
