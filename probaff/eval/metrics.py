@@ -60,19 +60,27 @@ def _check_targets(dist: Distribution, y: torch.Tensor) -> torch.Tensor:
     return y
 
 
-def rmse(dist: Distribution, y: torch.Tensor) -> torch.Tensor:
-    """Root mean squared error of the predictive mean, per effect dimension.
+def rmse(pred: Distribution | torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+    """Root mean squared error of a point prediction, per effect dimension.
 
     Args:
-        dist: Predictive distribution over (N, E).
+        pred: Predictive distribution over (N, E), scored by its mean; or the (N, E) point
+            prediction itself (e.g. `MixtureOfGPExperts.predict_point`).
         y: (N, E) observed effects.
 
     Returns:
         (E,) RMSE.
     """
-    y = _check_targets(dist, y)
-    w, loc, _ = marginal_components(dist)
-    mean = (w[..., None] * loc).sum(1)
+    if isinstance(pred, Distribution):
+        y = _check_targets(pred, y)
+        w, loc, _ = marginal_components(pred)
+        mean = (w[..., None] * loc).sum(1)
+    else:
+        mean = torch.as_tensor(pred, dtype=torch.float64)
+        check_finite("point prediction", mean)
+        y = torch.as_tensor(y, dtype=torch.float64)
+        check_shape("targets", y, tuple(mean.shape))
+        check_finite("targets", y)
     return ((mean.double() - y) ** 2).mean(0).sqrt()
 
 

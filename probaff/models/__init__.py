@@ -27,7 +27,7 @@ from probaff.models.em import EMHistory, fit_em, fit_em_path
 from probaff.models.gate import FourierGate, SoftmaxGate, make_gate
 from probaff.models.gated import GatedMixture
 from probaff.models.gp_expert import GPExpert
-from probaff.models.interface import PushModel
+from probaff.models.interface import PushModel, point_prediction
 from probaff.models.mixture import MixtureOfGPExperts
 from probaff.models.modular import (
     ChainPrediction,
@@ -101,6 +101,7 @@ __all__ = [
     "mean_log_predictive_density",
     "model_kind",
     "model_kinds",
+    "point_prediction",
     "register_fitter",
     "register_model_kind",
     "save",

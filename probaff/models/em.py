@@ -14,6 +14,7 @@ import torch
 from torch import Tensor
 
 from probaff._checks import check_count, check_probability
+from probaff._threads import threads_by_rows
 from probaff.errors import InputError
 from probaff.models.em_run import EMHistory, EMRun, RunSettings
 from probaff.models.em_starts import _fresh, fit_level
@@ -61,6 +62,7 @@ def _given_responsibilities(init: Tensor, n: int, sizes: list[int]) -> Tensor:
     return resp
 
 
+@threads_by_rows("X")
 def fit_em_path(
     model: MixtureOfGPExperts,
     X: Any,
@@ -125,6 +127,7 @@ def fit_em_path(
     return out
 
 
+@threads_by_rows("X")
 def fit_em(
     model: MixtureOfGPExperts,
     X: Any,
@@ -180,6 +183,11 @@ def fit_em(
     A tensor of responsibilities `(N, M)` starts one run from that assignment (for example
     the true one, on synthetic data).
 
+    With the mixture's ``point="stacked"`` and `M > 1`, the `M = 1` fit (free on
+    a growing start's way up; fitted on its own otherwise) becomes the single GP that
+    `MixtureOfGPExperts.predict_point` stacks with the mixture's mean
+    (`MixtureOfGPExperts.fit_point`).
+
     With more than `search_rows` training rows, all of the above runs on a seeded random
     subset of `search_rows` rows with `search_restarts` starts (and the experts the whole
     set would get); the kept fit
@@ -211,35 +219,67 @@ def fit_em(
     """
     opts = resolve_options(EMOptions, options, overrides)
     x, y = model.check_data(X, Y)
-    rows = opts.search_rows
-    if rows is None or x.shape[0] <= rows or isinstance(opts.init, Tensor):
-        fitted, history = fit_em_path(model, x, y, (model.n_experts,), opts)[model.n_experts]
-    else:
-        fitted, history = _coarse_to_fine(model, x, y, opts, rows)
+    m = model.n_experts
+    stack = model.point == "stacked" and m > 1
+    path = _search(model, x, y, opts, (1, m) if stack else (m,))
+    fitted, history = path[m]
     model.condition(x, y, fitted.train_weights)
     model.load_state_dict(fitted.state_dict())
+    if stack:
+        model.fit_point(path[1][0].experts[0], x, y, seed=opts.seed)
     return history
 
 
+def _search(
+    model: MixtureOfGPExperts, x: Tensor, y: Tensor, opts: EMOptions, sizes: tuple[int, ...]
+) -> dict[int, tuple[MixtureOfGPExperts, EMHistory]]:
+    """The fits of `sizes` as `fit_em` searches for them: on every row, or coarse to fine.
+
+    A growing start fits `M = 1` on its way up, so the stacked point's single GP is free
+    there; other starts fit it on its own, so that it does not change the `M` fit.
+    """
+    grows = isinstance(opts.init, str) and opts.init in ("auto", "grow")
+    main = sizes if grows else sizes[-1:]
+    rows = opts.search_rows
+    if rows is None or x.shape[0] <= rows or isinstance(opts.init, Tensor):
+        path = fit_em_path(model, x, y, main, opts)
+    else:
+        path = _coarse_to_fine(model, x, y, opts, rows, main)
+    for m in set(sizes) - set(path):  # M = 1 beside a start that does not grow
+        path[m] = fit_em_path(model, x, y, (m,), opts, init="effects")[m]
+    return path
+
+
 def _coarse_to_fine(
-    model: MixtureOfGPExperts, x: Tensor, y: Tensor, opts: EMOptions, rows: int
-) -> tuple[MixtureOfGPExperts, EMHistory]:
-    """Search on `rows` random rows, then refine the kept fit on every row (see `fit_em`)."""
-    n, m = x.shape[0], model.n_experts
+    model: MixtureOfGPExperts,
+    x: Tensor,
+    y: Tensor,
+    opts: EMOptions,
+    rows: int,
+    sizes: Sequence[int],
+) -> dict[int, tuple[MixtureOfGPExperts, EMHistory]]:
+    """Search on `rows` random rows, then refine each kept fit of `sizes` on every row.
+
+    See `fit_em`; returns `M -> (fitted mixture, history)` as `fit_em_path` does.
+    """
+    n = x.shape[0]
     template = MixtureOfGPExperts(**{**model.config(), "experts": model.resolve_expert_kind(n)})
     subset = torch.randperm(n, generator=torch.Generator().manual_seed(opts.seed))[:rows]
     subset = subset.sort().values.to(x.device)
     search = dataclasses.replace(opts, n_restarts=opts.search_restarts)
-    coarse, found = fit_em_path(template, x[subset], y[subset], (m,), search)[m]
-    fine = _fresh(template, m, x, y)
-    for mine, theirs in zip(fine.experts, coarse.experts, strict=True):
-        mine.load_state_dict(theirs.state_dict())
-    resp = torch.softmax(coarse.log_joint(x, y), dim=1)
+    coarse_path = fit_em_path(template, x[subset], y[subset], sizes, search)
     settings = _settings(template, opts)
-    run = EMRun(fine, x, y, resp, settings, init=found.init, seed=opts.seed, warm=True)
-    history = run.step(opts.max_iter).finish()
-    history.candidates, history.split_merge = found.candidates, found.split_merge
-    return fine, history
+    out: dict[int, tuple[MixtureOfGPExperts, EMHistory]] = {}
+    for m, (coarse, found) in coarse_path.items():
+        fine = _fresh(template, m, x, y)
+        for mine, theirs in zip(fine.experts, coarse.experts, strict=True):
+            mine.load_state_dict(theirs.state_dict())
+        resp = torch.softmax(coarse.log_joint(x, y), dim=1)
+        run = EMRun(fine, x, y, resp, settings, init=found.init, seed=opts.seed, warm=True)
+        history = run.step(opts.max_iter if m > 1 else 1).finish()
+        history.candidates, history.split_merge = found.candidates, found.split_merge
+        out[m] = (fine, history)
+    return out
 
 
 # ------------------------------------------------------------ the "em" kind

@@ -334,3 +334,17 @@ class GatedMixture(torch.nn.Module, Generic[ExpertT], metaclass=abc.ABCMeta):
         return mixture_distribution(
             gated_probs(self.gate_probs(X), gating), self.expert_predictions(X)
         )
+
+    def predict_point(self, X: Any, *, mean: Tensor | None = None) -> Tensor:
+        """The point prediction of the effects: here the predictive mean.
+
+        `probaff.models.MixtureOfGPExperts` can stack it with a single GP (``point=``).
+
+        Args:
+            X: Features, `(N, D)`.
+            mean: ``predict(X).mean``, when the caller has it already.
+
+        Returns:
+            `(N, E)` effects, in output units.
+        """
+        return self.predict(X).mean if mean is None else mean

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from typing import Any, Protocol, runtime_checkable
 
+from torch import Tensor
 from torch.distributions import Distribution
 
-__all__ = ["PushModel"]
+__all__ = ["PushModel", "point_prediction"]
 
 
 @runtime_checkable
@@ -35,3 +36,24 @@ class PushModel(Protocol):
             Batch shape `(N,)`, event shape `(E,)`, with `mean`, `variance` and `log_prob`.
         """
         ...
+
+
+def point_prediction(model: PushModel, X: Any, *, mean: Tensor | None = None) -> Tensor:
+    """A push model's point prediction of the effects.
+
+    The model's ``predict_point`` where it has one (a `MixtureOfGPExperts` with
+    ``point="stacked"`` stacks its mean with a single GP), else its predictive mean.
+
+    Args:
+        model: A fitted push model.
+        X: Features, `(N, D)`.
+        mean: ``model.predict(X).mean`` when the caller has it already (saves a prediction).
+
+    Returns:
+        `(N, E)` effects.
+    """
+    predict_point = getattr(model, "predict_point", None)
+    if callable(predict_point):
+        out: Tensor = predict_point(X, mean=mean)
+        return out
+    return model.predict(X).mean if mean is None else mean

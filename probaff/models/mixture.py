@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import torch
@@ -21,6 +21,12 @@ from probaff.models.gate import GATE_KINDS, make_gate
 from probaff.models.gate_penalty import check_strength
 from probaff.models.gated import ExpertList, GatedMixture, gated_probs, mixture_distribution
 from probaff.models.gp_expert import GPExpert
+from probaff.models.point import (
+    MIN_STACK_ROWS,
+    POINT_KINDS,
+    out_of_fold_gate,
+    stacking_weights,
+)
 from probaff.models.sparse_expert import (
     DEFAULT_N_INDUCING,
     FitMemoryError,
@@ -128,13 +134,19 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         hyper_rows: Sparse experts holding more samples than this choose their inducing
             inputs and hyperparameters on a uniform random subset of this many, then condition
             on all of them (`probaff.models.options.SparseGPOptions`); None uses every sample.
+        point: What `predict_point` returns: ``"mean"`` (default), the mixture's predictive
+            mean; ``"stacked"``, the mean stacked per output with one GP fitted on every
+            row, by weights chosen on out-of-sample predictions of the training rows
+            (`probaff.models.point`, which gives the measurements behind the default), for
+            data where the experts extrapolate worse than one GP. `predict` is the same for
+            both.
         **columns: The column selection of `GatedMixture`: ``groups`` (named column groups),
             ``gate_features`` and ``expert_features``.
 
     Raises:
         InputError: If a selection names an unknown group, `n_experts` is not positive,
-            `experts` is not a known kind or `n_inducing` or `hyper_rows` is not a
-            positive integer.
+            `experts` is not a known kind, `n_inducing` or `hyper_rows` is not a
+            positive integer, or `point` is not a known kind.
     """
 
     not_fitted_message = _NOT_FITTED
@@ -152,6 +164,7 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         experts: str = "auto",
         n_inducing: int | None = None,
         hyper_rows: int | None = 2048,
+        point: str = "mean",
         **columns: Any,
     ) -> None:
         super().__init__(n_experts, gate_l2=gate_l2, **columns)
@@ -181,6 +194,16 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         self.expert_kind = experts
         self.n_inducing = None if n_inducing is None else check_count("n_inducing", n_inducing)
         self.hyper_rows = None if hyper_rows is None else check_count("hyper_rows", hyper_rows)
+        if not isinstance(point, str) or point not in POINT_KINDS:
+            raise InputError(
+                f"point must be one of {list(POINT_KINDS)}, got {point!r}; 'stacked' for the "
+                "squared-error point prediction, 'mean' for the mixture's predictive mean."
+            )
+        self.point = point
+        self._expert_settings: dict[str, Any] = {}
+        self.point_expert: AnyGPExpert | None = None
+        self.register_buffer("point_weights", None)
+        self.point_weights: Tensor | None
         self.built_expert_kind: str | None = None
         self.gp_max_iter = int(gp_max_iter)
         self.lengthscale_prior = bool(lengthscale_prior)
@@ -206,6 +229,7 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
             "experts": self.expert_kind,
             "n_inducing": self.n_inducing,
             "hyper_rows": self.hyper_rows,
+            "point": self.point,
         }
 
     @property
@@ -274,16 +298,25 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
             "lengthscale_prior": self.lengthscale_prior,
             "noise_floor": noise_floor,
         }
-        d_e = len(self.expert_columns)
         self.built_expert_kind = kind
-        self.experts = ExpertList(
-            SparseGPExpert(
-                d_e, n_outputs, n_inducing=self.n_inducing, hyper_rows=self.hyper_rows, **settings
+        self._expert_settings = settings
+        self.experts = ExpertList(self.new_expert() for _ in range(self.n_experts))
+        self.point_expert = None
+        self.point_weights = None
+
+    def new_expert(self) -> AnyGPExpert:
+        """A fresh, unfitted expert of the kind and settings of the last `build`."""
+        d_e, n_outputs = len(self.expert_columns), self.n_outputs
+        assert n_outputs is not None, "build the mixture first"
+        if self.built_expert_kind == "sparse":
+            return SparseGPExpert(
+                d_e,
+                n_outputs,
+                n_inducing=self.n_inducing,
+                hyper_rows=self.hyper_rows,
+                **self._expert_settings,
             )
-            if kind == "sparse"
-            else GPExpert(d_e, n_outputs, **settings)
-            for _ in range(self.n_experts)
-        )
+        return GPExpert(d_e, n_outputs, **self._expert_settings)
 
     def resolve_expert_kind(self, n_samples: int | None) -> str:
         """The kind of expert (``"exact"`` or ``"sparse"``) a fit on `n_samples` rows builds.
@@ -511,6 +544,20 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         Returns:
             `log p_j(e_i | f_i, D_-i)`, `(N, M)`.
         """
+        return self.loo_expert_predictions(X).log_prob(Y[:, None, :]).sum(-1)
+
+    def loo_expert_predictions(self, X: Tensor) -> Normal:
+        """Every expert's out-of-sample predictive distribution of every training row.
+
+        Leave-one-out where the expert holds the row, its ordinary prediction elsewhere (see
+        `loo_log_lik`).
+
+        Args:
+            X: The training features, `(N, D)`.
+
+        Returns:
+            Normals with loc and scale `(N, M, E)`, noise included.
+        """
         self.check_fitted()
         if self._train_weights is None or self._train_weights.shape[0] != X.shape[0]:
             raise InputError("loo_log_lik needs the training set the mixture was fitted on.")
@@ -518,10 +565,75 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         held = self.train_weights > 0
         exact = [e for e in self.experts if isinstance(e, GPExpert)]
         if len(exact) == len(self.experts):  # one batched prediction, one factor per expert
-            pred = predict_exact_experts_out_of_sample(exact, x_e, held)
-        else:  # sparse experts, one at a time
-            pred = out_of_sample(list(self.experts), x_e, held)
-        return pred.log_prob(Y[:, None, :]).sum(-1)
+            return predict_exact_experts_out_of_sample(exact, x_e, held)
+        return out_of_sample(list(self.experts), x_e, held)  # sparse experts, one at a time
+
+    # ------------------------------------------------------------ point prediction
+    def fit_point(self, single: AnyGPExpert, X: Tensor, Y: Tensor, *, seed: int = 0) -> None:
+        """Stack the mixture's mean with one GP fitted on every row (``point="stacked"``).
+
+        Chooses the weights of `predict_point` (`probaff.models.point`); with
+        ``point="mean"``, one expert, or fewer than `MIN_STACK_ROWS` rows, the point is the
+        mixture's mean and nothing is stored.
+
+        Args:
+            single: A GP expert of this mixture's kind, fitted and conditioned on every
+                training row with weight 1 (the `M = 1` fit).
+            X: The training features, `(N, D)`.
+            Y: The training effects, `(N, E)`.
+            seed: Seed of the gate's cross-fitting folds.
+        """
+        self.point_expert, self.point_weights = None, None
+        if self.point != "stacked" or self.n_experts == 1 or X.shape[0] < MIN_STACK_ROWS:
+            return
+        log_joint = self.loo_log_joint(X, Y)
+        resp = torch.softmax(log_joint, dim=1)
+        x_gate = X[:, self.gate_columns]
+        gate = out_of_fold_gate(self.built_gate(), x_gate, resp, seed)
+        mixture_mean = (gate[..., None] * self.loo_expert_predictions(X).loc).sum(1)
+        single_mean = single.loo_predict().loc
+        self.point_weights = stacking_weights(mixture_mean, single_mean, Y)
+        self.point_expert = single
+
+    def prepare_point(self) -> None:
+        """Create the stacked point's single GP on the training rows, to load a saved state.
+
+        Raises:
+            NotFittedError: If the mixture holds no training data.
+        """
+        if self.train_X is None or self.train_Y is None:
+            raise NotFittedError(_NOT_FITTED)
+        single = self.new_expert()
+        weights = torch.ones_like(self.train_Y[:, 0])
+        single.condition(self.train_X[:, self.expert_columns], self.train_Y, weights)
+        self.point_expert = single
+        self.point_weights = torch.zeros_like(self.train_Y[0])
+
+    def _load_from_state_dict(
+        self, state_dict: Mapping[str, Any], prefix: str, *args: Any, **kwargs: Any
+    ) -> None:
+        # A saved stacked point: create its single GP first, so that its state loads too.
+        if prefix + "point_weights" in state_dict and self.point_expert is None:
+            self.prepare_point()
+        super()._load_from_state_dict(state_dict, prefix, *args, **kwargs)
+
+    def predict_point(self, X: Any, *, mean: Tensor | None = None) -> Tensor:
+        """The point prediction of the effects (see ``point``): stacked, or the mean.
+
+        Args:
+            X: Features, `(N, D)`.
+            mean: ``predict(X).mean``, when the caller has it already.
+
+        Returns:
+            `(N, E)` effects, in output units.
+        """
+        if mean is None:
+            mean = self.predict(X).mean
+        if self.point_expert is None or self.point_weights is None:
+            return mean
+        x_e = self.features(X)[:, self.expert_columns]
+        single = self.point_expert.predict(x_e).loc
+        return self.point_weights * mean + (1.0 - self.point_weights) * single
 
     def lengthscales(self) -> list[Tensor]:
         """ARD length scales of every expert (standardised units; short means relevant).

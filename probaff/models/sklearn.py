@@ -26,6 +26,7 @@ from sklearn.pipeline import Pipeline
 from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from probaff._threads import threads_by_rows
 from probaff.errors import InputError, NotFittedError
 from probaff.models.em import fit_em
 from probaff.models.em_run import EMHistory
@@ -54,6 +55,7 @@ _MIXTURE_ARGS = (
     "noise_floor",
     "experts",
     "n_inducing",
+    "point",
 )
 _EM_ARGS = ("n_restarts", "screen_iter", "split_merge", "max_iter", "tol", "n_init", "anneal")
 
@@ -109,6 +111,8 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
         experts: ``"auto"``, ``"exact"`` or ``"sparse"`` GP experts (see
             `MixtureOfGPExperts`).
         n_inducing: Inducing points of sparse experts; None for the default.
+        point: What `predict` returns: ``"mean"`` (default), the mixture's predictive mean,
+            or ``"stacked"``, the mean stacked with a single GP (see `MixtureOfGPExperts`).
         init: EM start: ``"auto"``, ``"grow"``, ``"joint"`` or ``"effects"`` (see `fit_em`).
         n_restarts: EM starts tried for each mixture size.
         screen_iter: Iterations every start runs before only the best is run to convergence;
@@ -146,6 +150,7 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
         noise_floor: float | Sequence[float] | str | None = "auto",
         experts: str = "auto",
         n_inducing: int | None = None,
+        point: str = "mean",
         init: str = "auto",
         n_restarts: int = 3,
         screen_iter: int | None = 2,
@@ -168,6 +173,7 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
         self.noise_floor = noise_floor
         self.experts = experts
         self.n_inducing = n_inducing
+        self.point = point
         self.init = init
         self.n_restarts = n_restarts
         self.screen_iter = screen_iter
@@ -240,6 +246,7 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
         return MixtureOfGPExperts(self.n_experts, **mixture)
 
     # -------------------------------------------------------------------- fit
+    @threads_by_rows("X")
     def fit(self, X: Any, y: Any) -> MixtureOfGPExpertsRegressor:
         """Fit the mixture to `X` and `y` by EM.
 
@@ -269,8 +276,12 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
         return self
 
     # ---------------------------------------------------------------- predict
+    @threads_by_rows("X")
     def predict(self, X: Any, return_std: bool = False) -> Any:
-        """Mean (and standard deviation) of the mixture's predictive distribution.
+        """Point prediction (and predictive standard deviation) of the targets.
+
+        The point is `MixtureOfGPExperts.predict_point` (``point="mean"``: the mixture's
+        mean; ``point="stacked"``: the mean stacked with a single GP).
 
         Shapes follow scikit-learn's `GaussianProcessRegressor`: one target (a 1-D `y`, or
         a `y` of one column) gives `(N,)` arrays, `T > 1` targets give `(N, T)`.
@@ -282,8 +293,8 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
                 units.
 
         Returns:
-            The mean, float64 `(N,)` or `(N, T)`; with `return_std`, ``(mean, std)`` of the
-            same shape.
+            The point, float64 `(N,)` or `(N, T)`; with `return_std`, ``(point, std)`` of
+            the same shape.
 
         Raises:
             EstimatorNotFittedError: Before `fit`.
@@ -293,7 +304,7 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
         X = _validated(self, X, dtype=np.float64, reset=False)
         with torch.no_grad():
             dist = self.model_.predict(torch.tensor(X))
-            mean = dist.mean.numpy()
+            mean = self.model_.predict_point(torch.tensor(X), mean=dist.mean).numpy()
             std = dist.variance.clamp_min(0.0).sqrt().numpy() if return_std else None
         squeeze = self.n_targets_ == 1
         mean = mean[:, 0] if squeeze else mean
@@ -301,6 +312,7 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
             return mean
         return mean, std[:, 0] if squeeze else std
 
+    @threads_by_rows("X")
     def log_predictive_density(self, X: Any, y: Any) -> np.ndarray:
         """Log density of each sample's targets under the mixture's predictive distribution.
 

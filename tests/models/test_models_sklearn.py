@@ -85,12 +85,19 @@ def test_shapes_follow_gaussian_process_regressor(data, fitted):
     assert fitted.score(X, Y[:, 0]) > 0.8 and two.score(X, Y) > 0.8
 
 
-def test_mean_and_std_are_the_mixture_moments(data, fitted):
-    X, _ = data
-    dist = fitted.model_.predict(torch.as_tensor(X[:5]))
-    mean, std = fitted.predict(X[:5], return_std=True)
-    np.testing.assert_allclose(mean, dist.mean[:, 0].detach().numpy(), rtol=0, atol=0)
+def test_point_and_std_are_the_mixtures(data, fitted):
+    X, Y = data
+    x = torch.as_tensor(X[:5])
+    dist = fitted.model_.predict(x)
+    point, std = fitted.predict(X[:5], return_std=True)
+    want = fitted.model_.predict_point(x)[:, 0].detach().numpy()
+    np.testing.assert_allclose(point, want, rtol=0, atol=0)
     np.testing.assert_allclose(std**2, dist.variance[:, 0].detach().numpy(), rtol=1e-12)
+    np.testing.assert_array_equal(point, dist.mean[:, 0].detach().numpy())  # point="mean"
+    stacked = MixtureOfGPExpertsRegressor(2, point="stacked", random_state=0, **CHEAP)
+    stacked.fit(X, Y[:, 0])
+    want = stacked.model_.predict_point(x)[:, 0].detach().numpy()
+    np.testing.assert_array_equal(stacked.predict(X[:5]), want)
 
 
 def test_random_state_fixes_the_fit_and_equals_fit_em(data, fitted):
@@ -104,7 +111,7 @@ def test_random_state_fixes_the_fit_and_equals_fit_em(data, fitted):
     assert fitted.em_options(0) == options
     history = fit_em(model, X, Y[:, :1], options)
     assert history.objective == fitted.history_.objective
-    direct = model.predict(torch.as_tensor(X)).mean[:, 0].detach().numpy()
+    direct = model.predict_point(torch.as_tensor(X))[:, 0].detach().numpy()
     np.testing.assert_array_equal(direct, fitted.predict(X))
 
 
