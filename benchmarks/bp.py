@@ -41,9 +41,9 @@ from collections.abc import Callable
 import gtsam
 import numpy as np
 import torch
+from _timing import bench_device, synchronize
 
 from probaff._cli_errors import run_cli
-from probaff.errors import InputError
 from probaff.maps import (
     AffordanceGraph,
     BeliefPropagationResult,
@@ -130,28 +130,6 @@ def naive_bp_iteration_ms(
         log_msgs = new
         times.append(time.perf_counter() - start)
     return statistics.median(times) * 1e3
-
-
-def bench_device(name: str) -> torch.device:
-    """The device that ``--device`` names: the CPU or a CUDA device this machine has.
-
-    Raises:
-        InputError: For a malformed name, a device this machine lacks, or another kind.
-    """
-    if name == "cpu":
-        return torch.device("cpu")
-    from probaff.models.tensors import resolve_device  # only here: it loads probaff.models
-
-    device = resolve_device("--device", name)
-    if device.type not in ("cpu", "cuda"):
-        raise InputError(f"--device {name!r} is not supported here; use 'cpu' or 'cuda[:N]'.")
-    return device
-
-
-def synchronize(device: torch.device) -> None:
-    """Wait for the work queued on `device` (a no-op on the CPU)."""
-    if device.type == "cuda":
-        torch.cuda.synchronize(device)
 
 
 def bench_grid_device(

@@ -40,6 +40,7 @@ import time
 
 import numpy as np
 import torch
+from _timing import bench_device, synchronize
 from scipy.stats import norm
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
@@ -52,7 +53,6 @@ from probaff.errors import InputError
 from probaff.models import MixtureOfGPExperts, fit_em
 from probaff.models.expert_batch import per_expert_fits
 from probaff.models.synthetic import regime_features
-from probaff.models.tensors import resolve_device
 
 
 def purity(assign: np.ndarray, labels: np.ndarray) -> float:
@@ -125,24 +125,6 @@ def batched_vs_reference(args: argparse.Namespace) -> None:
             f"{n:4d} | speed-up: {ref[0] / new[0]:.2f}x wall, {ref[1] / new[1]:.2f}x CPU "
             f"(sums over {args.repeats} alternating repeats)"
         )
-
-
-def bench_device(name: str) -> torch.device:
-    """The device that ``--device`` names: the CPU or a CUDA device this machine has.
-
-    Raises:
-        InputError: For a malformed name, a device this machine lacks, or another kind.
-    """
-    device = resolve_device("--device", name)
-    if device.type not in ("cpu", "cuda"):
-        raise InputError(f"--device {name!r} is not supported here; use 'cpu' or 'cuda[:N]'.")
-    return device
-
-
-def synchronize(device: torch.device) -> None:
-    """Wait for the work queued on `device` (a no-op on the CPU)."""
-    if device.type == "cuda":
-        torch.cuda.synchronize(device)
 
 
 def _mixture(args: argparse.Namespace, device: torch.device) -> MixtureOfGPExperts:
