@@ -135,7 +135,7 @@ from threadpoolctl import threadpool_limits
 from torch.distributions import Distribution, Independent, Normal
 
 from probaff._checks import check_output_file
-from probaff._io import atomic_save_figure, atomic_write_text
+from probaff._io import atomic_save_figure, atomic_write_text, read_user_text
 from probaff._threads import torch_threads
 from probaff.errors import InputError
 from probaff.eval.metrics import interval_coverage, nlpd, rmse
@@ -1097,16 +1097,11 @@ def load_reference(path: str | Path, option: str = "--reference") -> tuple[dict[
         InputError: Naming `option` and the file, for a missing, unreadable or damaged file.
     """
     name = f"{option} {path}"
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(
-            f"{name} does not exist; give a table written by --write-reference "
-            "(benchmarks/reference/ holds the committed ones)."
-        ) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{name} cannot be read ({exc}).") from None
-    return parse_reference(text, name)
+    missing = (
+        "give a table written by --write-reference (benchmarks/reference/ holds the committed "
+        "ones)."
+    )
+    return parse_reference(read_user_text(path, name, missing), name)
 
 
 def check_reference(

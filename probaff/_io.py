@@ -1,4 +1,7 @@
-"""Atomic file output: a crash leaves either the old file or the whole new one, never a part."""
+"""Atomic file output, and reading a small text file that a user named.
+
+A crash while writing leaves either the old file or the whole new one, never a part.
+"""
 
 from __future__ import annotations
 
@@ -8,8 +11,28 @@ from pathlib import Path
 from typing import Any
 
 from probaff._checks import check_output_file
+from probaff.errors import InputError
 
-__all__ = ["atomic_save_figure", "atomic_write_bytes", "atomic_write_text"]
+__all__ = ["atomic_save_figure", "atomic_write_bytes", "atomic_write_text", "read_user_text"]
+
+
+def read_user_text(path: str | os.PathLike[str], name: str, missing: str) -> str:
+    """The UTF-8 text of a file a user named, or one clear error.
+
+    Args:
+        path: The file.
+        name: How errors name it (e.g. ``"--reference results/ref.csv"``).
+        missing: The fix a missing file's error suggests.
+
+    Raises:
+        InputError: Naming `name`, for a missing, unreadable or non-UTF-8 file.
+    """
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(f"{name} does not exist; {missing}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{name} cannot be read ({exc}).") from None
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:

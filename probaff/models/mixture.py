@@ -586,11 +586,12 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         self.point_expert, self.point_weights = None, None
         if self.point != "stacked" or self.n_experts == 1 or X.shape[0] < MIN_STACK_ROWS:
             return
-        log_joint = self.loo_log_joint(X, Y)
-        resp = torch.softmax(log_joint, dim=1)
         x_gate = X[:, self.gate_columns]
+        loo = self.loo_expert_predictions(X)  # once: both the E-step's terms and the means
+        log_joint = self.built_gate().log_proba(x_gate) + loo.log_prob(Y[:, None, :]).sum(-1)
+        resp = torch.softmax(log_joint, dim=1)
         gate = out_of_fold_gate(self.built_gate(), x_gate, resp, seed)
-        mixture_mean = (gate[..., None] * self.loo_expert_predictions(X).loc).sum(1)
+        mixture_mean = (gate[..., None] * loo.loc).sum(1)
         single_mean = single.loo_predict().loc
         self.point_weights = stacking_weights(mixture_mean, single_mean, Y)
         self.point_expert = single

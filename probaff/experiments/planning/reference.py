@@ -22,7 +22,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from probaff._io import atomic_write_text
+from probaff._io import atomic_write_text, read_user_text
 from probaff.errors import InputError
 from probaff.eval.metrics import wilson_interval
 from probaff.eval.tables import markdown_table
@@ -125,16 +125,11 @@ def load_reference(path: str | os.PathLike[str], option: str = "--reference") ->
         InputError: For a missing, unreadable or malformed file.
     """
     name = f"{option} {os.fspath(path)}"
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(
-            f"{name} does not exist; give a table of success counts per planner "
-            "(benchmarks/reference/planning.csv is the committed one)."
-        ) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{name} cannot be read ({exc}).") from None
-    return parse_reference(text, name)
+    missing = (
+        "give a table of success counts per planner (benchmarks/reference/planning.csv is the "
+        "committed one)."
+    )
+    return parse_reference(read_user_text(path, name, missing), name)
 
 
 def _interval(successes: int, trials: int) -> dict[str, Any]:
