@@ -17,6 +17,7 @@ __all__ = [
     "as_float_array",
     "check_count",
     "check_finite",
+    "check_number",
     "check_output_dir",
     "check_output_file",
     "check_positive",
@@ -116,6 +117,8 @@ def check_positive(name: str, value: float, *, allow_zero: bool = False) -> None
         value: The scalar to check.
         allow_zero: Accept exactly zero.
     """
+    if isinstance(value, (bool, np.bool_)):  # True is not a number here, though float(True) is
+        raise InputError(f"{name} must be a number, got {value!r}.")
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -123,6 +126,32 @@ def check_positive(name: str, value: float, *, allow_zero: bool = False) -> None
     if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
         bound = ">= 0" if allow_zero else "> 0"
         raise InputError(f"{name} must be a finite number {bound}, got {value!r}.")
+
+
+def check_number(name: str, value: Any, *, bound: str = "", unit: str = "") -> float:
+    """Return `value` as a `float`, or raise `InputError` unless it is a finite real number.
+
+    Stricter than `check_positive`: a string (``"0.02"``, ``"two cm"``) or a bool is refused
+    even where `float` would take it, since such a value in a record (a dataset's ``meta``)
+    is a mistake, not a number.
+
+    Args:
+        name: What `value` is, as the user knows it (e.g. ``"meta['push_height']"``).
+        value: The scalar to check.
+        bound: ``""`` (any finite number), ``"> 0"`` or ``">= 0"``.
+        unit: The unit named in the message (e.g. ``"m"``), if any.
+
+    Returns:
+        `value` as a builtin `float`.
+    """
+    want = "a finite number" + (f" {bound}" if bound else "") + (f" ({unit})" if unit else "")
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, (bool, np.bool_)
+    )
+    v = float(value) if ok else math.nan
+    if not math.isfinite(v) or (bound == "> 0" and v <= 0) or (bound == ">= 0" and v < 0):
+        raise InputError(f"{name} must be {want}, got {value!r}.")
+    return v
 
 
 def check_count(name: str, value: Any, *, minimum: int = 1) -> int:

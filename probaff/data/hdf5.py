@@ -21,6 +21,11 @@ Layout (``format`` ``"probaff-hdf5"``, ``format_version`` 1)::
         world_yaml           text of the world description the data was simulated in
                              (worlds/tabletop.yaml, worlds/sideview.yaml), when known
         scene_yaml           text of the scene template (worlds/scenes/NAME.yaml, ...)
+        checksum             SHA-256 of the text attributes above (`_text_digest`: kind,
+                             object_names, meta, manifest, world_yaml, scene_yaml), written
+                             by probaff and checked on import when present, since HDF5
+                             keeps no checksum of attribute values (absent from other
+                             programs' files)
       /data/<array>          one dataset per array of the schema (`probaff.data.schema`,
                              `probaff.data.skill_schema`), first axis the row (push or
                              skill), the schema's dtype; its attribute:
@@ -55,8 +60,12 @@ folder that already holds something.
 
 from __future__ import annotations
 
+import hashlib
+import itertools
 import json
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -146,6 +155,7 @@ def _write_file(path: Path, ds: ArrayDataset, manifest: dict[str, Any] | None, l
         }
         if manifest is not None:
             attrs["manifest"] = json.dumps(manifest, indent=1, sort_keys=True) + "\n"
+        attrs["checksum"] = _text_digest({k: v for k, v in attrs.items() if k in _CHECKED})
         data.attrs.update(attrs)
         for name in sorted(ds.arrays):
             arr = np.ascontiguousarray(ds.arrays[name])
@@ -213,17 +223,91 @@ def export_hdf5(
     return target
 
 
+_CHECKED = ("kind", "object_names", "meta", "manifest", "world_yaml", "scene_yaml")
+"""The text attributes of /data that the ``checksum`` attribute covers."""
+
+
+def _text_digest(texts: dict[str, Any]) -> str:
+    """SHA-256 (hex) of the text attributes `texts` (name to text), in a fixed order."""
+    blob = json.dumps({k: texts[k] for k in _CHECKED if k in texts}, sort_keys=True)
+    return hashlib.sha256(blob.encode("utf-8")).hexdigest()
+
+
+def _verify_checksum(data: h5py.Group, file: Path, reading: _Reading) -> None:
+    """Refuse a file whose text attributes do not match its ``checksum`` attribute (if any).
+
+    Raises:
+        DatasetError: Naming the file and the attributes, when they were damaged or edited.
+    """
+    reading.at = "attribute 'checksum' of /data"
+    stored = _text_attr(data, file, "checksum")
+    if stored is None:
+        return
+    texts: dict[str, Any] = {}
+    for name in _CHECKED:
+        reading.at = f"attribute {name!r} of /data"
+        text = _text_attr(data, file, name)
+        if text is not None:
+            texts[name] = text
+    if _text_digest(texts) != stored:
+        raise DatasetError(
+            f"{file}: the attributes {sorted(texts)} of /data do not match the SHA-256 "
+            "checksum stored with them (attribute 'checksum'): the file was damaged or edited "
+            "after probaff wrote it; export it again."
+        )
+
+
+_H5PY_ERRORS = (OSError, RuntimeError, KeyError, ValueError, TypeError, IndexError)
+"""What h5py raises on a damaged file: HDF5's own errors surface as these built-in types."""
+
+
+class _Reading:
+    """Where in a file a read is: the group, dataset or attribute named when it fails."""
+
+    def __init__(self, file: Path) -> None:
+        self.file = file
+        self.at = "the file's superblock"
+
+    @contextmanager
+    def boundary(self) -> Iterator[None]:
+        """Turn any error h5py raises inside into one `DatasetError` naming the file and `at`.
+
+        Errors probaff raises on purpose (`ProbaffError`) pass unchanged.
+
+        Raises:
+            DatasetError: For an h5py error (`_H5PY_ERRORS`): the file is damaged where the
+                message says.
+        """
+        try:
+            yield
+        except ProbaffError:
+            raise
+        except _H5PY_ERRORS as exc:
+            why = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:200]
+            raise DatasetError(
+                f"{self.file}: {self.at} cannot be read: the file is truncated or corrupted "
+                f"({type(exc).__name__}: {why}); export it again."
+            ) from None
+
+
 def _text_attr(data: h5py.Group, file: Path, name: str) -> str | None:
     """Attribute `name` of ``/data`` as text, ``None`` when absent."""
     if name not in data.attrs:
         return None
     value = data.attrs[name]
     if isinstance(value, bytes):
-        value = value.decode("utf-8", errors="replace")
+        value = value.decode("utf-8", errors="surrogateescape")
     if not isinstance(value, str):
         raise DatasetError(
             f"{file}: attribute {name!r} of /data is {type(value).__name__}, expected text."
         )
+    try:
+        value.encode("utf-8")
+    except UnicodeEncodeError:  # h5py and the decode above keep bad bytes as surrogates
+        raise DatasetError(
+            f"{file}: attribute {name!r} of /data is not valid UTF-8 text: the file is damaged "
+            "or was written with another encoding; export it again (as UTF-8)."
+        ) from None
     return value
 
 
@@ -260,18 +344,22 @@ def _open(file: Path) -> h5py.File:
         ) from None
 
 
-def _data_group(fh: h5py.File, file: Path) -> h5py.Group:
+def _data_group(fh: h5py.File, file: Path, reading: _Reading) -> h5py.Group:
+    reading.at = "group /data"
     data = fh.get("data")
     if not isinstance(data, _h5py().Group):
         raise DatasetError(
-            f"{file} has no group '/data'; the layout puts every array under /data and the "
-            "dataset's description in its attributes (see probaff.data.hdf5)."
+            f"{file} has no group '/data' (or its metadata is damaged); the layout puts every "
+            "array under /data and the dataset's description in its attributes (see "
+            "probaff.data.hdf5)."
         )
+    reading.at = "attribute 'format' of /data"
     fmt = _text_attr(data, file, "format")
     if fmt is not None and fmt != HDF5_FORMAT:
         raise DatasetError(f"{file}: /data has format {fmt!r}, expected {HDF5_FORMAT!r}.")
+    reading.at = "attribute 'format_version' of /data"
     version = data.attrs.get("format_version", HDF5_FORMAT_VERSION)
-    if version != HDF5_FORMAT_VERSION:
+    if not isinstance(version, (int, np.integer)) or version != HDF5_FORMAT_VERSION:
         raise DatasetError(
             f"{file}: /data has format_version {version!r}, but this probaff reads version "
             f"{HDF5_FORMAT_VERSION}; import it with the probaff release that wrote it."
@@ -280,12 +368,23 @@ def _data_group(fh: h5py.File, file: Path) -> h5py.Group:
 
 
 def _read_arrays(
-    data: h5py.Group, file: Path, cls: type[ArrayDataset], rows: Any = ()
+    data: h5py.Group,
+    file: Path,
+    cls: type[ArrayDataset],
+    rows: Any = (),
+    reading: _Reading | None = None,
 ) -> tuple[dict[str, np.ndarray], dict[str, str]]:
-    """Every array under /data (or row `rows` of each) with its units, checked by name."""
+    """Every array under /data (or row `rows` of each) with its units, checked by name.
+
+    `reading`, when given, is kept at the object being read (for `_Reading.boundary`).
+    """
     known = {**cls.REQUIRED, **cls.OPTIONAL}
     arrays, units = {}, {}
+    if reading is not None:
+        reading.at = "the list of arrays under /data"
     for name, item in data.items():
+        if reading is not None:
+            reading.at = f"/data/{name}"
         if not isinstance(item, _h5py().Dataset):
             raise DatasetError(
                 f"{file}: /data/{name} is a group, expected an array: arrays are datasets "
@@ -296,6 +395,13 @@ def _read_arrays(
                 f"{file}: /data/{name} is not a {cls.KIND} array; the {cls.KIND} arrays are "
                 f"{sorted(known)}."
             )
+        if item.shape is None or len(item.shape) == 0:
+            raise DatasetError(
+                f"{file}: /data/{name} is a scalar (or empty) dataset, expected an array with "
+                "one row per push or skill (first axis the row; see probaff.data.hdf5)."
+            )
+        if reading is not None:
+            reading.at = f"attribute 'units' of /data/{name}"
         unit = item.attrs.get("units")
         if isinstance(unit, bytes):
             unit = unit.decode("utf-8", errors="replace")
@@ -304,6 +410,11 @@ def _read_arrays(
                 f"{file}: /data/{name} has no 'units' attribute; expected "
                 f"{cls.UNITS[name]!r} (see probaff.data.hdf5)."
             )
+        if reading is not None:
+            reading.at = f"the chunk index of /data/{name}"
+        _check_chunks(item, f"/data/{name}", file, rows)
+        if reading is not None:
+            reading.at = f"/data/{name}"
         try:
             arrays[name] = np.asarray(item[rows])
         except (OSError, ValueError, TypeError) as exc:
@@ -313,6 +424,45 @@ def _read_arrays(
             ) from None
         units[name] = str(unit)
     return arrays, units
+
+
+def _check_chunks(item: h5py.Dataset, where: str, file: Path, rows: Any) -> None:
+    """Refuse a chunked array whose chunks to be read are not all stored, intact and whole.
+
+    HDF5 reads a chunk missing from its index as fill values (zeros) and one whose filter
+    mask skips a filter unfiltered, with no error; a damaged chunk index (which carries no
+    checksum in this layout's HDF5 1.8 format) does both. Every chunk of an array (or the
+    one of row `rows`, an int) must therefore be found, by its coordinates, with every
+    filter applied. Each chunk's stored bytes are read once more for this (compressed, so
+    a fraction of the array's size).
+
+    Raises:
+        DatasetError: Naming the file and the array.
+    """
+    chunks = item.chunks
+    if chunks is None or item.size == 0:
+        return
+    shape, dsid = item.shape, item.id
+    grid = [range(0, n, c) for n, c in zip(shape, chunks, strict=True)]
+    if isinstance(rows, (int, np.integer)):
+        first = int(rows) // chunks[0] * chunks[0]
+        grid[0] = range(first, first + 1)
+    missing, skipped = 0, 0
+    for coord in itertools.product(*grid):
+        # as a read looks chunks up (get_chunk_info_by_coord misses a damaged index key)
+        try:
+            mask, _ = dsid.read_direct_chunk(tuple(int(v) for v in coord))
+        except (RuntimeError, KeyError, OSError, ValueError):
+            missing += 1
+            continue
+        skipped += bool(mask)
+    if missing or skipped:
+        raise DatasetError(
+            f"{file}: {where} has {missing} chunk(s) missing from its chunk index and "
+            f"{skipped} stored with a filter skipped, which HDF5 would read as zeros or "
+            "unfiltered bytes without an error; the file is damaged (or was written only in "
+            "part): export it again, writing every row."
+        )
 
 
 def import_hdf5(
@@ -350,18 +500,24 @@ def import_hdf5(
         shard_size = check_count("shard_size", shard_size)
     check_new_dataset_folder(path)
     source = Path(os.fspath(file))
-    with _open(source) as fh:
-        data = _data_group(fh, source)
-        kind = _text_attr(data, source, "kind") or "push"
+    reading = _Reading(source)
+    with reading.boundary(), _open(source) as fh:
+        data = _data_group(fh, source, reading)
+        _verify_checksum(data, source, reading)
+        kind = _kind(data, source, reading)
         if kind not in _CLASSES:
             raise DatasetError(
                 f"{source}: attribute 'kind' of /data is {kind!r}, expected one of "
                 f"{sorted(_CLASSES)}."
             )
+        reading.at = "attribute 'object_names' of /data"
         names = _json_attr(data, source, "object_names", list, None)
+        reading.at = "attribute 'meta' of /data"
         meta = _json_attr(data, source, "meta", dict, {})
+        reading.at = "attribute 'manifest' of /data"
         manifest = _json_attr(data, source, "manifest", dict, {}) or None
-        arrays, units = _read_arrays(data, source, _CLASSES[kind])
+        arrays, units = _read_arrays(data, source, _CLASSES[kind], reading=reading)
+        reading.at = "the file's metadata (on closing it)"
     try:
         ds: ArrayDataset = (
             observation_dataset(arrays, names, meta, kind="skill", units=units)
@@ -394,13 +550,47 @@ def read_row(file: str | os.PathLike[str], index: int) -> dict[str, np.ndarray]:
     """
     source = Path(os.fspath(file))
     index = check_count("index", index, minimum=0)
-    with _open(source) as fh:
-        data = _data_group(fh, source)
-        kind = _text_attr(data, source, "kind") or "push"
-        cls = _CLASSES.get(kind, PushDataset)
-        stored = [d for d in data.values() if isinstance(d, _h5py().Dataset)]
-        rows = len(stored[0]) if stored else 0
+    reading = _Reading(source)
+    with reading.boundary(), _open(source) as fh:
+        data = _data_group(fh, source, reading)
+        _verify_checksum(data, source, reading)
+        cls = _CLASSES.get(_kind(data, source, reading), PushDataset)
+        rows = _row_count(data, source, reading)
         if index >= rows:
             raise InputError(f"index must be below the file's {rows} rows, got {index}.")
-        arrays, _ = _read_arrays(data, source, cls, index)
+        arrays, _ = _read_arrays(data, source, cls, index, reading)
+        reading.at = "the file's metadata (on closing it)"
     return arrays
+
+
+def _kind(data: h5py.Group, file: Path, reading: _Reading) -> str:
+    """The ``kind`` attribute of /data (``"push"`` when absent)."""
+    reading.at = "attribute 'kind' of /data"
+    return _text_attr(data, file, "kind") or "push"
+
+
+def _row_count(data: h5py.Group, file: Path, reading: _Reading) -> int:
+    """The rows of the arrays under /data, which must all have the same first axis.
+
+    Raises:
+        DatasetError: Naming a scalar array, or two arrays whose row counts disagree.
+    """
+    counts: dict[str, int] = {}
+    for name, item in data.items():
+        reading.at = f"/data/{name}"
+        if not isinstance(item, _h5py().Dataset):
+            continue
+        if item.shape is None or len(item.shape) == 0:
+            raise DatasetError(
+                f"{file}: /data/{name} is a scalar (or empty) dataset, expected an array with "
+                "one row per push or skill (first axis the row; see probaff.data.hdf5)."
+            )
+        counts[name] = int(item.shape[0])
+    if len(set(counts.values())) > 1:
+        (a, n), (b, m) = sorted(counts.items(), key=lambda kv: (kv[1], kv[0]))[:: len(counts) - 1]
+        raise DatasetError(
+            f"{file}: the arrays under /data disagree in their number of rows (/data/{a} has "
+            f"{n}, /data/{b} has {m}); every array has one row per push or skill: write them "
+            "again with the same rows."
+        )
+    return next(iter(counts.values()), 0)

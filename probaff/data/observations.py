@@ -20,6 +20,19 @@ What is checked, for every array given:
 * units: `units`, when given, must name each array's units as the schema does
   (`probaff.data.schema.ARRAY_UNITS`); whatever is given, lengths beyond `MAX_METRES` and
   angles beyond `MAX_RADIANS` are refused as another unit (millimetres, degrees);
+* scene scale (pushes): a ``push_distance`` or an ``object_size`` longer than the table's
+  diagonal (``meta["table_size"]``, else 1 x 0.8 m) is refused as millimetres, and two
+  consecutive yaws of one push (an object's ``state_before``, ``traj_objects`` samples and
+  ``state_after``; the hand's ``traj_hand`` and ``traj_commanded`` samples) more than pi
+  apart are refused as wrapped or in degrees;
+* angles (pushes): with ``angles="wrapped"`` (yaws logged within (-pi, pi]) each push's yaws
+  are first unwrapped along its time axis by ``numpy.unwrap``: every yaw after the pose before
+  the push gets the multiple of 2 pi that brings it within pi of the one before it (the pose
+  before keeps its value); the schema's default ``angles="unwrapped"`` takes them as given;
+* meta: a mapping whose world entries (pushes: ``push_height``, ``gripper_opening``,
+  ``finger_radius``, ``table_size``, ...; skills: ``lift``, ``record_rate``, ...) must be
+  finite numbers (not strings or bools) within their bounds, checked when the dataset is
+  built rather than when features run;
 * frames (pushes): cloud normals must be unit vectors, each object's position before the push
   must lie within its cloud's footprint grown by `frame_tolerance` (clouds are world points,
   not object- or camera-frame ones), and a given ``effect`` must be the pushing-frame
@@ -38,6 +51,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal, overload
@@ -46,6 +60,14 @@ import numpy as np
 
 from probaff._checks import check_count, check_positive
 from probaff.data.dataset import ArrayDataset, shape_problem
+from probaff.data.observation_checks import (
+    bad_rows,
+    check_meta,
+    check_scale,
+    check_yaw_steps,
+    row_message,
+    unwrap_yaws,
+)
 from probaff.data.schema import PushDataset
 from probaff.data.skill_schema import NO_OBJECT, SkillDataset
 from probaff.errors import DatasetError, InputError
@@ -69,6 +91,7 @@ degrees."""
 _EFFECT_TOLERANCE = 1e-4  # m and rad: a given effect versus the poses' pushing-frame difference
 _NORMAL_TOLERANCE = 0.05  # how far a unit normal's length may stray from 1
 _KINDS: dict[str, type[ArrayDataset]] = {"push": PushDataset, "skill": SkillDataset}
+_ANGLES = ("unwrapped", "wrapped")
 
 
 @dataclass(frozen=True)
@@ -104,7 +127,20 @@ def observations_of(ds: ArrayDataset) -> dict[str, np.ndarray]:
         Its arrays without those of ``ds.SIMULATOR_ONLY`` (for pushes the simulator's arrays
         and the exact ``true_*`` poses; for skills the simulator's arrays), shared, not
         copied.
+
+    Raises:
+        InputError: If `ds` is not a dataset (a folder's path, say: load it first).
     """
+    if not isinstance(ds, ArrayDataset):
+        if isinstance(ds, (str, os.PathLike)):
+            raise InputError(
+                f"observations_of needs a dataset, got the path {os.fspath(ds)!r}; load it "
+                "first: observations_of(probaff.data.load_any_dataset(path))."
+            )
+        raise InputError(
+            f"observations_of needs a dataset (a PushDataset or SkillDataset), got "
+            f"{type(ds).__name__}; load one with probaff.data.load_any_dataset(path)."
+        )
     return {k: v for k, v in ds.arrays.items() if k not in ds.SIMULATOR_ONLY}
 
 
@@ -141,26 +177,13 @@ def _convert(name: str, value: Any, dtype: str) -> np.ndarray:
     return arr.astype(target)
 
 
-def _row_message(rows: np.ndarray) -> str:
-    """``"row 3"`` or ``"row 3 (and 2 more rows)"`` for the flagged rows."""
-    first, others = int(rows[0]), rows.size - 1
-    return f"row {first}" + (
-        f" (and {others} more row{'s' if others > 1 else ''})" if others else ""
-    )
-
-
-def _bad_rows(mask: np.ndarray) -> np.ndarray:
-    """Rows (first axis) where the boolean `mask` holds anywhere."""
-    return np.flatnonzero(mask.reshape(len(mask), -1).any(axis=1)) if mask.size else np.zeros(0)
-
-
 def _check_finite(name: str, arr: np.ndarray) -> None:
     if arr.dtype.kind != "f":
         return
-    rows = _bad_rows(~np.isfinite(arr))
+    rows = bad_rows(~np.isfinite(arr))
     if rows.size:
         raise InputError(
-            f"array {name!r} holds NaN or inf in {_row_message(rows)}; drop or repair those "
+            f"array {name!r} holds NaN or inf in {row_message(rows)}; drop or repair those "
             "rows before building the dataset."
         )
 
@@ -173,12 +196,12 @@ def _check_units(name: str, arr: np.ndarray, units: str) -> None:
         limit = {"m": MAX_METRES, "rad": MAX_RADIANS}.get(unit)
         if limit is None or values.size == 0:
             continue
-        rows = _bad_rows(np.abs(values) > limit)
+        rows = bad_rows(np.abs(values) > limit)
         if rows.size:
             worst = float(np.abs(values[int(rows[0])]).max())
             other = "millimetres" if unit == "m" else "degrees"
             raise InputError(
-                f"array {name!r} ({units}) holds {worst:.6g} in {_row_message(rows)}, beyond "
+                f"array {name!r} ({units}) holds {worst:.6g} in {row_message(rows)}, beyond "
                 f"{limit:.4g} {unit}: it looks like {other}; give lengths in metres and angles "
                 "in radians."
             )
@@ -232,11 +255,11 @@ def _convert_all(
 
 
 def _check_ids(ids: np.ndarray, names: list[str], lowest: int) -> None:
-    rows = _bad_rows((ids < lowest) | (ids >= len(names)))
+    rows = bad_rows((ids < lowest) | (ids >= len(names)))
     if rows.size:
         bad = ids[int(rows[0])]
         raise InputError(
-            f"array 'object_ids' holds {bad.tolist()} in {_row_message(rows)}, outside "
+            f"array 'object_ids' holds {bad.tolist()} in {row_message(rows)}, outside "
             f"object_names ({len(names)} names, ids 0..{len(names) - 1}"
             f"{', or -1 for an empty slot' if lowest < 0 else ''})."
         )
@@ -260,10 +283,10 @@ def _sample_clouds(
     size: np.ndarray, poses: np.ndarray, sampling: CloudSampling
 ) -> tuple[np.ndarray, np.ndarray]:
     """(N, K, P, 3) clouds and normals on boxes `size (N, K, 3)` at `poses (N, K, 3)`."""
-    rows = _bad_rows(size <= 0)
+    rows = bad_rows(size <= 0)
     if rows.size:
         raise InputError(
-            f"array 'object_size' holds a length, width or height <= 0 in {_row_message(rows)}; "
+            f"array 'object_size' holds a length, width or height <= 0 in {row_message(rows)}; "
             "give each box's (length, width, height) in metres."
         )
     n, k = size.shape[:2]
@@ -292,12 +315,12 @@ def _check_effect(arrays: dict[str, np.ndarray], prefix: str) -> None:
     if name not in arrays or before is None or after is None:
         return
     diff = np.abs(arrays[name] - _effects(before, after, arrays["push_yaw"]))
-    rows = _bad_rows(diff > _EFFECT_TOLERANCE)
+    rows = bad_rows(diff > _EFFECT_TOLERANCE)
     if rows.size:
         raise InputError(
             f"array {name!r} differs from the pushing-frame difference of "
             f"'{prefix}state_before' and '{prefix}state_after' by up to "
-            f"{float(diff[int(rows[0])].max()):.3g} in {_row_message(rows)}; it must be "
+            f"{float(diff[int(rows[0])].max()):.3g} in {row_message(rows)}; it must be "
             "(dy_p, dz_p, dtheta_p) in the frame of push_yaw (leave it out to have it computed)."
         )
 
@@ -306,12 +329,12 @@ def _check_clouds(arrays: dict[str, np.ndarray], tolerance: float) -> None:
     """Unit normals, and each object's position within its cloud's grown footprint."""
     pts, nrm, pose = arrays["cloud_points"], arrays["cloud_normals"], arrays["state_before"]
     length = np.linalg.norm(nrm.astype(np.float64), axis=-1)
-    rows = _bad_rows(np.abs(length - 1.0) > _NORMAL_TOLERANCE)
+    rows = bad_rows(np.abs(length - 1.0) > _NORMAL_TOLERANCE)
     if rows.size:
         i = int(rows[0])
         raise InputError(
             f"array 'cloud_normals' holds normals of length {length[i].min():.3g} to "
-            f"{length[i].max():.3g} in {_row_message(rows)}; give unit outward normals in the "
+            f"{length[i].max():.3g} in {row_message(rows)}; give unit outward normals in the "
             "world frame."
         )
     if pts.shape[2] == 0:
@@ -319,12 +342,12 @@ def _check_clouds(arrays: dict[str, np.ndarray], tolerance: float) -> None:
     lo, hi = pts[..., :2].min(axis=2), pts[..., :2].max(axis=2)  # (N, K, 2)
     xy = pose[..., :2]
     outside = (xy < lo - tolerance) | (xy > hi + tolerance)
-    rows = _bad_rows(outside)
+    rows = bad_rows(outside)
     if rows.size:
         i = int(rows[0])
         j = int(np.flatnonzero(outside[i].any(axis=-1))[0])
         raise InputError(
-            f"array 'cloud_points' in {_row_message(rows)}, object {j}: the cloud spans x in "
+            f"array 'cloud_points' in {row_message(rows)}, object {j}: the cloud spans x in "
             f"[{lo[i, j, 0]:.3f}, {hi[i, j, 0]:.3f}] and y in [{lo[i, j, 1]:.3f}, "
             f"{hi[i, j, 1]:.3f}] m, but 'state_before' puts the object at "
             f"({xy[i, j, 0]:.3f}, {xy[i, j, 1]:.3f}); clouds are world-frame points of the "
@@ -341,9 +364,9 @@ def _complete_push(
             raise InputError(f"push observations need array {name!r}; see OBSERVATION_ARRAYS.")
     if "push_distance" not in arrays:
         raise InputError("push observations need array 'push_distance' (m, > 0).")
-    rows = _bad_rows(arrays["push_distance"] <= 0)
+    rows = bad_rows(arrays["push_distance"] <= 0)
     if rows.size:
-        raise InputError(f"array 'push_distance' must be > 0 (m); see {_row_message(rows)}.")
+        raise InputError(f"array 'push_distance' must be > 0 (m); see {row_message(rows)}.")
     out = dict(arrays)
     n = len(out["object_ids"])
     has_clouds = [name in out for name in ("cloud_points", "cloud_normals")]
@@ -385,23 +408,69 @@ def _complete_skill(arrays: dict[str, np.ndarray], meta: Mapping[str, Any]) -> N
     if bad.any():
         raise InputError(
             f"array 'target' must be the slot of a present object (0..{k - 1}, object_ids not "
-            f"-1); see {_row_message(np.flatnonzero(bad))}."
+            f"-1); see {row_message(np.flatnonzero(bad))}."
         )
     bad = (support < -1) | (support >= k)
     if bad.any():
         raise InputError(
             f"array 'support' must be -1 (the table) or an object slot (0..{k - 1}); see "
-            f"{_row_message(np.flatnonzero(bad))}."
+            f"{row_message(np.flatnonzero(bad))}."
         )
-    small = _bad_rows((arrays["size"] <= 0).any(axis=-1) & (ids != NO_OBJECT))
+    small = bad_rows((arrays["size"] <= 0).any(axis=-1) & (ids != NO_OBJECT))
     if small.size:
         raise InputError(
             f"array 'size' holds a length, depth or height <= 0 for a present object in "
-            f"{_row_message(small)}; give each box's size in metres."
+            f"{row_message(small)}; give each box's size in metres."
         )
     skill = meta.get("skill")
     if skill is not None and skill not in ("pick", "place"):
         raise InputError(f"meta['skill'] must be 'pick' or 'place', got {skill!r}.")
+
+
+def _checked_options(
+    kind: str, object_names: Any, meta: Any, units: Any, angles: Any
+) -> tuple[list[str], dict[str, Any]]:
+    """The names and a copy of `meta`, after checking the options of `observation_dataset`.
+
+    `meta` is typed per `kind` by `check_meta`.
+    """
+    if angles not in _ANGLES:
+        raise InputError(
+            f"angles must be 'unwrapped' (yaws logged as they turn, the schema's) or 'wrapped' "
+            f"(yaws logged within (-pi, pi], unwrapped here), got {angles!r}."
+        )
+    if isinstance(object_names, (str, bytes)):
+        raise InputError(
+            f"object_names must be a list of names, not one string, got {object_names!r}; "
+            f"give [{object_names!r}] for a single object."
+        )
+    names = list(object_names) if isinstance(object_names, Sequence) else []
+    if (
+        not names
+        or not all(isinstance(n, str) and n for n in names)
+        or len(set(names)) < len(names)
+    ):
+        raise InputError(
+            f"object_names must be a non-empty list of distinct names, got {object_names!r}."
+        )
+    for what, value, example in (
+        ("meta", meta, "probaff.data.queries.world_meta(world)"),
+        ("units", units, "{'state_before': 'm, m, rad'}"),
+    ):
+        if value is not None and not isinstance(value, Mapping):
+            raise InputError(
+                f"{what} must be a mapping of names to values (e.g. {example}), or None, got "
+                f"{type(value).__name__} {value!r:.60}."
+            )
+    meta = dict(meta or {})
+    try:
+        json.dumps(meta)
+    except (TypeError, ValueError) as exc:
+        raise InputError(
+            f"meta must be JSON-serialisable (numbers, strings, lists, mappings): {exc}."
+        ) from None
+    check_meta(kind, meta)
+    return names, meta
 
 
 @overload
@@ -414,6 +483,7 @@ def observation_dataset(
     units: Mapping[str, str] | None = ...,
     sampling: CloudSampling | None = ...,
     frame_tolerance: float = ...,
+    angles: str = ...,
 ) -> PushDataset: ...
 
 
@@ -427,6 +497,7 @@ def observation_dataset(
     units: Mapping[str, str] | None = ...,
     sampling: CloudSampling | None = ...,
     frame_tolerance: float = ...,
+    angles: str = ...,
 ) -> SkillDataset: ...
 
 
@@ -439,6 +510,7 @@ def observation_dataset(
     units: Mapping[str, str] | None = None,
     sampling: CloudSampling | None = None,
     frame_tolerance: float = 0.1,
+    angles: str = "unwrapped",
 ) -> ArrayDataset:
     """Build a push or skill dataset from a robot's arrays, checking each one.
 
@@ -466,6 +538,11 @@ def observation_dataset(
             (``CloudSampling()`` if ``None``).
         frame_tolerance: How far (m) an object's position before the push may lie outside
             its cloud's xy extent, > 0.
+        angles: Pushes' yaws: ``"unwrapped"`` (default, the schema's: given as the objects
+            turn, consecutive yaws of a push within pi of each other) or ``"wrapped"``
+            (logged within (-pi, pi]): each push's yaws are unwrapped along its time axis
+            with ``numpy.unwrap`` (see the module docstring). Skills' angles are taken as
+            given.
 
     Returns:
         The dataset: a `PushDataset` or a `SkillDataset`, observation-only when it lacks an
@@ -473,8 +550,10 @@ def observation_dataset(
 
     Raises:
         InputError: Naming the array (and the first row) that is missing, of the wrong
-            dtype, shape or units, not finite, in another frame, or indexing outside
-            `object_names`; or for a bad `kind`, `object_names` or `meta`.
+            dtype, shape or units, not finite, in another frame, of another scale (a push or
+            box longer than the table's diagonal, a yaw step above pi), or indexing outside
+            `object_names`; or for a bad `kind`, `object_names`, `units`, `angles` or
+            `meta` (naming the entry).
     """
     cls = _KINDS.get(kind) if isinstance(kind, str) else None
     if cls is None:
@@ -482,22 +561,7 @@ def observation_dataset(
     check_positive("frame_tolerance", frame_tolerance)
     if sampling is not None and not isinstance(sampling, CloudSampling):
         raise InputError(f"sampling must be a CloudSampling or None, got {sampling!r}.")
-    names = list(object_names) if isinstance(object_names, Sequence) else []
-    if (
-        not names
-        or not all(isinstance(n, str) and n for n in names)
-        or len(set(names)) < len(names)
-    ):
-        raise InputError(
-            f"object_names must be a non-empty list of distinct names, got {object_names!r}."
-        )
-    meta = dict(meta or {})
-    try:
-        json.dumps(meta)
-    except (TypeError, ValueError) as exc:
-        raise InputError(
-            f"meta must be JSON-serialisable (numbers, strings, lists, mappings): {exc}."
-        ) from None
+    names, meta = _checked_options(kind, object_names, meta, units, angles)
     out = _convert_all(cls, arrays, dict(units or {}))
     missing = [n for n in cls.REQUIRED if n not in out and n not in _FILLED[kind]]
     if missing:
@@ -507,6 +571,10 @@ def observation_dataset(
         )
     _check_ids(out["object_ids"], names, NO_OBJECT if kind == "skill" else 0)
     if kind == "push":
+        if angles == "wrapped":
+            out = unwrap_yaws(out)
+        check_yaw_steps(out)
+        check_scale(out, meta)
         out = _complete_push(out, sampling, float(frame_tolerance))
     else:
         _complete_skill(out, meta)

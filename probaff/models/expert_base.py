@@ -23,7 +23,7 @@ from probaff.models._scaling import Standardizer
 from probaff.models.kernels import lengthscale_prior
 from probaff.models.likelihood import WeightedGaussianLikelihood
 from probaff.models.options import NOISE_BOUNDS, GPOptions
-from probaff.models.tensors import as_matrix, as_vector, check_to_device
+from probaff.models.tensors import as_matrix, as_vector, check_to_device, resolve_device
 
 __all__ = ["WeightedExpert", "noise_floor_vector", "out_of_sample"]
 
@@ -117,6 +117,15 @@ class WeightedExpert(torch.nn.Module):
         """
         check_to_device(args, kwargs)
         return super().to(*args, **kwargs)
+
+    def cuda(self, device: int | torch.device | None = None) -> Self:
+        """`torch.nn.Module.cuda`, refusing a CUDA device that this machine does not have.
+
+        Raises:
+            InputError: On a machine without CUDA, or for a CUDA index it does not have.
+        """
+        resolve_device("device", "cuda" if device is None else device)
+        return super().cuda(device)
 
     def weighted_rows(self, X: Any, Y: Any, weights: Any | None) -> tuple[Tensor, Tensor, Tensor]:
         """Validate a weighted training set and set the scalers, noise floor and weights.

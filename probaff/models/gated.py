@@ -26,7 +26,7 @@ from probaff.models.columns import (
     resolve_groups,
 )
 from probaff.models.gate import SoftmaxGate
-from probaff.models.tensors import as_matrix, check_to_device
+from probaff.models.tensors import as_matrix, check_to_device, resolve_device
 
 __all__ = [
     "ExpertList",
@@ -247,6 +247,15 @@ class GatedMixture(torch.nn.Module, Generic[ExpertT], metaclass=abc.ABCMeta):
         """
         check_to_device(args, kwargs)
         return super().to(*args, **kwargs)
+
+    def cuda(self, device: int | torch.device | None = None) -> Self:
+        """`torch.nn.Module.cuda`, refusing a CUDA device that this machine does not have.
+
+        Raises:
+            InputError: On a machine without CUDA, or for a CUDA index it does not have.
+        """
+        resolve_device("device", "cuda" if device is None else device)
+        return super().cuda(device)
 
     # ---------------------------------------------------------------- fitted
     @property

@@ -70,28 +70,46 @@ def _gate_block(x_gate: np.ndarray, seed: int) -> np.ndarray:
 
 
 def _gmm_responsibilities(
-    z: np.ndarray, n_components: int, *, n_init: int, seed: int, weights: np.ndarray | None = None
+    z: np.ndarray,
+    n_components: int,
+    *,
+    n_init: int,
+    seed: int,
+    weights: np.ndarray | None = None,
+    drawn: bool = False,
 ) -> Tensor:
     """Responsibilities `(N, K)` of a full-covariance Gaussian mixture fitted to `z`.
 
     With `weights`, the mixture is fitted to the rows whose weight is at least half the
-    largest, then evaluated on every row.
+    largest, then evaluated on every row. The mixture is fitted `n_init` times from
+    k-means; with `drawn`, only the first is seeded by k-means and the other `n_init - 1`
+    by `n_components` rows drawn from the data. The fit with the highest likelihood is
+    kept.
     """
     fit_rows = z if weights is None else z[weights >= 0.5 * weights.max()]
     if len(fit_rows) < n_components:
         fit_rows = z
-    gmm = GaussianMixture(
-        n_components=n_components,
-        covariance_type="full",
-        n_init=n_init,
-        random_state=seed,
-        reg_covar=1e-4,
-        max_iter=200,
-    )
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ConvergenceWarning)
-        gmm.fit(fit_rows)
-    return torch.as_tensor(gmm.predict_proba(z), dtype=torch.float64, device=torch.device("cpu"))
+    seedings = [("kmeans", 1), ("random_from_data", n_init - 1)] if drawn else [("kmeans", n_init)]
+    best: GaussianMixture | None = None
+    for init_params, count in seedings:
+        if count == 0:
+            continue
+        gmm = GaussianMixture(
+            n_components=n_components,
+            covariance_type="full",
+            n_init=count,
+            random_state=seed,
+            reg_covar=1e-4,
+            max_iter=200,
+            init_params=init_params,
+        )
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            gmm.fit(fit_rows)
+        if best is None or gmm.lower_bound_ > best.lower_bound_:
+            best = gmm
+    assert best is not None
+    return torch.as_tensor(best.predict_proba(z), dtype=torch.float64, device=torch.device("cpu"))
 
 
 def initial_responsibilities(
@@ -124,7 +142,7 @@ def initial_responsibilities(
     if init == "joint":
         g = _gate_block(x_gate.detach().cpu().numpy(), seed)
         z = np.concatenate([g * np.sqrt(z.shape[1] / g.shape[1]), z], axis=1)
-    return _gmm_responsibilities(z, n_experts, n_init=n_init, seed=seed).to(Y.device)
+    return _gmm_responsibilities(z, n_experts, n_init=n_init, seed=seed, drawn=True).to(Y.device)
 
 
 def split_responsibilities(

@@ -21,6 +21,7 @@ from probaff.models.gate import GATE_KINDS, make_gate
 from probaff.models.gate_penalty import check_strength
 from probaff.models.gated import ExpertList, GatedMixture, gated_probs, mixture_distribution
 from probaff.models.gp_expert import GPExpert
+from probaff.models.options import check_hyper_rows
 from probaff.models.point import (
     MIN_STACK_ROWS,
     POINT_KINDS,
@@ -146,7 +147,8 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
     Raises:
         InputError: If a selection names an unknown group, `n_experts` is not positive,
             `experts` is not a known kind, `n_inducing` or `hyper_rows` is not a
-            positive integer, or `point` is not a known kind.
+            positive integer, `hyper_rows` is below the inducing points
+            (`probaff.models.options.check_hyper_rows`), or `point` is not a known kind.
     """
 
     not_fitted_message = _NOT_FITTED
@@ -193,7 +195,7 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
             )
         self.expert_kind = experts
         self.n_inducing = None if n_inducing is None else check_count("n_inducing", n_inducing)
-        self.hyper_rows = None if hyper_rows is None else check_count("hyper_rows", hyper_rows)
+        self.hyper_rows = check_hyper_rows(hyper_rows, self.n_inducing)
         if not isinstance(point, str) or point not in POINT_KINDS:
             raise InputError(
                 f"point must be one of {list(POINT_KINDS)}, got {point!r}; 'stacked' for the "

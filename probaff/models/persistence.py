@@ -234,8 +234,9 @@ def load(path: str | os.PathLike[str]) -> Any:
     Raises:
         InputError: If `path` does not exist, is a folder or cannot be read, or is not a
             complete, intact saved model of a known format (a truncated or corrupted file,
-            one whose content fails its hash, another kind of file, an unknown tag or a
-            missing entry).
+            one whose content fails its hash, another kind of file, an unknown tag, a
+            missing entry, or entries that contradict one another, such as stored sizes
+            that disagree with the stored data).
     """
     name, data = _read_bytes(path)
     payload = _unpickle(name, data)
@@ -264,7 +265,10 @@ def load(path: str | os.PathLike[str]) -> Any:
         )
     try:
         return codec.restore(payload)
-    except ProbaffError:
-        raise
+    except ProbaffError as err:  # its hash held, so its entries contradict one another
+        raise InputError(
+            f"{name!r} is an inconsistent saved model ({tag}): its stored sizes or settings "
+            f"disagree with its data ({str(err).rstrip('.')}); {_FIX}."
+        ) from err
     except Exception as err:  # entries of the wrong type or shape fail in many ways
         raise InputError(f"{name!r} holds a corrupt saved model ({tag}): {err}; {_FIX}.") from err

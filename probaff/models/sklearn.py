@@ -26,6 +26,7 @@ from sklearn.pipeline import Pipeline
 from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from probaff._checks import as_float_array
 from probaff._threads import threads_by_rows
 from probaff.errors import InputError, NotFittedError
 from probaff.models.em import fit_em
@@ -69,12 +70,21 @@ class EstimatorNotFittedError(NotFittedError, SklearnNotFittedError):
 
 
 def _validated(estimator: BaseEstimator, *arrays: Any, **kwargs: Any) -> Any:
-    """`validate_data` whose `ValueError` becomes an `InputError` with the same message."""
+    """`validate_data` whose `ValueError` becomes an `InputError` naming the array.
+
+    An array of strings makes numpy's "could not convert string to float" refused by
+    `as_float_array` instead, naming ``X`` (or ``y``); other errors keep scikit-learn's
+    message (its `TypeError` for objects that are not numbers too, as its estimator checks
+    expect).
+    """
     try:
         return validate_data(estimator, *arrays, **kwargs)
     except InputError:
         raise
     except ValueError as err:
+        for name, arr in zip(("X", "y"), arrays, strict=False):
+            if not hasattr(arr, "tocsr"):  # sparse matrices keep scikit-learn's message
+                as_float_array(name, arr)
         raise InputError(str(err)) from err
 
 
@@ -157,7 +167,7 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
         split_merge: int = 2,
         max_iter: int = 10,
         tol: float = 1e-3,
-        n_init: int = 5,
+        n_init: int = 20,
         anneal: bool = False,
         random_state: int | np.random.RandomState | None = None,
     ) -> None:
@@ -264,7 +274,7 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
         X, y = _validated(
             self, X, y, multi_output=True, y_numeric=True, dtype=np.float64, ensure_min_samples=2
         )
-        y2 = y.reshape(len(y), -1)
+        y2 = as_float_array("y", y).reshape(len(y), -1)  # strings pass y_numeric
         seed = self._seed()
         options = self.em_options(seed)
         model = self.make_model()
@@ -332,7 +342,7 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
         X, y = _validated(
             self, X, y, reset=False, multi_output=True, y_numeric=True, dtype=np.float64
         )
-        y2 = y.reshape(len(y), -1)
+        y2 = as_float_array("y", y).reshape(len(y), -1)
         if y2.shape[1] != self.n_targets_:
             raise InputError(
                 f"y has {y2.shape[1]} target(s), but {type(self).__name__} was fitted on "

@@ -35,6 +35,7 @@ from probaff.models.expert_base import WeightedExpert
 from probaff.models.kernels import ard_se_kernel
 from probaff.models.likelihood import weight_correction
 from probaff.models.options import (
+    DEFAULT_N_INDUCING,
     OUTPUTSCALE_BOUNDS,
     SparseGPOptions,
     resolve_options,
@@ -49,17 +50,6 @@ __all__ = [
     "fit_memory_bytes",
     "select_inducing",
 ]
-
-DEFAULT_N_INDUCING = 128
-"""Inducing points per output when `n_inducing` is None (capped by the training rows).
-
-Measured on `probaff.models.synthetic.regime_features` (D = 101, E = 6, M = 3): with one
-M-step on the true regimes, 256 points give a held-out NLPD 0.03 nats per output better than
-128 at N = 2,000 and 10,000, for 2.5 to 4 times the CPU time. The default EM fit of
-N = 10,000 rows (one thread, loaded machine) took 163 CPU-s with 128 points and
-`hyper_rows` = 2,048 (held-out NLPD -4.706 summed over the outputs, RMSE 0.453), and 716
-CPU-s with 256 points and `hyper_rows` = 4,096 (NLPD -4.966, RMSE 0.453): 0.04 nats per
-output for 4.4 times the time, which would put the fit past five minutes."""
 
 # Diagonal jitter of K_uu, relative to the signal variance, tried in turn when a Cholesky
 # factorisation fails.

@@ -26,9 +26,10 @@ Implementations:
   fingertips turning the object, uneven pressure, momentum after the hand stops, obstacles
   that give way. Deterministic.
 
-`check_transition` and `checked_prediction` are the planners' guards: a model that is not a
-transition, or whose predictions are of the wrong shape or not finite, is refused with an
-`InputError` that names it.
+`check_transition`, `check_moves` and `checked_prediction` are the planners' guards: a model
+that is not a transition, that predicts the effects of fewer objects than the task moves, or
+whose predictions are of the wrong shape or not finite, is refused with an `InputError` that
+names it.
 
 Covered by tests/planning/test_planning_transitions.py.
 """
@@ -62,6 +63,7 @@ __all__ = [
     "SimulatorTransition",
     "Transition",
     "TransitionPrediction",
+    "check_moves",
     "check_transition",
     "checked_prediction",
 ]
@@ -183,6 +185,33 @@ def check_transition(transition: Any) -> Transition:
         "transition must be a push transition model with a name and predict(pushes: PushBatch, "
         "n_samples=, rng=) (LearnedTransition, SimulatorTransition or QuasiStaticTransition)",
     )
+
+
+def check_moves(transition: Transition, n_objects: int, task: str, fix: str) -> None:
+    """Refuse a transition whose model predicts the effects of fewer objects than the task moves.
+
+    A `LearnedTransition` moves the first M objects its push model has effects for (M = its
+    outputs / 3) and leaves the others where they are; a planner given one whose M is below
+    the objects its task moves would plan as if they never moved. Transitions that do not
+    say how many objects they move (`LearnedTransition.n_moved` is None, or another kind)
+    are taken to move them all.
+
+    Args:
+        transition: The planner's model of the pushes.
+        n_objects: The objects the task moves (the first of the (K,) objects).
+        task: The task, as the message names it (e.g. ``"the tool push"``).
+        fix: What model to give instead.
+
+    Raises:
+        InputError: Naming the model, its outputs and the task.
+    """
+    moved = getattr(transition, "n_moved", None)
+    if isinstance(moved, int) and moved < n_objects:
+        raise InputError(
+            f"the transition model {_model_name(transition)} predicts the effects of "
+            f"{moved} object(s) ({3 * moved} outputs), but {task} moves {n_objects} objects; "
+            f"the others would never move in its plans. {fix}"
+        )
 
 
 def _model_name(model: Any) -> str:
@@ -337,6 +366,15 @@ class LearnedTransition(_Implementation):
             poses[None, :, :m], draws.reshape(n_samples, n, m, 3), pushes.yaws[None]
         )
         return TransitionPrediction(mean, samples)
+
+    @property
+    def n_moved(self) -> int | None:
+        """Objects whose effects the push model predicts (its outputs / 3), None if unknown."""
+        inner = getattr(self.model, "model", self.model)
+        outputs = getattr(inner, "n_outputs", None)
+        if isinstance(outputs, int) and outputs > 0 and outputs % 3 == 0:
+            return outputs // 3
+        return None
 
     @property
     def _inner(self) -> str:

@@ -319,3 +319,90 @@ def test_a_feature_set_asked_of_an_imported_dataset_without_its_arrays(pushes, t
         match=r"chapter5_features .* needs dataset metadata \['gripper_opening', 'push_height'\]",
     ):
         chapter5_features(bare)
+
+
+def test_read_row_refuses_rows_that_disagree_and_scalar_arrays(pushes, tmp_path):
+    file = _observed_file(tmp_path / "robot.h5", load_dataset(pushes))
+    _edit(file, _replace("push_yaw", np.zeros(7)))
+    with pytest.raises(
+        DatasetError,
+        match=r"robot\.h5: the arrays under /data disagree in their number of rows "
+        r"\(/data/push_yaw has 7, /data/\w+ has 10\)",
+    ):
+        read_row(file, 0)
+    with pytest.raises(DatasetError, match=r"robot\.h5 \(/data\): array 'push_yaw' has shape"):
+        import_hdf5(file, tmp_path / "a")
+    scalar = _observed_file(tmp_path / "scalar.h5", load_dataset(pushes))
+    _edit(scalar, _replace("push_distance", np.float64(0.1)))
+    for read in (lambda: read_row(scalar, 0), lambda: import_hdf5(scalar, tmp_path / "b")):
+        with pytest.raises(
+            DatasetError, match=r"scalar\.h5: /data/push_distance is a scalar .*dataset"
+        ):
+            read()
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_edited_attributes_fail_their_checksum(pushes, tmp_path):
+    file = export_hdf5(pushes, tmp_path / "ds.h5")
+    with h5py.File(file, "r") as fh:
+        meta = json.loads(fh["data"].attrs["meta"])
+    _edit(file, lambda fh: fh["data"].attrs.__setitem__("meta", json.dumps({**meta, "seed": 9})))
+    match = r"ds\.h5: the attributes .*'meta'.* do not match the SHA-256 checksum"
+    with pytest.raises(DatasetError, match=match):
+        import_hdf5(file, tmp_path / "out")
+    with pytest.raises(DatasetError, match=match):
+        read_row(file, 0)
+
+
+def _metadata_positions(file, count):
+    """`count` byte offsets spread evenly over the bytes of `file` outside its data chunks."""
+    chunks = []
+    with h5py.File(file, "r") as fh:
+        for dset in fh["data"].values():
+            if dset.chunks is None:
+                continue
+            for i in range(dset.id.get_num_chunks()):
+                info = dset.id.get_chunk_info(i)
+                chunks.append((info.byte_offset, info.byte_offset + info.size))
+    size = file.stat().st_size
+    inside = np.zeros(size, dtype=bool)
+    for start, stop in chunks:
+        inside[start:stop] = True
+    outside = np.flatnonzero(~inside)
+    return outside[np.linspace(0, len(outside) - 1, count).astype(int)].tolist(), size
+
+
+def test_flipped_bytes_give_an_identical_import_or_one_dataset_error(tmp_path):
+    """Every position tried: the same dataset back, or a DatasetError naming the file."""
+    source = tmp_path / "ds"
+    config = GenerateConfig("near_wall", 4, seed=1, shard_size=4, cloud_points=8)
+    generate(config, source, workers=0, progress=False)
+    file = export_hdf5(source, tmp_path / "ds.h5")
+    data = file.read_bytes()
+    metadata, size = _metadata_positions(file, 160)
+    positions = sorted(set(metadata) | set(np.linspace(0, size - 1, 80).astype(int).tolist()))
+    first = read_row(file, 1)
+    outcomes = {"identical": 0, "refused": 0}
+    for i, pos in enumerate(positions):
+        flipped = bytearray(data)
+        flipped[pos] ^= 0xFF
+        bad = tmp_path / "flipped.h5"
+        bad.write_bytes(bytes(flipped))
+        out = tmp_path / f"out{i}"
+        try:
+            import_hdf5(bad, out)
+        except DatasetError as exc:
+            assert "flipped.h5" in str(exc), (pos, str(exc))
+            outcomes["refused"] += 1
+        else:
+            assert _files(out) == _files(source), pos
+            outcomes["identical"] += 1
+        try:
+            row = read_row(bad, 1)
+        except DatasetError as exc:
+            assert "flipped.h5" in str(exc), (pos, str(exc))
+        else:
+            assert row.keys() == first.keys(), pos
+            for name, value in first.items():
+                assert row[name].tobytes() == value.tobytes(), (pos, name)
+    assert outcomes["refused"] >= 20 and outcomes["identical"] >= 20, outcomes

@@ -1,8 +1,8 @@
 """Observation-only datasets: a robot's arrays in, checked; the same features, fits and plans.
 
-Covers probaff.data.observations, the observation-only schema versions (4 for pushes, 5 for
-skills) of probaff.data.schema, probaff.data.skill_schema and probaff.data.store, and
-probaff.data.store.save_dataset.
+Covers probaff.data.observations and probaff.data.observation_checks, the observation-only
+schema versions (4 for pushes, 5 for skills) of probaff.data.schema, probaff.data.skill_schema
+and probaff.data.store, and probaff.data.store.save_dataset.
 """
 
 import json
@@ -381,3 +381,113 @@ def test_old_datasets_still_load_bit_identically(tmp_path):
     copy = tmp_path / "copy"
     shutil.copytree(out, copy)
     assert read_manifest(copy) == read_manifest(out)
+
+
+def test_meta_units_and_names_of_the_wrong_kind_are_named(chain, picks):
+    """Issue 38: refused when the dataset is built, naming the entry and what it must be."""
+    arrays = _push_arrays(chain)
+
+    def refused(message, meta=META, names=NAMES, **options):
+        with pytest.raises(InputError, match=message):
+            observation_dataset(arrays, names, meta, **options)
+
+    refused(r"^meta must be a mapping of names to values .*got list", meta=[("push_height", 1)])
+    refused(r"^meta must be a mapping .*got str 'near_wall'", meta="near_wall")
+    refused(r"^units must be a mapping .*got list", units=["m", "m", "rad"])
+    fix = r"; record the world's geometry as numbers in metres, radians and Hz"
+    for key, value, want in [
+        ("push_height", "two cm", r"a finite number > 0 \(m\), got 'two cm'"),
+        ("push_height", float("nan"), r"a finite number > 0 \(m\), got nan"),
+        ("push_height", True, r"a finite number > 0 \(m\), got True"),
+        ("gripper_opening", -0.1, r"a finite number > 0 \(m\), got -0.1"),
+        ("table_size", [1.0], r"2 numbers \(length, width\) > 0 \(m\), got \[1.0\]"),
+    ]:
+        refused(rf"^meta\['{key}'\] must be {want}{fix}", meta={**META, key: value})
+    refused(
+        r"^meta\['table_size'\]\[1\] must be a finite number > 0 \(m\), got '0.8'",
+        meta={**META, "table_size": [1.0, "0.8"]},
+    )
+    refused(r"^meta\['hand'\] must be a mapping", meta={**META, "hand": "stiff"})
+    refused(r"^object_names must be a list of names, not one string, got 'phone'", names="phone")
+    skill = dict(observations_of(picks))
+    with pytest.raises(
+        InputError, match=rf"^meta\['lift'\] must be a finite number > 0 \(m\), got 'high'{fix}"
+    ):
+        observation_dataset(skill, picks.object_names, {**picks.meta, "lift": "high"}, kind="skill")
+    with pytest.raises(
+        InputError,
+        match=r"^observations_of needs a dataset, got the path '.*ds'; load it first: "
+        r"observations_of\(probaff.data.load_any_dataset\(path\)\)",
+    ):
+        observations_of("data/ds")
+    with pytest.raises(InputError, match=r"^observations_of needs a dataset .*got dict"):
+        observations_of({"effect": np.zeros(3)})
+
+
+def _shifted_and_wrapped(ds):
+    """The arrays of `ds` with every object yaw turned by one constant so that a push crosses
+    +-pi, then wrapped into [-pi, pi) as a robot logging atan2 would; and the shifted ones."""
+    arrays = _push_arrays(ds)
+    turn = ds["state_after"][:, 0, 2] - ds["state_before"][:, 0, 2]
+    row = int(np.argmax(np.abs(turn)))
+    c = np.pi - ds["state_before"][row, 0, 2] - turn[row] / 2
+    shifted, wrapped = dict(arrays), dict(arrays)
+    for name in ("state_before", "state_after", "traj_objects"):
+        arr = arrays[name].astype(np.float64)
+        arr[..., 2] += c
+        shifted[name] = arr.astype(arrays[name].dtype)
+        arr[..., 2] = (arr[..., 2] + np.pi) % (2 * np.pi) - np.pi
+        wrapped[name] = arr.astype(arrays[name].dtype)
+    return shifted, wrapped, row
+
+
+def test_scene_scale_and_wrapped_yaws_are_caught_or_unwrapped(chain):
+    def refused(message, arrays=None, meta=META, **change):
+        with pytest.raises(InputError, match=message):
+            observation_dataset(arrays or _push_arrays(chain, **change), NAMES, meta)
+
+    mm = r"it looks like millimetres: give lengths in metres"
+    refused(
+        r"'push_distance' \(m\) holds 60 in row 3: a push longer than the table's diagonal, "
+        r"1\.281 m for a 1 x 0\.8 m table \(meta\['table_size'\]\); " + mm,
+        push_distance=_with(chain, "push_distance", 3, 60.0),
+    )
+    refused(  # the default table without meta's table_size
+        r"'push_distance' \(m\) holds 60 in row 3: .*table \(the default\)",
+        meta={k: v for k, v in META.items() if k != "table_size"},
+        push_distance=_with(chain, "push_distance", 3, 60.0),
+    )
+    boxes = np.full((12, 3, 3), 0.05)
+    boxes[7, 2] = (60.0, 40.0, 30.0)
+    refused(
+        r"'object_size' \(m\) holds 60 in row 7: a box longer than the table's diagonal",
+        cloud_points=None,
+        cloud_normals=None,
+        object_size=boxes,
+    )
+    refused(  # a turn of 20 degrees given in degrees
+        r"'state_after' turns object 0 by 20 rad from 'traj_objects' in row 2: consecutive yaws "
+        r"of one push differ by more than pi, .*wrapped into \(-pi, pi\] or given in degrees.*"
+        r"angles='wrapped'",
+        state_after=_with(chain, "state_after", (2, 0, 2), chain["traj_objects"][2, -1, 0, 2] + 20),
+    )
+    shifted, wrapped, row = _shifted_and_wrapped(chain)
+    refused(r"turns object \d by -?6\.\d+ rad from .* in row \d+.*look wrapped", arrays=wrapped)
+    reference = observation_dataset(shifted, NAMES, META)
+    back = observation_dataset(wrapped, NAMES, META, angles="wrapped")
+    turn = back["state_after"][row, 0, 2] - back["state_before"][row, 0, 2]
+    assert abs(turn) < np.pi
+    np.testing.assert_allclose(back["effect"], reference["effect"], atol=1e-9)
+    np.testing.assert_allclose(back["effect"], chain["effect"], atol=1e-9)
+    series = np.concatenate(
+        [
+            back["state_before"][:, None, :, 2],
+            back["traj_objects"][..., 2],
+            back["state_after"][:, None, :, 2],
+        ],
+        axis=1,
+    )
+    assert np.abs(np.diff(series, axis=1)).max() < np.pi  # every step within pi
+    assert wrapped["state_after"][row, 0, 2] != back["state_after"][row, 0, 2]  # not changed
+    with pytest.raises(InputError, match=r"angles must be 'unwrapped' .* or 'wrapped'"):
+        observation_dataset(_push_arrays(chain), NAMES, META, angles="radians")

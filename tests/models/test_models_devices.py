@@ -26,6 +26,22 @@ def test_a_device_that_does_not_exist_is_refused_by_name(bad: object) -> None:
         MixtureOfGPExperts(2).to(device=bad)
 
 
+def test_cuda_on_a_machine_without_that_device_is_refused_by_name() -> None:
+    if torch.cuda.device_count() > 7:
+        pytest.skip("this machine has a CUDA device 7")
+    x = torch.linspace(-1, 1, 20, dtype=torch.float64)[:, None]
+    model = MixtureOfGPExperts(1, gp_max_iter=5)
+    fit_em(model, x, torch.sin(3 * x), init="effects", max_iter=1, n_restarts=1, split_merge=0)
+    # without CUDA, .cuda() itself is refused; with it, an index this machine lacks
+    index = 7 if torch.cuda.is_available() else None
+    want = r"device 'cuda' does not exist: CUDA is unavailable; use 'cpu'\."
+    match = "device 7 does not exist" if index is not None else want
+    for module in (model, GPExpert(2, 1)):
+        with pytest.raises(InputError, match=match):
+            module.cuda(index)
+        assert module.device.type == "cpu"  # left where it was
+
+
 def test_resolve_device_accepts_the_cpu_in_every_spelling() -> None:
     for spelling in (None, "cpu", torch.device("cpu")):
         assert resolve_device("device", spelling) == torch.device("cpu")

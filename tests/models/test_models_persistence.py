@@ -302,3 +302,25 @@ def test_sparse_mixture_round_trip_is_bit_identical(tmp_path):
     assert torch.equal(pa.mean, pb.mean) and torch.equal(pa.variance, pb.variance)
     assert torch.equal(pa.log_prob(yt), pb.log_prob(yt))
     assert torch.equal(model.loo_log_lik(x, y), loaded.loo_log_lik(x, y))
+
+
+def test_a_file_whose_stored_sizes_disagree_with_its_data_is_named_inconsistent(tmp_path):
+    model, _ = _skill_gp_model()
+    path = tmp_path / "skill.pt"
+    save(model, path)
+    container = torch.load(path, weights_only=True)
+    payload = torch.load(io.BytesIO(_inner_bytes(path)), weights_only=True)
+    payload["sizes"] = [payload["sizes"][0] + 1, *payload["sizes"][1:]]  # 4 features, data has 3
+    inner = io.BytesIO()
+    torch.save(payload, inner)
+    data = inner.getvalue()
+    container["payload"] = torch.from_numpy(np.frombuffer(data, dtype=np.uint8).copy())
+    container["sha256"] = hashlib.sha256(data).hexdigest()  # a valid hash
+    torch.save(container, tmp_path / "resized.pt")
+    with pytest.raises(
+        InputError,
+        match=r"resized\.pt' is an inconsistent saved model \(probaff\.models\."
+        r"SkillTransitionModel/1\): its stored sizes or settings disagree with its data "
+        r"\(.*shape.*\); re-save the model",
+    ):
+        load(tmp_path / "resized.pt")

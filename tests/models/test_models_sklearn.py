@@ -175,6 +175,20 @@ def test_nan_and_wrong_columns_are_input_errors(data, fitted):
         fitted.log_predictive_density(X, Y)
 
 
+def test_strings_in_x_or_y_name_the_argument(data, fitted):
+    X, Y = data
+    words = X.astype(object)
+    words[2, 0] = "a"
+    with pytest.raises(InputError, match=r"^X must be a numeric array .*convert it to floats"):
+        MixtureOfGPExpertsRegressor(**CHEAP).fit(words, Y[:, 0])
+    with pytest.raises(InputError, match=r"^X must be a numeric array"):
+        MixtureOfGPExpertsRegressor(**CHEAP).fit([["a"]] * 60, Y[:, 0])
+    with pytest.raises(InputError, match=r"^y must be a numeric array"):
+        MixtureOfGPExpertsRegressor(**CHEAP).fit(X, ["up"] * 60)
+    with pytest.raises(InputError, match=r"^X must be a numeric array"):
+        fitted.predict(words)
+
+
 @pytest.mark.parametrize(
     ("params", "match"),
     [
@@ -188,6 +202,9 @@ def test_nan_and_wrong_columns_are_input_errors(data, fitted):
         ({"init": torch.ones(60, 2) / 2}, "init must be 'auto'"),
         ({"random_state": -1}, "random_state must be >= 0"),
         ({"random_state": "seed"}, "random_state must be an integer"),
+        ({"gate_l1": True}, r"gate_l1 must be a number, got True"),
+        ({"gate_l2": False}, r"gate_l2 must be a number, got False"),
+        ({"tol": True}, "tol"),
     ],
 )
 def test_bad_arguments_fail_at_fit_naming_the_argument(data, params, match):

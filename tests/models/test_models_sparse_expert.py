@@ -292,6 +292,25 @@ def test_hyper_rows_fits_on_a_fixed_subset_and_conditions_on_every_row():
         SparseGPOptions(hyper_rows=0)
 
 
+def test_hyper_rows_below_the_inducing_points_are_refused_by_name():
+    from probaff.models import MixtureOfGPExperts
+
+    too_few = r"hyper_rows=1 is below the 128 inducing points \(the default n_inducing\)"
+    for make in (
+        lambda: SparseGPOptions(hyper_rows=1),
+        lambda: SparseGPExpert(3, 2, hyper_rows=1),
+        lambda: MixtureOfGPExperts(2, experts="sparse", hyper_rows=1),
+    ):
+        with pytest.raises(InputError, match=too_few + r".*give hyper_rows >= 128"):
+            make()
+    with pytest.raises(InputError, match=r"hyper_rows=20 is below the 30 inducing points"):
+        SparseGPOptions(n_inducing=30, hyper_rows=20)
+    # the floor is the inducing points asked for: as many rows, or None, are accepted
+    assert SparseGPOptions(n_inducing=30, hyper_rows=30).hyper_rows == 30
+    assert MixtureOfGPExperts(2, n_inducing=16, hyper_rows=16).hyper_rows == 16
+    assert SparseGPOptions(hyper_rows=None).hyper_rows is None
+
+
 def test_posterior_is_kept_until_a_tensor_it_depends_on_changes():
     x, y = _data(n=80)
     expert = SparseGPExpert(3, 2, n_inducing=20, max_iter=5).fit(x, y)

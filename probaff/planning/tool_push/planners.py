@@ -45,6 +45,7 @@ from probaff.planning.tool_push.state import (
 from probaff.planning.transitions import (
     PushBatch,
     Transition,
+    check_moves,
     check_transition,
     checked_prediction,
 )
@@ -151,13 +152,21 @@ class ToolPushPlanner(SearchPlanner[Search]):
             The pushes, with their predictions.
 
         Raises:
-            InputError: For a bad transition, state, generator, config or sizes, or a target
-                that two pushes cannot bring within reach.
+            InputError: For a bad transition (one whose model predicts the effects of the
+                tool alone included), state, generator, config or sizes, or a target that two
+                pushes cannot bring within reach.
             UnreachablePoseError: If the arm can push the tool in no sampled direction.
         """
         config = check_config(config)
         ctx = tool_push_context(config)
         check_transition(transition)
+        check_moves(
+            transition,
+            N_OBJECTS,
+            "the tool push task (the tool and the target)",
+            "Give a model of both objects' effects (fit_tool_push_model), not one of the "
+            "pushed object's alone (such as the push-to-edge model, fit_edge_model).",
+        )
         check_state(state, ctx)
         check_rng(rng)
         if sizes is None:

@@ -367,3 +367,35 @@ def test_the_analytic_transition_plans_tool_pushes_too():
     assert plan.transition_calls == 1 and plan.n_candidates == (12,)
     np.testing.assert_array_equal(plan.predicted[0, 1], state.poses[1])
     assert not np.array_equal(plan.predicted[0, 0], state.poses[0])
+
+
+def test_a_model_of_the_tool_alone_is_refused_naming_model_and_task(dataset, model):
+    """A push-to-edge-like model predicts 3 effects (one object): the target would never move."""
+    from probaff.features import chapter5_features
+    from probaff.models import MixtureOfGPExperts, fit_em
+
+    fs = chapter5_features(dataset)
+    tool_only = MixtureOfGPExperts(1, gp_max_iter=5)
+    with torch_threads(1):
+        fit_em(
+            tool_only,
+            fs.select("f_o", "f_c"),
+            dataset["effect"][:, 0],
+            init="effects",
+            max_iter=1,
+            n_restarts=1,
+            split_merge=0,
+        )
+    pushed = FeaturePushModel.for_dataset(tool_only, "ch5", ("f_o", "f_c"), dataset)
+    transition = LearnedTransition(pushed, load_tabletop(), name="edge")
+    assert transition.n_moved == 1
+    assert LearnedTransition(model, load_tabletop()).n_moved == 2
+    state, rng = _state(0), np.random.default_rng(0)
+    match = (
+        r"transition model LearnedTransition 'edge' predicts the effects of 1 object\(s\) "
+        r"\(3 outputs\), but the tool push task \(the tool and the target\) moves 2 objects"
+        r".*fit_tool_push_model"
+    )
+    for planner in (plan_tool_push, plan_single_push):
+        with pytest.raises(InputError, match=match):
+            planner(transition, state, rng, SMALL)
