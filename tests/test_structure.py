@@ -23,6 +23,7 @@ from __future__ import annotations
 import ast
 import importlib
 import re
+import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -247,3 +248,16 @@ if __name__ == "__main__":
         face = getattr(importlib.import_module(f"probaff.{name}"), "__all__", [])
         print(f"probaff.{name} exports {len(face)} names")
     print(f"modules without a test: {untested_modules()}")
+
+
+def test_no_patch_or_backup_leftovers_are_tracked():
+    root = Path(__file__).resolve().parents[1]
+    if not (root / ".git").exists():  # an installed copy: nothing is tracked
+        pytest.skip("not a git checkout")
+    tracked = (
+        subprocess.run(["git", "ls-files", "-z"], cwd=root, capture_output=True, check=True)
+        .stdout.decode()
+        .split("\0")
+    )
+    leftovers = [p for p in tracked if p.endswith((".rej", ".orig", ".bak"))]
+    assert leftovers == [], f"patch or backup leftovers tracked in git: {leftovers}"

@@ -24,7 +24,7 @@ __all__ = ["fit_level"]
 _SINGLE_ITER = 2
 
 # Iterations a split-and-merge trial runs before it must beat the current objective.
-_SCREEN_ITER = 2
+_MOVE_SCREEN_ITER = 2
 
 # Cold starts cycled through by `init="auto"` after the grown candidate.
 _COLD_STARTS = ("joint", "effects")
@@ -84,7 +84,7 @@ def _split_merge(
     (the smaller into the larger) and then either the merged expert or the expert that
     explains its own samples worst is split into the freed slot (Ueda et al., 2000, with
     the experts' leave-one-out densities as the criteria). A move is screened by
-    `_SCREEN_ITER` partial EM iterations that refit and reassign only the two or three
+    `_MOVE_SCREEN_ITER` partial EM iterations that refit and reassign only the two or three
     experts it touched (as in Ueda et al.'s partial EM), and full EM runs from those that
     raise the objective, warm-started. A move is kept only if it raises the objective, so the
     result is never worse than the input.
@@ -139,7 +139,7 @@ def _split_merge(
                 warm=True,
                 active=(i, j, k),
             )
-            run.step(_SCREEN_ITER)
+            run.step(_MOVE_SCREEN_ITER)
             if run.best <= history.best:
                 continue
             trial_history = run.release().step(settings.max_iter).finish()

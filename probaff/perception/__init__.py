@@ -33,16 +33,6 @@ from probaff.perception.refinement import (
 from probaff.perception.region_growing import Segmentation, region_growing
 from probaff.perception.segment_features import FEATURE_NAMES, SegmentFeatures, segment_features
 
-
-def __getattr__(name: str) -> object:
-    """Deprecated aliases (PEP 562)."""
-    if name == "FREE":
-        from probaff.perception import occupancy
-
-        return occupancy.FREE
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
 __all__ = [
     "FEATURE_NAMES",
     "FREE_SPACE",

@@ -17,8 +17,6 @@ than passed, and free otherwise.
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
 from probaff._checks import check_count, check_finite, check_positive, check_shape
@@ -29,19 +27,6 @@ from probaff.sim.depth import DepthScan
 __all__ = ["FREE_SPACE", "OCCUPIED", "UNKNOWN", "OccupancyGrid"]
 
 UNKNOWN, FREE_SPACE, OCCUPIED = 0, 1, 2  # sub-cell and cell states
-
-
-def __getattr__(name: str) -> object:
-    """Deprecated aliases (PEP 562)."""
-    if name == "FREE":
-        warnings.warn(
-            "probaff.perception.occupancy.FREE is deprecated; use FREE_SPACE (FREE "
-            "in probaff.maps means an unclamped variable).",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-        return FREE_SPACE
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _next_to(mask: np.ndarray) -> np.ndarray:

@@ -31,26 +31,6 @@ from probaff.sim.pusher import TrackedPusher
 from probaff.sim.runner import trapezoid_progress
 from probaff.sim.warehouse_config import WarehouseSpec
 
-
-def __getattr__(name: str) -> object:
-    """Deprecated alias ``DIRECTIONS`` of `probaff.grid.DIRECTION_OFFSETS`.
-
-    ``probaff.maps.DIRECTIONS`` is the tuple of direction names; this offset array shared its
-    name, so it is now reached only under its own name.
-    """
-    if name == "DIRECTIONS":
-        import warnings
-
-        warnings.warn(
-            "probaff.sim.warehouse.DIRECTIONS is deprecated; use "
-            "probaff.grid.DIRECTION_OFFSETS (the (d_row, d_col) offsets) instead.",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-        return DIRECTION_OFFSETS
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
 __all__ = [
     "DIRECTION_NAMES",
     "BoxPush",

@@ -307,3 +307,27 @@ def test_search_on_a_subset_then_refine_on_every_row():
         for name in ("search_rows", "search_restarts"):
             with pytest.raises(InputError, match=name):
                 fit_em(MixtureOfGPExperts(2), x, y, **{name: bad})
+
+
+def _count_spike_found(n_init: int, seeds: range) -> int:
+    """Seeds at which the effects start gives the 1-count rows a component of their own."""
+    found = 0
+    for seed in seeds:
+        rng = np.random.default_rng(seed)
+        counts = rng.negative_binomial(1, 0.3, size=1000)  # spikes at 0 and 1, a long tail
+        y = torch.as_tensor(np.log1p(counts)[:, None])
+        resp = initial_responsibilities("effects", y, y, 3, n_init=n_init, seed=seed)
+        label = resp.argmax(1).numpy()
+        found += any(
+            (label == c).sum() > 50 and (counts[label == c] == 1).mean() > 0.95 for c in range(3)
+        )
+    return found
+
+
+def test_drawn_restarts_find_a_spike_that_k_means_alone_misses():
+    # Known answer: log1p of negative-binomial counts has a spike at log 2 (one count) between
+    # the zeros and the tail. k-means alone (n_init=1) splits it between its neighbours; the
+    # restarts drawn from the data put a component on it.
+    alone = _count_spike_found(1, range(5))
+    drawn = _count_spike_found(20, range(5))
+    assert alone <= 1 and drawn >= 4, (alone, drawn)

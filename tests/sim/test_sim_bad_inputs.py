@@ -13,7 +13,6 @@ import pymunk
 import pytest
 
 from probaff.errors import ConfigError, InputError
-from probaff.grid import DIRECTION_OFFSETS
 from probaff.sim import (
     DepthCamera,
     PushSimulator,
@@ -237,13 +236,9 @@ def test_effect_of_nan_poses_is_refused():
 # 7. sim's offset array no longer shares probaff.maps.DIRECTIONS' name
 
 
-def test_directions_alias_is_deprecated():
+def test_the_offsets_live_only_under_their_own_name():
     assert "DIRECTIONS" not in warehouse_module.__all__
-    with pytest.warns(DeprecationWarning, match="use probaff.grid.DIRECTION_OFFSETS"):
-        alias = warehouse_module.DIRECTIONS
-    assert alias is DIRECTION_OFFSETS
-    with pytest.raises(AttributeError):
-        warehouse_module.NO_SUCH_NAME  # noqa: B018
+    assert not hasattr(warehouse_module, "DIRECTIONS")
 
 
 def test_push_box_direction_must_be_an_index():
