@@ -1,4 +1,5 @@
-"""Every notebook runs in smoke mode and is committed without outputs."""
+"""Every notebook runs in smoke mode, checks its headline number there within a stated band,
+and is committed without outputs."""
 
 import json
 import os
@@ -19,6 +20,21 @@ def test_notebook_is_stripped(path):
     assert not any(c.get("outputs") for c in cells), f"{path.name} has outputs; strip them"
     first = next(c for c in cells if c["cell_type"] == "code")
     assert 'SMOKE_TEST = "CI" in os.environ' in "".join(first["source"])
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
+def test_notebook_checks_its_headline_number(path):
+    """A code cell asserts the headline value, finite always and within its band in smoke
+    mode, and states what smoke mode measured (the run below executes it)."""
+    cells = json.loads(path.read_text())["cells"]
+    checks = [
+        "".join(c["source"])
+        for c in cells
+        if c["cell_type"] == "code" and "# The headline, checked:" in "".join(c["source"])
+    ]
+    assert len(checks) == 1, f"{path.name} has no headline check cell"
+    assert "measured" in checks[0] and "band" in checks[0]
+    assert "isfinite" in checks[0] and "if SMOKE_TEST:\n    assert " in checks[0]
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])

@@ -549,7 +549,8 @@ def observation_dataset(
         array only a simulator knows.
 
     Raises:
-        InputError: Naming the array (and the first row) that is missing, of the wrong
+        InputError: For arrays of no rows (a dataset holds at least one push or skill);
+            naming the array (and the first row) that is missing, of the wrong
             dtype, shape or units, not finite, in another frame, of another scale (a push or
             box longer than the table's diagonal, a yaw step above pi), or indexing outside
             `object_names`; or for a bad `kind`, `object_names`, `units`, `angles` or
@@ -568,6 +569,11 @@ def observation_dataset(
         raise InputError(
             f"{kind} observations need arrays {missing}; give them (see "
             f"{'OBSERVATION_ARRAYS' if kind == 'push' else 'SKILL_OBSERVATION_ARRAYS'})."
+        )
+    if len(out["object_ids"]) == 0:  # a dataset of no rows has no shards and cannot load
+        raise InputError(
+            f"{kind} observations hold no rows: 'object_ids' has 0 rows; a dataset needs at "
+            f"least one {kind} (arrays are one row per {kind}, first axis the row)."
         )
     _check_ids(out["object_ids"], names, NO_OBJECT if kind == "skill" else 0)
     if kind == "push":

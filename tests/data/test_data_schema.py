@@ -62,6 +62,8 @@ def test_the_hand_mode_is_part_of_the_plan(compliant, tmp_path):
 
 
 def test_versions_1_and_2_are_still_read(compliant, tmp_path):
+    """Today's dataset less its version 6 arrays, saved as version 1; datasets that earlier
+    releases wrote are committed fixtures, checked in tests/data/test_old_files.py."""
     ds = load_dataset(compliant)
     old = PushDataset(
         {k: v for k, v in ds.arrays.items() if k not in REACTION_ARRAYS},

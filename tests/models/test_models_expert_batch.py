@@ -5,6 +5,7 @@ import warnings
 import numpy as np
 import pytest
 import torch
+from device_checks import DEVICES, assert_on_device, elsewhere
 
 from probaff.errors import InputError, NotFittedError
 from probaff.models import GPExpert, MixtureOfGPExperts, fit_em
@@ -21,8 +22,6 @@ from probaff.models.expert_batch import (
 )
 from probaff.models.lbfgs import flatten
 from probaff.models.synthetic import regime_features
-
-DEVICES = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
 
 
 def _problem(
@@ -59,7 +58,9 @@ def test_stacked_objective_equals_each_expert_exactly(device: str, prior: bool) 
         expert.condition(x.to(device), y.to(device), w[:, j].to(device))
     sizes = [expert.n_train for expert in experts]
     assert len(set(sizes)) > 1  # padding is exercised
-    value, nan, failed = stacked_log_likelihood(experts)
+    with elsewhere():  # a tensor made without the experts' device would land on meta
+        value, nan, failed = stacked_log_likelihood(experts)
+    assert_on_device((value, nan, failed), x.to(device).device)
     ref = torch.stack([expert.marginal_log_likelihood() for expert in experts])
     assert value.shape == (3, 2) and not bool(nan.any()) and not bool(failed.any())
     torch.testing.assert_close(value, ref, rtol=0, atol=1e-8)
@@ -100,7 +101,9 @@ def test_batched_fit_matches_separate_fits(device: str) -> None:
     x, y, w = x.to(device), y.to(device), w.to(device)
     batched = _experts(5, 2, 3, device=device)
     separate = copy.deepcopy(batched)
-    fit_exact_experts(batched, x, y, w, max_iter=15)
+    with elsewhere():  # a tensor made without the data's device would land on meta
+        fit_exact_experts(batched, x, y, w, max_iter=15)
+    assert_on_device(batched, x.device)
     for j, expert in enumerate(separate):
         expert.fit(x, y, w[:, j], max_iter=15)
     for a, b in zip(batched, separate, strict=True):
@@ -127,7 +130,9 @@ def _conditioned(device: str) -> tuple[list[GPExpert], torch.Tensor]:
 def test_batched_predictions_match_each_expert(device: str) -> None:
     experts, x_test = _conditioned(device)
     for noise in (True, False):
-        pred = predict_exact_experts(experts, x_test, include_noise=noise)
+        with elsewhere():  # a tensor made without the data's device would land on meta
+            pred = predict_exact_experts(experts, x_test, include_noise=noise)
+        assert_on_device(pred, x_test.device)
         assert pred.loc.shape == (25, 3, 3)
         for j, expert in enumerate(experts):
             ref = expert.predict(x_test, include_noise=noise)
@@ -149,7 +154,9 @@ def test_batched_out_of_sample_matches_each_expert(device: str) -> None:
     held = w > 0
     assert len({e.n_train for e in experts}) > 1  # padded rows are cut out
     assert bool((~held[:, :2]).any()) and bool(held[:, 2].all())
-    pred = predict_exact_experts_out_of_sample(experts, x, held)
+    with elsewhere():  # a tensor made without the data's device would land on meta
+        pred = predict_exact_experts_out_of_sample(experts, x, held)
+    assert_on_device(pred, x.device)
     assert pred.loc.shape == (70, 3, 3)
     for j, expert in enumerate(experts):
         loo, plain = expert.loo_predict(), expert.predict(x)

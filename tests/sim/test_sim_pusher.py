@@ -37,6 +37,47 @@ def _free_push(mode, obj="phone_box", mass_scale=1.0, wall_gap=None):
     return simulate_push(world, scene, straight_path(world, start, 0.0, _PUSH))
 
 
+def _blocked_push(limit):
+    """The wood block pushed 25 cm into a wall 5 cm ahead by a compliant hand of force limit
+    `limit` (N); the outcome, and per physics step the force the hand's controller applied
+    and the contact force on the hand (N, from the contacts' impulses)."""
+    world = load_tabletop()
+    world = dataclasses.replace(world, hand=HandSpec(mode="compliant", force_limit_n=limit))
+    o = _CAT["wood_block"]
+    half = 0.5 * o.size[0]
+    start = np.array([-0.2 - half - world.gripper.finger_radius - 0.005, 0.0])
+    x = -0.2 + half + 0.05
+    walls = np.array([[x, -0.3, x, 0.3]])
+    scene = SceneInstance.nominal(
+        [o], [[-0.2, 0.0, 0.0]], start, 0.0, _PUSH, world.physics.friction_grid, walls
+    )
+    applied, contact, gravities = [], [], set()
+    integrate = pymunk.Body.update_velocity
+
+    def spy(body, gravity, damping, dt):
+        # the compliant hand's velocity_func sets its force, then integrates through here
+        if isinstance(getattr(body.velocity_func, "__self__", None), TrackedPusher):
+            gravities.add(tuple(gravity))
+            applied.append(math.hypot(*body.force))
+            impulse = [0.0, 0.0]
+
+            def add(arbiter):
+                impulse[0] += arbiter.total_impulse.x
+                impulse[1] += arbiter.total_impulse.y
+
+            body.each_arbiter(add)
+            contact.append(math.hypot(*impulse) / dt)
+        return integrate(body, gravity, damping, dt)
+
+    pymunk.Body.update_velocity = staticmethod(spy)
+    try:
+        out = simulate_push(world, scene, straight_path(world, start, 0.0, _PUSH))
+    finally:
+        pymunk.Body.update_velocity = integrate
+    assert gravities == {(0.0, 0.0)}  # the table top: the hand's force is the controller's
+    return out, np.array(applied), np.array(contact)
+
+
 def _peak_mm(out):
     """Largest |deviation| of the hand from its command along the push (mm)."""
     return 1000 * float(np.linalg.norm(out.reaction[:, :2], axis=1).max())
@@ -98,6 +139,38 @@ def test_compliant_reaction_grows_with_a_blocking_object_behind():
     # stalled against the wall, the hand ends far behind its commanded end point
     assert blocked.reaction[-1, 1] < -0.1
     assert blocked.effect[0, 1] < 0.06
+
+
+@pytest.mark.parametrize("limit", [25.0, 40.0])
+def test_a_blocked_compliant_hand_pushes_with_no_more_than_its_force_limit(limit):
+    out, applied, contact = _blocked_push(limit)
+    assert out.wall_contact[0] and out.reaction[-1, 1] < -0.15  # stalled 15+ cm behind
+    assert len(applied) > 100
+    # the controller's force never exceeds the limit, and the limit binds: K * error alone
+    # would be 2000 N/m * 0.15 m = 300 N
+    assert applied.max() <= limit * (1 + 1e-12)
+    assert applied.max() >= limit * (1 - 1e-9)
+    assert np.mean(applied >= limit * (1 - 1e-9)) > 0.5
+    # what the block and the wall push back with, once stalled (the last quarter of the
+    # push): the limit, within 5 %, not the impact's transient
+    stalled = contact[-len(contact) // 4 :]
+    assert 0.95 * limit <= np.median(stalled) <= 1.05 * limit
+    assert 0.95 * limit <= stalled.mean() <= 1.05 * limit
+
+
+def test_compliant_steady_lag_is_the_sliding_friction_over_the_stiffness():
+    """While the hand slides a block at constant speed, it lags its command by mu m g / K."""
+    o, hand = _CAT["wood_block"], load_tabletop().hand
+    for scale in (1.0, 3.0, 8.0):
+        out = _free_push("compliant", "wood_block", scale)
+        expected = o.ground_friction * scale * o.mass * 9.81 / hand.stiffness_n_per_m
+        assert expected * hand.stiffness_n_per_m < hand.force_limit_n  # below the limit
+        # the middle of the push (samples 4 to 12 of 16): past the start, before the stop
+        steady = -out.reaction[4:13, 1]
+        assert steady.mean() == pytest.approx(expected, rel=0.2), scale
+        # every sample within 20 % (25 % at 8x, whose hand settles in a slow oscillation)
+        band = 0.25 if scale == 8.0 else 0.2
+        assert np.abs(steady - expected).max() < band * expected, scale
 
 
 def test_compliant_side_view_hand_sags_under_load_and_keeps_skills_working():
