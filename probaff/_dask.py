@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 from collections.abc import Callable, Hashable, Iterator, Mapping, Sequence
 from typing import Any
@@ -10,7 +11,7 @@ from typing import Any
 from tqdm.auto import tqdm
 
 from probaff._checks import check_count
-from probaff.errors import InputError
+from probaff.errors import ClusterError, InputError, ProbaffError
 
 __all__ = ["check_scheduler", "check_workers", "dask_client", "run_batch"]
 
@@ -163,12 +164,20 @@ def run_batch(
         size: Size of one task for the bar (default: 1 each).
         unit: Unit of the bar.
         desc: Label of the bar.
+
+    Raises:
+        InputError: For bad `workers`, a malformed `scheduler` or one that cannot be reached.
+        ClusterError: If the scheduler goes away during the batch (the results handed to
+            `on_result` until then are kept by the caller; a rerun resumes). A worker that
+            dies is not an error: Dask runs its unfinished tasks on the other workers, and
+            the shared arguments it held are sent again.
     """
     workers = check_workers(workers)
     shared = dict(shared or {})
     weigh = size or (lambda key: 1)
     serial = workers == 0 and not scheduler
-    with contextlib.ExitStack() as stack:
+    # Dask's own tracebacks of a lost scheduler stay off stderr, also while the client closes.
+    with _quiet_connection_loss(), contextlib.ExitStack() as stack:
         # Connect before the bar starts: an unreachable scheduler is one line, not a bar.
         client = (
             stack.enter_context(dask_client(workers, scheduler)) if todo and not serial else None
@@ -189,11 +198,99 @@ def run_batch(
             return
         from dask.distributed import as_completed
 
-        # A one-element list: Dask would scatter a dict's values one by one.
-        remote = {k: client.scatter([v], broadcast=True)[0] for k, v in shared.items()}
-        futures = [client.submit(fn, *args, **remote, pure=False) for _, args in todo]
-        by_future = {f.key: key for f, (key, _) in zip(futures, todo, strict=True)}
-        for fut in as_completed(futures):
-            key = by_future[fut.key]
-            on_result(key, fut.result())
-            bar.update(weigh(key))
+        try:
+            remote = _put_shared(client, shared)
+            futures = [client.submit(fn, *args, **remote, pure=False) for _, args in todo]
+            by_future = {f.key: key for f, (key, _) in zip(futures, todo, strict=True)}
+            for fut in as_completed(futures):
+                key = by_future[fut.key]
+                on_result(key, fut.result())
+                bar.update(weigh(key))
+        except Exception as err:
+            lost = _lost_cluster(client, err)
+            if lost is None:
+                raise
+            raise ClusterError(
+                f"the Dask scheduler {scheduler or '(local cluster)'} went away during the "
+                f"batch ({lost}); every finished task is saved: restart the scheduler and its "
+                "workers and rerun the same command, which runs only the missing tasks (or "
+                "rerun with --workers K to use a local cluster)."
+            ) from None
+
+
+def _shared_value(value: Any) -> Any:
+    """Return `value` (the task that holds a shared argument on the cluster)."""
+    return value
+
+
+def _put_shared(client: Any, shared: Mapping[str, Any]) -> dict[str, Any]:
+    """Futures of the `shared` values, each sent to the cluster once.
+
+    Each value is the result of a task (`_shared_value`), not scattered data: Dask's active
+    memory manager keeps one replica of a key, so a broadcast copy is dropped again, and
+    scattered data lost with the worker that holds it cannot be recovered (every task that
+    needs it then fails). A task's result is computed again from the task instead.
+    """
+    import dask
+
+    # The values travel inside the task spec by design (once, not with every task): no
+    # "large graph" warning for them.
+    with dask.config.set({"distributed.admin.large-graph-warning-threshold": "1 PiB"}):
+        return {k: client.submit(_shared_value, v, pure=False) for k, v in shared.items()}
+
+
+def _lost_cluster(client: Any, err: BaseException) -> str | None:
+    """Why `err` means the scheduler is gone (a short reason), or ``None`` if it does not."""
+    from concurrent.futures import CancelledError
+
+    from distributed.comm.core import CommClosedError
+
+    if isinstance(err, ProbaffError):  # raised on purpose, by a task or by `on_result`
+        return None
+    if isinstance(err, CancelledError):
+        reason = getattr(err, "reason", "")
+        if reason == "scheduler-connection-lost" or client.status != "running":
+            return "the client lost its connection to the scheduler"
+        return None
+    if isinstance(err, (CommClosedError, OSError, TimeoutError)) and client.status != "running":
+        cause = err.__cause__ or err.__context__
+        why = f" ({type(cause).__name__})" if cause is not None else ""
+        return f"its connection closed: {type(err).__name__}{why}"
+    return None
+
+
+class _DropConnectionLoss(logging.Filter):
+    """Drop Dask client log records about a lost scheduler connection (reported once, by us)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        import asyncio
+        import concurrent.futures
+
+        from distributed.comm.core import CommClosedError
+
+        exc = record.exc_info[1] if record.exc_info else None
+        cancelled = (asyncio.CancelledError, concurrent.futures.CancelledError)
+        if isinstance(exc, (*cancelled, CommClosedError, OSError)):
+            return False
+        text = record.getMessage()
+        return not ("connection to the scheduler" in text or "Reconnecting" in text)
+
+
+@contextlib.contextmanager
+def _quiet_connection_loss() -> Iterator[None]:
+    """Keep Dask's own tracebacks of a lost scheduler off stderr while a batch runs.
+
+    After a `ClusterError` the filter stays: the dead client's reconnection task is cancelled
+    only when the process exits, and logs its traceback then.
+    """
+    log = logging.getLogger("distributed.client")
+    drop = _DropConnectionLoss()
+    log.addFilter(drop)
+    try:
+        yield
+    except ClusterError:
+        raise
+    except BaseException:
+        log.removeFilter(drop)
+        raise
+    log.removeFilter(drop)

@@ -4,6 +4,7 @@ Every error message names the problem and how to fix it.
 """
 
 __all__ = [
+    "ClusterError",
     "ConfigError",
     "DatasetError",
     "InputError",
@@ -35,3 +36,7 @@ class DatasetError(ProbaffError, OSError):
 
 class NotFittedError(ProbaffError, RuntimeError):
     """A model was asked to predict, save or explain itself before it was fitted."""
+
+
+class ClusterError(ProbaffError, RuntimeError):
+    """The Dask cluster a batch ran on went away (its scheduler died or dropped this client)."""

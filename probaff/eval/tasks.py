@@ -9,6 +9,7 @@ process, on a local Dask cluster, or on an existing Dask scheduler.
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 from collections.abc import Callable, Mapping, Sequence
@@ -28,12 +29,33 @@ _KEY = re.compile(r"^[A-Za-z0-9_.=+-]+$")
 class ResultStore:
     """A folder of JSON results, one file per task key.
 
+    A result's measured fields (wall-clock times, which differ from run to run) can be kept
+    apart from what the task computes, so that the result files of two runs with the same
+    settings are identical byte for byte: `save` writes them to ``MEASURED_ROOT/KEY.json``
+    first, then the rest to ``ROOT/KEY.json`` (the file that marks the task done), and `load`
+    joins them again (NaN for a measured file that is missing).
+
     Args:
         root: The folder (created on first save).
+        measured: Names of the measured fields of a result.
+        measured_root: The folder of the measured fields (default ``ROOT/measured``).
     """
 
-    def __init__(self, root: str | os.PathLike[str]) -> None:
+    def __init__(
+        self,
+        root: str | os.PathLike[str],
+        *,
+        measured: Sequence[str] = (),
+        measured_root: str | os.PathLike[str] | None = None,
+    ) -> None:
         self.root = Path(root)
+        if isinstance(measured, str) or not all(isinstance(m, str) for m in measured):
+            raise InputError(
+                f"measured must be a sequence of field names, got {measured!r}; give e.g. "
+                "('plan_seconds',)."
+            )
+        self.measured = tuple(measured)
+        self.measured_root = Path(measured_root) if measured_root else self.root / "measured"
 
     def path(self, key: str) -> Path:
         """File of task `key`."""
@@ -53,16 +75,37 @@ class ResultStore:
                 in a folder that cannot be written.
         """
         path = check_output_file("result file", self.path(key))
+        if self.measured:
+            times = {k: result[k] for k in self.measured if k in result}
+            result = {k: v for k, v in result.items() if k not in self.measured}
+            timing = check_output_file("measurement file", self.measured_root / path.name)
+            atomic_write_text(timing, json.dumps(times, sort_keys=True, indent=1))
         atomic_write_text(path, json.dumps(result, sort_keys=True, indent=1))
 
     def load(self, key: str) -> dict[str, Any]:
-        """The saved result of task `key`.
+        """The saved result of task `key`, its measured fields included.
 
         Raises:
             DatasetError: If the result file is missing, unreadable, truncated or not a JSON
-                object.
+                object, or its measurement file is unreadable.
         """
-        path = self.path(key)
+        result = self._read(self.path(key), key)
+        if self.measured:
+            timing = self.measured_root / self.path(key).name
+            try:
+                times = self._read(timing, key) if timing.is_file() else {}
+            except DatasetError as exc:
+                raise DatasetError(
+                    f"cannot read the measurements {timing} of task {key!r} ({exc.__cause__}); "
+                    "delete the file (its measurements then read as NaN), or delete "
+                    f"{self.path(key)} too to run the task again."
+                ) from exc
+            result.update({k: times.get(k, math.nan) for k in self.measured})
+        return result
+
+    @staticmethod
+    def _read(path: Path, key: str) -> dict[str, Any]:
+        """The JSON object in `path`, the saved result (or measurements) of task `key`."""
         try:
             result = json.loads(path.read_text(encoding="utf-8"))
         except FileNotFoundError:

@@ -186,6 +186,7 @@ class StudyRun(Generic[C]):
         desc: str,
         shared: Mapping[str, Any] | None = None,
         folder: str = "tasks",
+        measured: Sequence[str] = (),
     ) -> list[dict[str, Any]]:
         """Run the tasks whose results are not saved under ``out/folder`` yet; all results.
 
@@ -196,15 +197,22 @@ class StudyRun(Generic[C]):
             desc: Label of the progress bar.
             shared: Keyword arguments every task receives, sent to each worker once.
             folder: The result store's folder under the output folder.
+            measured: Fields of a result that measure this run rather than compute a
+                result (wall-clock times). They are kept in ``out/timings/folder/KEY.json``,
+                apart from the result files, which are then the same byte for byte in every
+                run of the same settings (`ResultStore`).
 
         Returns:
-            The results of all tasks, in the order of `tasks`.
+            The results of all tasks, in the order of `tasks`, measured fields included.
         """
         c = self.config
+        store = ResultStore(
+            self.out / folder, measured=measured, measured_root=self.out / "timings" / folder
+        )
         return run_tasks(
             fn,
             tasks,
-            ResultStore(self.out / folder),
+            store,
             workers=c.workers,
             scheduler=c.scheduler,
             progress=c.progress,

@@ -1,3 +1,5 @@
+import json
+import math
 import os
 
 import numpy as np
@@ -82,3 +84,20 @@ def test_damaged_or_blocked_result_files_are_named(tmp_path):
     blocker.write_text("x")
     with pytest.raises(InputError, match=r"result file .*file/c\.json lies under .*file"):
         ResultStore(blocker).save("c", {"x": 1})
+
+
+def test_measured_fields_are_kept_apart_and_joined_again(tmp_path):
+    store = ResultStore(tmp_path / "tasks", measured=("seconds",), measured_root=tmp_path / "t")
+    store.save("a", {"x": 1.5, "seconds": 0.25})
+    store.save("b", {"x": 2.5})
+    assert json.loads((tmp_path / "tasks" / "a.json").read_text()) == {"x": 1.5}
+    assert json.loads((tmp_path / "t" / "a.json").read_text()) == {"seconds": 0.25}
+    assert store.load("a") == {"x": 1.5, "seconds": 0.25}
+    assert math.isnan(store.load("b")["seconds"])  # measured nothing
+    (tmp_path / "t" / "a.json").unlink()
+    assert math.isnan(store.load("a")["seconds"])  # a lost measurement reads as NaN
+    (tmp_path / "t" / "a.json").write_text("{")
+    with pytest.raises(DatasetError, match="cannot read the measurements"):
+        store.load("a")
+    with pytest.raises(InputError, match="measured must be a sequence of field names"):
+        ResultStore(tmp_path, measured="seconds")

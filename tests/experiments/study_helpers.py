@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import struct
 import subprocess
 import sys
 from collections.abc import Callable, Iterable, Sequence
@@ -76,3 +77,50 @@ def is_png(path: str | Path) -> bool:
     """Whether `path` holds a PNG image of more than 1000 bytes."""
     data = Path(path).read_bytes()
     return len(data) > 1000 and data.startswith(PNG)
+
+
+def output_files(
+    out: Path, measured: Iterable[str] = ("timings", "timings.csv")
+) -> dict[str, bytes]:
+    """Every file under `out` by its relative path, but those under the `measured` names.
+
+    Args:
+        out: A study's output folder.
+        measured: Top-level names under `out` that hold measurements of a run (wall-clock
+            times), which differ from run to run.
+
+    Returns:
+        Relative path -> the file's bytes.
+    """
+    skip = set(measured)
+    return {
+        str(p.relative_to(out)): p.read_bytes()
+        for p in sorted(out.rglob("*"))
+        if p.is_file() and p.relative_to(out).parts[0] not in skip
+    }
+
+
+def assert_same_outputs(out: Path, ref: Path) -> None:
+    """Check that `out` holds exactly the files of `ref`, each identical byte for byte.
+
+    The planning-time measurements (``timings.csv``, ``timings/``) are left out of the
+    comparison; their files must still be there, one per task result.
+    """
+    mine, theirs = output_files(out), output_files(ref)
+    assert sorted(mine) == sorted(theirs)
+    differ = [name for name in theirs if mine[name] != theirs[name]]
+    assert not differ, f"files of {out} that differ from {ref}: {differ}"
+    timings = sorted(p.name for p in (ref / "timings" / "tasks").glob("*.json"))
+    assert timings == sorted(p.name for p in (out / "timings" / "tasks").glob("*.json"))
+    assert timings == sorted(p.name for p in (ref / "tasks").glob("*.json"))
+
+
+def png_chunks(data: bytes) -> list[tuple[bytes, bytes]]:
+    """The ``(type, body)`` chunks of a PNG file's bytes."""
+    assert data.startswith(PNG)
+    chunks, i = [], len(PNG)
+    while i < len(data):
+        (length,) = struct.unpack(">I", data[i : i + 4])
+        chunks.append((data[i + 4 : i + 8], data[i + 8 : i + 8 + length]))
+        i += 12 + length
+    return chunks
