@@ -36,7 +36,14 @@ from probaff.features.chain_geometry import Ch6Geometry, InteractionRows, resolv
 from probaff.features.requirements import FEATURE_REQUIREMENTS
 from probaff.sim.sideview_config import SideViewSpec, load_sideview
 
-__all__ = ["REQUIRES", "SIDEVIEW_EFFECT_COLUMNS", "PickInteractions", "pick_interactions"]
+__all__ = [
+    "REQUIRES",
+    "SIDEVIEW_EFFECT_COLUMNS",
+    "PickInteractions",
+    "check_skill_arrays",
+    "pick_interactions",
+    "tcp_reaction",
+]
 
 REQUIRES = FEATURE_REQUIREMENTS["ch6.pick"]
 """What `pick_interactions` reads: ids, sizes, poses, the grasp point, the ``lifted`` flag,
@@ -85,7 +92,7 @@ def _fingers(
     return np.concatenate(points, axis=1), np.concatenate(normals, axis=1), T_hand
 
 
-def _check_skill_arrays(ds: SkillDataset, names: tuple[str, ...]) -> None:
+def check_skill_arrays(ds: SkillDataset, names: tuple[str, ...]) -> None:
     """Refuse a skill dataset without trajectories, or with NaN or inf where rows read it.
 
     Args:
@@ -108,7 +115,7 @@ def _check_skill_arrays(ds: SkillDataset, names: tuple[str, ...]) -> None:
         _check_finite_rows(name, ds[name], length)
 
 
-def _tcp_reaction(ds: SkillDataset, T_world_action: np.ndarray) -> np.ndarray:
+def tcp_reaction(ds: SkillDataset, T_world_action: np.ndarray) -> np.ndarray:
     """(N, 2) the tcp's deviation from its commanded end point, in A_t's (y, z) (m).
 
     Args:
@@ -152,7 +159,7 @@ def pick_interactions(
             "with a pick scene (probaff scenes lists them)."
         )
     REQUIRES.check(ds)
-    _check_skill_arrays(ds, ("size", "state_before", "state_after", "target_xz"))
+    check_skill_arrays(ds, ("size", "state_before", "state_after", "target_xz"))
     world = load_sideview() if world is None else world
     rows = np.arange(len(ds))
     slot = ds["target"].astype(int)
@@ -169,7 +176,7 @@ def pick_interactions(
         touches,
         T_a,
         effect_in_action_frame(T_a, T_before, T_after),
-        _tcp_reaction(ds, T_a),
+        tcp_reaction(ds, T_a),
         ds["lifted"].copy(),
         T_before,
     )

@@ -42,7 +42,7 @@ import numpy as np
 from probaff.data.skill_schema import SkillDataset
 from probaff.errors import InputError
 from probaff.features.action_frame import effect_in_action_frame, sideview_transform
-from probaff.features.ch6_pick import _check_skill_arrays, _tcp_reaction
+from probaff.features.ch6_pick import check_skill_arrays, tcp_reaction
 from probaff.features.chain_geometry import Ch6Geometry, InteractionRows, resolve_geometry
 from probaff.features.requirements import FEATURE_REQUIREMENTS
 from probaff.sim.sideview_config import SideViewSpec, load_sideview
@@ -132,7 +132,7 @@ def place_interactions(
     if len(ds) == 0:
         raise InputError("the dataset has no places; generate at least one.")
     REQUIRES.check(ds)
-    _check_skill_arrays(ds, ("size", "state_before", "state_after"))
+    check_skill_arrays(ds, ("size", "state_before", "state_after"))
     world = load_sideview() if world is None else world
     rows = np.arange(len(ds))
     held = ds["target"].astype(int)
@@ -161,7 +161,7 @@ def place_interactions(
         touches,
         T_a,
         effect_in_action_frame(T_a, T_release, T_after),
-        _tcp_reaction(ds, T_a),
+        tcp_reaction(ds, T_a),
         ds["placed"].copy(),
         T_release,
     )

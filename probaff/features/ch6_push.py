@@ -52,6 +52,8 @@ __all__ = [
     "REACTIONS",
     "REQUIRES",
     "PushInteractions",
+    "box_sizes",
+    "hand_poses",
     "push_interactions",
 ]
 
@@ -126,8 +128,15 @@ def _check_finite_rows(name: str, values: np.ndarray, length: np.ndarray | None 
         check_finite(f"{name} in row {i}{more}", valid)
 
 
-def _box_sizes(ds: PushDataset) -> np.ndarray:
-    """(N, K, 3) ``(length, width, height)`` of every object; refuses circular ones."""
+def box_sizes(ds: PushDataset) -> np.ndarray:
+    """(N, K, 3) ``(length, width, height)`` of every object (m); refuses circular ones.
+
+    Args:
+        ds: A push dataset whose objects are in the catalogue.
+
+    Raises:
+        InputError: For an object missing from the catalogue or one that is not a box.
+    """
     catalogue = load_catalogue()
     names = ds.object_names
     table = np.zeros((len(names), 3))
@@ -156,8 +165,18 @@ def _boxes(geometry: Ch6Geometry, sizes: np.ndarray, poses: np.ndarray) -> tuple
     return points, normals, T
 
 
-def _hand(ds: PushDataset, geometry: Ch6Geometry) -> tuple[np.ndarray, ...]:
-    """Finger points, normals, and the hand's start and commanded end poses, `(N, 4, 4)`."""
+def hand_poses(ds: PushDataset, geometry: Ch6Geometry) -> tuple[np.ndarray, ...]:
+    """Finger points, normals, and the hand's start and commanded end poses.
+
+    Args:
+        ds: A push dataset with the hand's meta (``finger_radius``, ``gripper_opening``,
+            ``push_height``).
+        geometry: The chapter 6 geometry (finger sampling).
+
+    Returns:
+        The two fingers' surface points `(N, P, 3)` and outward normals `(N, P, 3)`, then the
+        hand's start and commanded end poses `(N, 4, 4)`, all in the world frame (m).
+    """
     n = len(ds)
     r = meta_float(ds, "finger_radius")
     opening = meta_float(ds, "gripper_opening")
@@ -258,7 +277,7 @@ def push_interactions(
     REQUIRES[kind].check(ds)
     for name in ("state_before", "state_after"):
         _check_finite_rows(name, ds[name])
-    sizes = _box_sizes(ds)
+    sizes = box_sizes(ds)
     before, after = ds["state_before"], ds["state_after"]
     n, k = before.shape[:2]
     if kind == "hand":
@@ -269,7 +288,7 @@ def push_interactions(
         if "hand_reaction" in ds.arrays:
             _check_finite_rows("hand_reaction", ds["hand_reaction"])
         t_pts, t_nrm, T_before = _boxes(geometry, sizes[:, 0], before[:, 0])
-        a_pts, a_nrm, T_s, T_e = _hand(ds, geometry)
+        a_pts, a_nrm, T_s, T_e = hand_poses(ds, geometry)
         X, touches, T_a = geometry.features(t_pts, t_nrm, a_pts, a_nrm, T_s, T_e)
         T_after = tabletop_transform(after[:, 0], sizes[:, 0, 2])
         path = _reaction_path(ds, T_a)

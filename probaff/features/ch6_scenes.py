@@ -29,7 +29,7 @@ import numpy as np
 from probaff.data.schema import PushDataset
 from probaff.errors import InputError
 from probaff.features.action_frame import action_frame, tabletop_transform
-from probaff.features.ch6_push import _box_sizes, _hand
+from probaff.features.ch6_push import box_sizes, hand_poses
 from probaff.features.chain_geometry import Ch6Geometry, resolve_geometry
 from probaff.features.requirements import FEATURE_REQUIREMENTS
 
@@ -122,12 +122,12 @@ def push_scenes(ds: PushDataset, *, geometry: Ch6Geometry | None = None) -> Push
     """
     geometry = resolve_geometry(geometry)
     _check_dataset(ds)
-    sizes = _box_sizes(ds)
+    sizes = box_sizes(ds)
     n, k = sizes.shape[:2]
     flat = sizes.reshape(-1, 3)
     T_obj = tabletop_transform(ds["state_before"].reshape(-1, 3), flat[:, 2]).reshape(n, k, 4, 4)
     T_after = tabletop_transform(ds["state_after"].reshape(-1, 3), flat[:, 2]).reshape(n, k, 4, 4)
-    points, normals, T_s, T_e = _hand(ds, geometry)
+    points, normals, T_s, T_e = hand_poses(ds, geometry)
     T_inv = np.linalg.inv(T_s)
     hand_p = np.einsum("nij,nqj->nqi", T_inv[:, :3, :3], points) + T_inv[:, None, :3, 3]
     hand_n = np.einsum("nij,nqj->nqi", T_inv[:, :3, :3], normals)

@@ -222,10 +222,10 @@ def plan_push(
             second = _sample(rng, kids[i].pose, search.children, prims)
             if len(second) == 0:
                 continue
-            grand, spread2 = transition.expand(kids[i], second, prims)
+            grand, _ = transition.expand(kids[i], second, prims)
             steps2 = _step_estimate(kids[i], second, prims)
             cost2 = np.array([float(keypoint_cost(g.pose, goal)) for g in grand])
-            best = float(np.min(cost2 + search.step_cost * steps2 + 0.0 * spread2))
+            best = float(np.min(cost2 + search.step_cost * steps2))
             extra = search.risk * spread[i] + search.step_cost * steps[i]
             score[i] = min(score[i], best + extra)
     j = int(np.argmin(score))
