@@ -273,7 +273,8 @@ class _DropConnectionLoss(logging.Filter):
         if isinstance(exc, (*cancelled, CommClosedError, OSError)):
             return False
         text = record.getMessage()
-        return not ("connection to the scheduler" in text or "Reconnecting" in text)
+        lost = ("connection to the scheduler", "Reconnecting", "reconnect to scheduler")
+        return not any(words in text for words in lost)
 
 
 @contextlib.contextmanager
