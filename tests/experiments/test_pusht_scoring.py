@@ -10,8 +10,6 @@ Covers probaff.experiments.pusht.models.
 """
 
 import math
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,7 +18,6 @@ from torch.distributions import Categorical, Independent, MixtureSameFamily, Nor
 
 from probaff.errors import InputError
 from probaff.experiments.pusht.data import push_dataset, record_chunk
-from probaff.experiments.pusht.env import DEFAULT_VENV, ENV_VAR, create_env
 from probaff.experiments.pusht.models import (
     FEATURES,
     LearnedModel,
@@ -34,7 +31,6 @@ from probaff.experiments.pusht.models import (
 from probaff.experiments.pusht.primitives import PrimitiveSettings
 from probaff.models import EMOptions
 
-ROOT = Path(__file__).resolve().parents[2]
 Z90 = 1.6448536269514722  # the standard normal's 95 % quantile: a central 90 % interval
 
 
@@ -163,18 +159,6 @@ def test_evaluate_is_rmse_gaussian_nlpd_and_the_90_percent_interval():
     assert scores["nlpd"] == pytest.approx(nlpd, rel=1e-10)
     assert scores["coverage90"] == pytest.approx(np.mean(np.abs(z) <= Z90), abs=1e-12)
     assert 0.6 < scores["coverage90"] < 0.95  # heavier tails than the Normal: some fall out
-
-
-@pytest.fixture(scope="module")
-def pusht_python():
-    """The Push-T environment's Python, created at the repository root when missing."""
-    given = os.environ.get(ENV_VAR)
-    if given:
-        return given
-    python = ROOT / DEFAULT_VENV / "bin" / "python"
-    if not python.is_file():
-        create_env(ROOT / DEFAULT_VENV)
-    return str(python)
 
 
 def test_the_analytic_model_predicts_gym_pushts_pushes(pusht_python):
