@@ -104,17 +104,15 @@ def test_a_fitted_mixture_is_scored_with_its_own_moments():
         LearnedModel("gp", model.model, features=("a",)).predict(Xt)
 
 
+def _pushes(first: np.ndarray, last: np.ndarray) -> np.ndarray:
+    """Push features `(N, 5)`: the given first and last columns, the middle three fixed."""
+    n = len(first)
+    return np.column_stack([first, np.full(n, -40.0), np.zeros(n), np.ones(n), last])
+
+
 def test_calibrate_sets_the_residuals_root_mean_square():
     rng = np.random.default_rng(4)
-    X = np.column_stack(
-        [
-            rng.uniform(-80, 80, 50),
-            np.full(50, -40.0),
-            np.zeros(50),
-            np.ones(50),
-            rng.uniform(5, 40, 50),
-        ]
-    )
+    X = _pushes(rng.uniform(-80, 80, 50), rng.uniform(5, 40, 50))
     qs = QuasiStaticTee()
     with pytest.raises(InputError, match="calibrate"):
         predict_moments(qs, X)
@@ -136,15 +134,7 @@ def test_calibrate_sets_the_residuals_root_mean_square():
 
 def test_evaluate_is_rmse_gaussian_nlpd_and_the_90_percent_interval():
     rng = np.random.default_rng(5)
-    X = np.column_stack(
-        [
-            rng.uniform(-60, 60, 400),
-            np.full(400, -40.0),
-            np.zeros(400),
-            np.ones(400),
-            np.full(400, 20.0),
-        ]
-    )
+    X = _pushes(rng.uniform(-60, 60, 400), np.full(400, 20.0))
     qs = QuasiStaticTee(sigma=np.array([1.5, 4.0, 0.1]))
     effects = qs.effects(X)
     Y = effects + rng.normal(0, [1.5, 4.0, 0.1], (400, 3)) * rng.choice([0.5, 1.6], (400, 3))
