@@ -202,9 +202,16 @@ def run_batch(
             remote = _put_shared(client, shared)
             futures = [client.submit(fn, *args, **remote, pure=False) for _, args in todo]
             by_future = {f.key: key for f, (key, _) in zip(futures, todo, strict=True)}
-            for fut in as_completed(futures):
-                key = by_future[fut.key]
-                on_result(key, fut.result())
+            # Each result is fetched as soon as its task finishes, and released once saved:
+            # a worker that dies later holds no finished result, so nothing saved runs again.
+            pending = as_completed(futures, with_results=True)
+            futures.clear()
+            for fut, result in pending:
+                if fut.status != "finished":  # cancelled: raise what `result` carries
+                    raise result if isinstance(result, BaseException) else RuntimeError(result)
+                key = by_future.pop(fut.key)
+                on_result(key, result)
+                fut.release()
                 bar.update(weigh(key))
         except Exception as err:
             lost = _lost_cluster(client, err)
