@@ -2,7 +2,8 @@
 
 The dataset is synthesised with numpy, not simulated (simulating 100 000 pushes takes hours):
 every array of the push schema (`probaff.data.schema`, pose noise and trajectories included)
-in its shape and dtype, with plausible values (poses on a 1 x 0.8 m table, clouds of points
+in its shape and dtype, with plausible values (poses on a 1 x 0.8 m table, straight-line
+trajectories from the start to the end pose, clouds of points
 around each object's pose with unit normals, random flags), so sizes and times are those of
 a real dataset of that shape, but compression ratios are those of random numbers, which
 compress less than a simulator's (many exact zeros and repeats).
@@ -13,7 +14,9 @@ Side by side, for the store's ``.npz`` shards (`probaff.data.save_dataset`,
   write       the in-memory dataset to disk,
   read all    every array back into memory,
   read one    one push (npz: its whole shard is inflated; HDF5: one chunk of each array,
-              `probaff.data.hdf5.read_row`),
+              `probaff.data.hdf5.read_row`, after it checks the file's SHA-256 seal once:
+              `probaff.data.hdf5_guard`),
+  read another  the next push (the file already checked),
   size        on disk,
 
 with the ratio HDF5 / npz. Then the two commands end to end: ``probaff export`` (load the
@@ -62,6 +65,10 @@ def synthesise(n: int, k: int, p: int, t: int, seed: int = 0) -> PushDataset:
             [-d[..., 0] * s + d[..., 1] * c, d[..., 0] * c + d[..., 1] * s, d[..., 2]], axis=-1
         )
 
+    frac = np.linspace(0.0, 1.0, t)[None, :, None, None]  # (1, T, 1, 1)
+    origin = before[:, 0, :2] - 0.1 * np.concatenate([c, s], axis=1)  # (N, 2)
+    step = 0.2 * frac[:, :, 0, 0, None] * np.concatenate([c, s], axis=1)[:, None]  # (N, T, 2)
+    hand = np.concatenate([origin[:, None] + step, np.repeat(yaw[:, None, None], t, 1)], -1)
     normals = rng.normal(size=(n, k, p, 3))
     normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
     points = before[:, :, None, :].copy().repeat(p, axis=2)
@@ -72,7 +79,7 @@ def synthesise(n: int, k: int, p: int, t: int, seed: int = 0) -> PushDataset:
         "state_before": before,
         "state_after": after,
         "effect": effect(before, after),
-        "push_origin": before[:, 0, :2] - 0.1 * np.concatenate([c, s], axis=1),
+        "push_origin": origin,
         "push_yaw": yaw,
         "push_distance": np.full(n, 0.2),
         "q_waypoints": rng.uniform(-3.0, 3.0, (n, 7, 6)),
@@ -90,8 +97,9 @@ def synthesise(n: int, k: int, p: int, t: int, seed: int = 0) -> PushDataset:
         "cloud_points": points.astype(np.float32),
         "cloud_normals": normals.astype(np.float32),
         "traj_time": np.tile(np.arange(t) / 20.0, (n, 1)),
-        "traj_hand": rng.uniform(-0.5, 0.5, (n, t, 3)).astype(np.float32),
-        "traj_objects": rng.uniform(-0.5, 0.5, (n, t, k, 3)).astype(np.float32),
+        # straight-line paths from the start to the end pose (observation checks refuse jumps)
+        "traj_hand": hand.astype(np.float32),
+        "traj_objects": (before[:, None] + frac * (after - before)[:, None]).astype(np.float32),
     }
     true = [before + rng.normal(0.0, 0.003, (n, k, 3)), after + rng.normal(0.0, 0.003, (n, k, 3))]
     true.append(effect(*true))  # exact values beside the noisy observations
@@ -142,7 +150,11 @@ def main() -> None:
         read = (_timed(lambda: load_dataset(npz))[0], _timed(lambda: _read_h5(h5))[0])
         one = (
             _timed(lambda: _read_npz_row(npz, row, args.shard_size))[0] * 1e3,
-            _timed(lambda: read_row(h5, row))[0] * 1e3,
+            _timed(lambda: read_row(h5, row))[0] * 1e3,  # checks the file's seal first
+        )
+        again = (
+            _timed(lambda: _read_npz_row(npz, row + 1, args.shard_size))[0] * 1e3,
+            _timed(lambda: read_row(h5, row + 1))[0] * 1e3,  # the file already checked
         )
         size = (_size(npz), _size(h5))
         assert all(np.array_equal(v, ds[k][row]) for k, v in read_row(h5, row).items()), (
@@ -167,6 +179,7 @@ def main() -> None:
         ("write", write, "s"),
         ("read all", read, "s"),
         ("read one push", one, "ms"),
+        ("read another", again, "ms"),
         ("size on disk", size, "MB"),
     ):
         print(f"{label + ' (' + unit + ')':22s} {a:11.3f} {b:9.3f} {b / a:11.2f}")

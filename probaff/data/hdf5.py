@@ -8,6 +8,11 @@ writes a dataset folder (`probaff.data.store`). ``probaff export DATASET --to FI
 Layout (``format`` ``"probaff-hdf5"``, ``format_version`` 1)::
 
     FILE.h5
+      user block             the first 512 bytes, which HDF5 skips: "probaff-hdf5 sha256 ",
+                             the SHA-256 of the rest of the file and a newline
+                             (`probaff.data.hdf5_guard`: a damaged file is refused before
+                             HDF5 reads it; absent from other programs' files, which are
+                             read once in a separate process first)
       /data                  group; its attributes:
         format               "probaff-hdf5"
         format_version       1
@@ -73,6 +78,7 @@ import numpy as np
 
 from probaff._checks import check_count, check_output_dir, check_output_file
 from probaff.data.dataset import ArrayDataset
+from probaff.data.hdf5_guard import USERBLOCK_BYTES, check_hdf5_file, seal
 from probaff.data.kinds import kind_of_dataset
 from probaff.data.observations import observation_dataset
 from probaff.data.schema import PushDataset
@@ -142,7 +148,7 @@ def _world_texts(scene: Any) -> dict[str, str]:
 
 def _write_file(path: Path, ds: ArrayDataset, manifest: dict[str, Any] | None, level: int) -> None:
     kind = kind_of_dataset(ds).name
-    with _h5py().File(path, "w", libver=("v108", "latest")) as fh:
+    with _h5py().File(path, "w", libver=("v108", "latest"), userblock_size=USERBLOCK_BYTES) as fh:
         data = fh.create_group("data")
         attrs = {
             "format": HDF5_FORMAT,
@@ -214,6 +220,7 @@ def export_hdf5(
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         _write_file(tmp, ds, manifest, level)
+        seal(tmp)
         os.replace(tmp, target)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
@@ -336,7 +343,10 @@ def _open(file: Path) -> h5py.File:
     if not file.is_file():
         raise DatasetError(f"{file} does not exist or is not a file; give an HDF5 file.")
     try:
+        check_hdf5_file(file)
         return _h5py().File(file, "r")
+    except DatasetError:
+        raise
     except OSError as exc:
         raise DatasetError(
             f"{file} is not a readable HDF5 file: it is truncated, corrupted or of another "

@@ -146,7 +146,7 @@ def test_one_corruption_of_a_push_is_refused_naming_it(corruption):
 _SIGNATURE = b"\x89HDF\r\n\x1a\n"
 
 
-@PROPERTY
+@settings(PROPERTY, max_examples=20)  # each file with the signature is read in a subprocess
 @given(head=st.sampled_from([b"", _SIGNATURE]), body=st.binary(max_size=3000))
 def test_arbitrary_bytes_are_refused_as_a_damaged_file(head, body):
     with tempfile.TemporaryDirectory() as tmp:

@@ -4,7 +4,9 @@ and bad files.
 Covers probaff.data.hdf5.
 """
 
+import hashlib
 import json
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -28,12 +30,15 @@ from probaff.data import (
     observations_of,
 )
 from probaff.data.hdf5 import CHUNK_BYTES, read_row
+from probaff.data.hdf5_guard import SEAL_MAGIC, USERBLOCK_BYTES
 from probaff.data.store import read_manifest
 from probaff.errors import DatasetError, InputError
 from probaff.features import chapter4_features, chapter5_features, push_interactions
 from probaff.models import MixtureOfGPExperts, fit_em
 from probaff.sim.registry import kind_of_scene
 from probaff.sim.world_files import worlds_dir
+
+FIXTURES = Path(__file__).resolve().parent / "fixtures"
 
 OBSERVED = ("object_ids", "state_before", "state_after", "push_origin", "push_yaw")
 
@@ -268,6 +273,11 @@ def test_truncated_and_corrupted_files_are_refused(pushes, tmp_path):
     file = export_hdf5(pushes, tmp_path / "ds.h5")
     data = file.read_bytes()
     (tmp_path / "cut.h5").write_bytes(data[: len(data) // 2])
+    with pytest.raises(DatasetError, match="do not match the SHA-256 seal probaff wrote"):
+        import_hdf5(tmp_path / "cut.h5", tmp_path / "a")
+    # without the seal (as another program's file), HDF5's own checks name the damage
+    data = bytes(USERBLOCK_BYTES) + data[USERBLOCK_BYTES:]
+    (tmp_path / "cut.h5").write_bytes(data[: len(data) // 2])
     with pytest.raises(DatasetError, match="truncated, corrupted or of another format"):
         import_hdf5(tmp_path / "cut.h5", tmp_path / "a")
     (tmp_path / "text.h5").write_text("state_before,state_after\n1,2\n")
@@ -347,11 +357,42 @@ def test_edited_attributes_fail_their_checksum(pushes, tmp_path):
     with h5py.File(file, "r") as fh:
         meta = json.loads(fh["data"].attrs["meta"])
     _edit(file, lambda fh: fh["data"].attrs.__setitem__("meta", json.dumps({**meta, "seed": 9})))
+    sealed = r"ds\.h5 is damaged: its bytes do not match the SHA-256 seal"
+    for read in (lambda: import_hdf5(file, tmp_path / "out"), lambda: read_row(file, 0)):
+        with pytest.raises(DatasetError, match=sealed):
+            read()
+    # the seal removed (the user block zeroed): the attributes' own checksum still fails
+    data = file.read_bytes()
+    file.write_bytes(bytes(USERBLOCK_BYTES) + data[USERBLOCK_BYTES:])
     match = r"ds\.h5: the attributes .*'meta'.* do not match the SHA-256 checksum"
     with pytest.raises(DatasetError, match=match):
         import_hdf5(file, tmp_path / "out")
     with pytest.raises(DatasetError, match=match):
         read_row(file, 0)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_file_that_crashes_hdf5_is_refused_without_crashing_this_process(tmp_path):
+    """Six bytes of the foreign fixture changed: reading every object segfaults HDF5."""
+    data = bytearray((FIXTURES / "foreign_big_endian.h5").read_bytes())
+    for at, value in {3399: 232, 4519: 236, 4520: 240, 4521: 186, 4522: 218, 6929: 115}.items():
+        data[at] = value
+    bad = tmp_path / "crash.h5"
+    bad.write_bytes(bytes(data))
+    for read in (lambda: import_hdf5(bad, tmp_path / "out"), lambda: read_row(bad, 0)):
+        with pytest.raises(DatasetError, match=r"crash\.h5 is damaged: reading it crashed HDF5"):
+            read()
+    assert not (tmp_path / "out").exists()
+
+
+def test_exported_files_carry_a_seal_other_readers_skip(pushes, tmp_path):
+    file = export_hdf5(pushes, tmp_path / "ds.h5")
+    head = file.read_bytes()[:USERBLOCK_BYTES]
+    digest = hashlib.sha256(file.read_bytes()[USERBLOCK_BYTES:]).hexdigest()
+    assert head == SEAL_MAGIC + digest.encode() + b"\n" + bytes(USERBLOCK_BYTES - 85)
+    with h5py.File(file, "r") as fh:  # plain h5py reads it: HDF5 skips the user block
+        assert fh.userblock_size == USERBLOCK_BYTES
+        assert np.array_equal(fh["data/effect"][()], load_dataset(pushes)["effect"])
 
 
 def _metadata_positions(file, count):
@@ -378,10 +419,24 @@ def test_flipped_bytes_give_an_identical_import_or_one_dataset_error(tmp_path):
     config = GenerateConfig("near_wall", 4, seed=1, shard_size=4, cloud_points=8)
     generate(config, source, workers=0, progress=False)
     file = export_hdf5(source, tmp_path / "ds.h5")
-    data = file.read_bytes()
+    first = read_row(file, 1)
+    sealed = file.read_bytes()
     metadata, size = _metadata_positions(file, 160)
     positions = sorted(set(metadata) | set(np.linspace(0, size - 1, 80).astype(int).tolist()))
-    first = read_row(file, 1)
+    for pos in positions:  # the seal refuses every flip outside its magic text, before HDF5
+        if pos < len(SEAL_MAGIC):
+            continue
+        flipped = bytearray(sealed)
+        flipped[pos] ^= 0xFF
+        bad = tmp_path / f"sealed{pos}.h5"
+        bad.write_bytes(bytes(flipped))
+        with pytest.raises(DatasetError, match=r"is damaged: its bytes do not match the SHA-256"):
+            import_hdf5(bad, tmp_path / "never")
+    # Without the seal (another program's file), HDF5's own checks: the same dataset back or
+    # one DatasetError. Each such file is first read in a separate process, so fewer positions.
+    data = bytes(USERBLOCK_BYTES) + sealed[USERBLOCK_BYTES:]
+    metadata, size = _metadata_positions(file, 18)
+    positions = sorted(set(metadata) | set(np.linspace(0, size - 1, 6).astype(int).tolist()))
     outcomes = {"identical": 0, "refused": 0}
     for i, pos in enumerate(positions):
         flipped = bytearray(data)
@@ -405,4 +460,5 @@ def test_flipped_bytes_give_an_identical_import_or_one_dataset_error(tmp_path):
             assert row.keys() == first.keys(), pos
             for name, value in first.items():
                 assert row[name].tobytes() == value.tobytes(), (pos, name)
-    assert outcomes["refused"] >= 20 and outcomes["identical"] >= 20, outcomes
+    assert outcomes["refused"] >= 3 and outcomes["identical"] >= 3, outcomes
+    assert not (tmp_path / "never").exists()
