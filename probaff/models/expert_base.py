@@ -102,7 +102,10 @@ class WeightedExpert(torch.nn.Module):
 
     def kernel_prior(self) -> Prior | None:
         """The log length-scale prior of the kernel (`lengthscale_prior`), or None when off."""
-        return lengthscale_prior(self.n_features) if self.lengthscale_prior else None
+        if self.lengthscale_prior is False:
+            return None
+        width = None if self.lengthscale_prior is True else float(self.lengthscale_prior)
+        return lengthscale_prior(self.n_features, width)
 
     @property
     def device(self) -> torch.device:

@@ -25,23 +25,23 @@ chapter 5 -10.65 -> -10.78, synthetic -1.42 -> -1.71, engel 5.88 -> 5.86, diabet
 """
 
 
-def lengthscale_prior(n_features: int) -> LogNormalPrior:
+def lengthscale_prior(n_features: int, scale: float | None = None) -> LogNormalPrior:
     r"""The dimension-scaled log-normal prior of a GP expert's length scales.
 
     :math:`\log \ell_d \sim \mathcal N(\sqrt 2 + \tfrac12 \log D,\ s^2)`: the median
     length scale grows as :math:`\sqrt D` (Hvarfner et al., 2024), so that a kernel on many
-    standardised features stays smooth unless the data say otherwise; `s` is
-    `LENGTHSCALE_PRIOR_SCALE`.
+    standardised features stays smooth unless the data say otherwise; `s` is `scale`.
 
     Args:
         n_features: Number of input features `D`.
+        scale: The width `s`; None for `LENGTHSCALE_PRIOR_SCALE`.
 
     Returns:
         The gpytorch prior (scalar parameters; it applies to every length scale).
     """
     return LogNormalPrior(
         torch.tensor(math.sqrt(2.0) + 0.5 * math.log(n_features)),
-        torch.tensor(LENGTHSCALE_PRIOR_SCALE),
+        torch.tensor(LENGTHSCALE_PRIOR_SCALE if scale is None else float(scale)),
     )
 
 

@@ -21,7 +21,7 @@ from probaff.models.gate import GATE_KINDS, make_gate
 from probaff.models.gate_penalty import check_strength
 from probaff.models.gated import ExpertList, GatedMixture, gated_probs, mixture_distribution
 from probaff.models.gp_expert import GPExpert
-from probaff.models.options import check_hyper_rows
+from probaff.models.options import check_hyper_rows, check_lengthscale_prior
 from probaff.models.point import (
     MIN_STACK_ROWS,
     POINT_KINDS,
@@ -117,8 +117,9 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
             at N = 250 and from 81 % to 95 % at N = 500. 0 is the ridge alone.
         gp_max_iter: L-BFGS iterations per expert fit.
         lengthscale_prior: Give the experts' length scales the dimension-scaled log-normal
-            prior (default; see `GPExpert`). Without it, a mixture of 3 experts on 250 rows
-            of 101 features predicted held-out rows with NLPD 4.7 against 1.3 with it
+            prior (default; see `GPExpert`); a number > 0 sets its width (`GPOptions`).
+            Without it, a mixture of 3 experts on 250 rows of 101 features predicted
+            held-out rows with NLPD 4.7 against 1.3 with it
             (`probaff.models.synthetic.regime_features`).
         noise_floor: Smallest observation-noise standard deviation of every expert, in
             effect units: ``"auto"`` (default) is 1 % of each effect's standard deviation
@@ -161,7 +162,7 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         gate_l2: float | str = "cv",
         gate_l1: float | str = "cv",
         gp_max_iter: int = 50,
-        lengthscale_prior: bool = True,
+        lengthscale_prior: bool | float = True,
         noise_floor: float | Sequence[float] | str | None = "auto",
         experts: str = "auto",
         n_inducing: int | None = None,
@@ -208,7 +209,7 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         self.point_weights: Tensor | None
         self.built_expert_kind: str | None = None
         self.gp_max_iter = int(gp_max_iter)
-        self.lengthscale_prior = bool(lengthscale_prior)
+        self.lengthscale_prior = check_lengthscale_prior(lengthscale_prior)
         self.train_X: Tensor | None = None
         self.train_Y: Tensor | None = None
         self._train_weights: Tensor | None = None

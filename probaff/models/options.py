@@ -12,10 +12,12 @@ takes ``options=`` and keyword overrides of single fields (`resolve_options`), e
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
+import numpy as np
 import torch
 from torch import Tensor
 
@@ -32,6 +34,7 @@ __all__ = [
     "SVIOptions",
     "SparseGPOptions",
     "check_hyper_rows",
+    "check_lengthscale_prior",
     "resolve_options",
 ]
 
@@ -100,6 +103,33 @@ def _check_bool(name: str, value: Any) -> bool:
     if not ok:
         raise InputError(f"{name} must be True or False, got {value!r}.")
     return bool(value)
+
+
+def check_lengthscale_prior(value: Any) -> bool | float:
+    """`lengthscale_prior` as False (off), True (on, at the default width) or a width.
+
+    Args:
+        value: False, True (the prior at `probaff.models.kernels.LENGTHSCALE_PRIOR_SCALE`)
+            or the prior's width, the standard deviation of the log length scales (a finite
+            number > 0).
+
+    Returns:
+        A builtin bool, or the width as a float.
+
+    Raises:
+        InputError: Naming `lengthscale_prior`, for anything else.
+    """
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    width = None
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        width = float(value)
+    if width is None or not math.isfinite(width) or width <= 0.0:
+        raise InputError(
+            "lengthscale_prior must be True, False or the prior's width (the standard "
+            f"deviation of the log length scales, a finite number > 0), got {value!r}."
+        )
+    return width
 
 
 def _check_init(init: Any, *, extra: tuple[type, ...] = ()) -> None:
@@ -308,7 +338,9 @@ class GPOptions:
 
     Attributes:
         max_iter: L-BFGS iterations per call to `GPExpert.fit`.
-        lengthscale_prior: Put the dimension-scaled log-normal prior on the length scales.
+        lengthscale_prior: Put the dimension-scaled log-normal prior on the length scales:
+            False, True (at `probaff.models.kernels.LENGTHSCALE_PRIOR_SCALE`) or its width
+            (the standard deviation of the log length scales).
         noise_floor: Smallest observation-noise standard deviation, in output units: None
             (no floor), one value, or one value per output `(E,)` (stored as a tuple).
         outputscale: Initial signal variance, inside `OUTPUTSCALE_BOUNDS`.
@@ -319,7 +351,7 @@ class GPOptions:
     """
 
     max_iter: int = 50
-    lengthscale_prior: bool = False
+    lengthscale_prior: bool | float = False
     noise_floor: float | Sequence[float] | None = None
     outputscale: float = 1.0
     noise: float = 0.1
@@ -327,7 +359,7 @@ class GPOptions:
     def __post_init__(self) -> None:
         """Validate every field and store it as builtin types."""
         _set(self, "max_iter", check_count("max_iter", self.max_iter))
-        _set(self, "lengthscale_prior", _check_bool("lengthscale_prior", self.lengthscale_prior))
+        _set(self, "lengthscale_prior", check_lengthscale_prior(self.lengthscale_prior))
         _set(self, "noise_floor", _check_noise_floor(self.noise_floor))
         outputscale = _check_inside("outputscale", self.outputscale, OUTPUTSCALE_BOUNDS)
         _set(self, "outputscale", outputscale)

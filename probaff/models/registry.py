@@ -31,6 +31,7 @@ from typing import Any, TypeVar
 
 from probaff._checks import check_count
 from probaff.errors import InputError
+from probaff.models.options import check_lengthscale_prior
 
 __all__ = [
     "FITTERS",
@@ -77,7 +78,8 @@ class ModelSettings:
         seed: Seed of the model (where its constructor takes one) and of its fit (where its
             options have a ``seed``), an integer >= 0.
         lengthscale_prior: Give the GP experts' length scales the dimension-scaled
-            log-normal prior.
+            log-normal prior; True puts it at the default width, a number > 0 at that
+            width (`GPOptions`).
         gp_max_iter: L-BFGS iterations per GP expert fit; None for the kind's default.
         fit: Overrides of the kind's fitting options (e.g. ``{"max_iter": 10}`` for EM),
             applied by `ModelKind.fit_new`.
@@ -91,7 +93,7 @@ class ModelSettings:
     gate: tuple[str, ...] | None = None
     experts: tuple[str, ...] | None = None
     seed: int = 0
-    lengthscale_prior: bool = False
+    lengthscale_prior: bool | float = False
     gp_max_iter: int | None = None
     fit: Mapping[str, Any] = field(default_factory=dict)
 
@@ -104,7 +106,7 @@ class ModelSettings:
             set_(self, "gp_max_iter", check_count("gp_max_iter", self.gp_max_iter))
         set_(self, "gate", _names(self.gate, "gate"))
         set_(self, "experts", _names(self.experts, "experts"))
-        set_(self, "lengthscale_prior", bool(self.lengthscale_prior))
+        set_(self, "lengthscale_prior", check_lengthscale_prior(self.lengthscale_prior))
         if self.groups is not None and not isinstance(self.groups, Mapping):
             raise InputError(f"groups must map group names to columns, got {self.groups!r}.")
         if not isinstance(self.fit, Mapping) or not all(isinstance(k, str) for k in self.fit):

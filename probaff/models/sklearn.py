@@ -114,7 +114,8 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
         expert_features: Columns of `X` every expert sees, in the same forms.
         gp_max_iter: L-BFGS iterations of an expert's first fit.
         lengthscale_prior: Give the experts' length scales the dimension-scaled log-normal
-            prior (default, as in `MixtureOfGPExperts`).
+            prior (default, as in `MixtureOfGPExperts`); True puts it at the default width,
+            a number > 0 at that width (`GPOptions`).
         noise_floor: Smallest noise standard deviation of every expert, in target units:
             ``"auto"`` (1 % of each target's standard deviation), one value, one per target,
             or None.
@@ -156,7 +157,7 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
         gate_features: str | Sequence[str] | Sequence[int] | None = None,
         expert_features: str | Sequence[str] | Sequence[int] | None = None,
         gp_max_iter: int = 50,
-        lengthscale_prior: bool = True,
+        lengthscale_prior: bool | float = True,
         noise_floor: float | Sequence[float] | str | None = "auto",
         experts: str = "auto",
         n_inducing: int | None = None,

@@ -19,6 +19,7 @@ from probaff.errors import InputError
 from probaff.models.em import EMHistory
 from probaff.models.gp_expert import GPExpert, exact_gp_settings
 from probaff.models.mixture import MixtureOfGPExperts
+from probaff.models.options import check_lengthscale_prior
 from probaff.models.tensors import training_rows
 
 __all__ = [
@@ -228,7 +229,8 @@ class TransitionBase(torch.nn.Module):
     Args:
         skill: The skill, one of `SKILLS`.
         gp_max_iter: L-BFGS iterations of each GP fit.
-        lengthscale_prior: Put `GPExpert`'s dimension-scaled prior on the length scales.
+        lengthscale_prior: Put `GPExpert`'s dimension-scaled prior on the length scales;
+            True puts it at the default width, a number > 0 at that width (`GPOptions`).
         noise_floor: Smallest observation-noise standard deviation of every component, in
             its targets' units: ``"auto"`` (default; 1 % of each target's standard
             deviation over the training set), ``None`` (no floor) or one number >= 0.
@@ -245,7 +247,7 @@ class TransitionBase(torch.nn.Module):
         skill: str,
         *,
         gp_max_iter: int = 50,
-        lengthscale_prior: bool = False,
+        lengthscale_prior: bool | float = False,
         noise_floor: float | str | None = "auto",
         outputscale: float = 0.1,
         noise: float = 0.1,
@@ -253,7 +255,7 @@ class TransitionBase(torch.nn.Module):
         super().__init__()
         self.skill = check_skill("skill", skill)
         self.gp_max_iter = check_count("gp_max_iter", gp_max_iter)
-        self.lengthscale_prior = bool(lengthscale_prior)
+        self.lengthscale_prior = check_lengthscale_prior(lengthscale_prior)
         self.noise_floor = check_noise_floor(noise_floor)
         # GPExpert validates the start values; build one now so that errors come early.
         GPExpert(1, 1, outputscale=outputscale, noise=noise)

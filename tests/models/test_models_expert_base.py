@@ -1,11 +1,13 @@
 """The shared base of the GP experts: the weighted training set and the settings."""
 
+import numpy as np
 import pytest
 import torch
 
 from probaff.errors import InputError
-from probaff.models import GPExpert
+from probaff.models import GPExpert, ModelSettings
 from probaff.models.expert_base import WeightedExpert, noise_floor_vector
+from probaff.models.kernels import LENGTHSCALE_PRIOR_SCALE
 from probaff.models.options import GPOptions
 from probaff.models.sparse_expert import SparseGPExpert
 
@@ -34,6 +36,26 @@ def test_both_experts_share_the_base_and_its_checks():
     base = WeightedExpert(3, 2, GPOptions(lengthscale_prior=True), 1e-6)
     assert base.kernel_prior() is not None and float(base.jitter) == 1e-6
     assert WeightedExpert(3, 2, GPOptions(), 1e-6).kernel_prior() is None
+
+
+def test_a_prior_width_sets_the_log_length_scales_spread():
+    """True is the default width; a number is the standard deviation of log length scales."""
+    default = WeightedExpert(4, 1, GPOptions(lengthscale_prior=True), 1e-6).kernel_prior()
+    wide = WeightedExpert(4, 1, GPOptions(lengthscale_prior=3.0**0.5), 1e-6).kernel_prior()
+    assert float(default.scale) == LENGTHSCALE_PRIOR_SCALE
+    assert float(wide.scale) == pytest.approx(3.0**0.5)
+    assert float(wide.loc) == float(default.loc) == pytest.approx(2.0**0.5 + 0.5 * np.log(4))
+    logs = torch.linspace(-1.0, 4.0, 11)
+    # the same median, a wider spread: the wide prior penalises far length scales less
+    far = wide.log_prob(logs.exp()[-1:]) - wide.log_prob(wide.loc.exp()[None])
+    near = default.log_prob(logs.exp()[-1:]) - default.log_prob(default.loc.exp()[None])
+    assert float(far) > float(near)
+    assert ModelSettings(2, lengthscale_prior=2).lengthscale_prior == 2.0
+    for bad in (0.0, -1.0, float("nan"), float("inf"), "wide", None):
+        with pytest.raises(InputError, match=r"lengthscale_prior must be True, False or the prior"):
+            GPOptions(lengthscale_prior=bad)
+        with pytest.raises(InputError, match=r"lengthscale_prior must be True, False or the prior"):
+            ModelSettings(2, lengthscale_prior=bad)
 
 
 def test_noise_floor_vector():

@@ -78,7 +78,8 @@ _EDGE_WORLD = (
 )
 _TOOL_WORLD = ("scenes/tool_push.yaml", "tabletop.yaml", "objects.yaml")
 _TOOL_GROUPS = ("f_o", "f_c")
-_VERSION = 6  # 3: SMEM by partial EM; 4: L-BFGS coroutines; 5: fused kernel; 6: lasso continuation
+_VERSION = 7  # 3: SMEM by partial EM; 4: L-BFGS coroutines; 5: fused kernel; 6: lasso continuation;
+# 7: the push-to-edge models' prior width (EDGE_PRIOR_WIDTH)
 _KEEP_TRAJECTORIES = 6  # episodes per planner whose full trajectories are stored (figures)
 
 
