@@ -13,8 +13,7 @@ Fits take typed options (`EMOptions`, `SVIOptions`, `GPOptions`), with single fi
 keyword overrides. Every kind of model is a `ModelKind` in one registry (`model_kind`,
 `model_kinds`, `register_model_kind`): its class, fitter, options, save format and builder
 (`ModelSettings`); `fit` fits any registered model, and `save` and `load` store any
-registered model in one file. `FITTERS`, `get_fitter` and `register_fitter` see the registry
-as fitting procedures by name.
+registered model in one file.
 
 `MixtureOfGPExpertsRegressor` (`probaff.models.sklearn`) is the EM mixture as a scikit-learn
 regressor, for `cross_val_score`, `GridSearchCV` and `Pipeline`; `mean_log_predictive_density`
@@ -38,15 +37,12 @@ from probaff.models.modular import (
 from probaff.models.options import EMOptions, GPOptions, SparseGPOptions, SVIOptions
 from probaff.models.persistence import load, save
 from probaff.models.registry import (
-    FITTERS,
     Codec,
     ModelKind,
     ModelSettings,
     fit,
-    get_fitter,
     model_kind,
     model_kinds,
-    register_fitter,
     register_model_kind,
     unregister_model_kind,
 )
@@ -62,7 +58,6 @@ from probaff.models.transition import (
 from probaff.models.vi import VariationalMixtureOfGPExperts
 
 __all__ = [
-    "FITTERS",
     "ChainPrediction",
     "ChainScene",
     "ClusteredGPModel",
@@ -95,14 +90,12 @@ __all__ = [
     "fit_em_path",
     "fit_svi",
     "fit_transition",
-    "get_fitter",
     "load",
     "make_gate",
     "mean_log_predictive_density",
     "model_kind",
     "model_kinds",
     "point_prediction",
-    "register_fitter",
     "register_model_kind",
     "save",
     "unregister_model_kind",

@@ -18,14 +18,13 @@ The built-in kinds:
   components);
 * ``"monolithic"``: `MonolithicTransitionModel` by `fit_transition` (no fitting options).
 
-`FITTERS`, `get_fitter` and `register_fitter` are the registry seen as fitting procedures by
-name: ``get_fitter("em")`` is ``model_kind("em").fit``.
+A kind's fitting procedure by name is ``model_kind(name).fit``.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Iterator, Mapping, MutableMapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
@@ -34,16 +33,13 @@ from probaff.errors import InputError
 from probaff.models.options import check_lengthscale_prior
 
 __all__ = [
-    "FITTERS",
     "Codec",
     "Fitter",
     "ModelKind",
     "ModelSettings",
     "fit",
-    "get_fitter",
     "model_kind",
     "model_kinds",
-    "register_fitter",
     "register_model_kind",
     "unregister_model_kind",
 ]
@@ -160,8 +156,8 @@ class ModelKind:
 
     Attributes:
         name: The kind's name (``"em"``, ``"svi"``, ...), unique in the registry.
-        model_class: The class of its models; `fit` and `save` dispatch on it. None only
-            for a bare fitting procedure registered with `register_fitter`.
+        model_class: The class of its models; `fit` and `save` dispatch on it. None for a
+            fitting procedure without a class of its own (found by name only).
         fit: ``fit(model, X, Y, options=None, **overrides)``; fits `model` in place.
         options_type: The frozen dataclass of its fitting options (e.g. `EMOptions`), or
             None when the fit takes none.
@@ -350,77 +346,3 @@ def fit(model: Any, X: Any, Y: Any, options: Any = None, **overrides: Any) -> An
     if options is not None:
         overrides = {"options": options, **overrides}
     return kind.fit(model, X, Y, **overrides)
-
-
-class _FitterTable(MutableMapping[str, Fitter]):
-    """The registry as ``name -> fitter``: reads and writes go to the registered kinds."""
-
-    def __getitem__(self, name: str) -> Fitter:
-        return _KINDS[name].fit
-
-    def __setitem__(self, name: str, fitter: Fitter) -> None:
-        kind = _KINDS.get(name)
-        if kind is None:
-            register_model_kind(ModelKind(name, None, fitter))
-        else:
-            _KINDS[name] = dataclasses.replace(kind, fit=fitter)
-
-    def __delitem__(self, name: str) -> None:
-        del _KINDS[name]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(list(_KINDS))
-
-    def __len__(self) -> int:
-        return len(_KINDS)
-
-    def __repr__(self) -> str:
-        return repr(dict(self))
-
-
-FITTERS: MutableMapping[str, Fitter] = _FitterTable()
-"""The fitter of every registered kind, by name (a live view of the registry: assigning a
-name registers a bare fitting procedure or replaces a kind's fitter; deleting one removes
-the kind)."""
-
-
-def register_fitter(name: str) -> Callable[[F], F]:
-    """Decorator that registers a fitter under `name` (replacing the kind's fitter, if any).
-
-    Args:
-        name: The name `get_fitter` will know it by.
-
-    Returns:
-        A decorator that registers its function and returns it unchanged.
-
-    Raises:
-        InputError: If `name` is not a non-empty string.
-    """
-    if not isinstance(name, str) or not name:
-        raise InputError(f"a fitter's name must be a non-empty string, got {name!r}.")
-
-    def register(fitter: F) -> F:
-        FITTERS[name] = fitter
-        return fitter
-
-    return register
-
-
-def get_fitter(name: str) -> Fitter:
-    """The fitter registered under `name`.
-
-    Args:
-        name: ``"em"``, ``"svi"``, ``"clustered"``, ``"transition"``, ``"monolithic"`` or a
-            name given to `register_fitter` or `register_model_kind`.
-
-    Returns:
-        ``fitter(model, X, Y, options=None, **overrides)``.
-
-    Raises:
-        InputError: For an unknown name; the message lists the known ones.
-    """
-    try:
-        return FITTERS[name]
-    except (KeyError, TypeError):
-        known = ", ".join(repr(k) for k in sorted(FITTERS))
-        raise InputError(f"unknown fitter {name!r}; known fitters: {known}.") from None

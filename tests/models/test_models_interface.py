@@ -1,12 +1,9 @@
-import numpy as np
 import pytest
 import torch
 from torch.distributions import Distribution
 
-import probaff.models.registry as registry
 from probaff.errors import InputError
 from probaff.models import (
-    FITTERS,
     ClusteredGPModel,
     EMHistory,
     GatedMixture,
@@ -16,8 +13,7 @@ from probaff.models import (
     VariationalMixtureOfGPExperts,
     fit_em,
     fit_svi,
-    get_fitter,
-    register_fitter,
+    model_kind,
 )
 from probaff.models.gated import ExpertList
 from probaff.models.gp_expert import GPExpert
@@ -36,13 +32,13 @@ def data():
 def _fitted(name, x, y):
     if name == "em":
         model = MixtureOfGPExperts(2, gp_max_iter=10)
-        get_fitter("em")(model, x, y, init="effects", max_iter=2, n_restarts=1, split_merge=0)
+        _fitter("em")(model, x, y, init="effects", max_iter=2, n_restarts=1, split_merge=0)
     elif name == "svi":
         model = VariationalMixtureOfGPExperts(2, n_inducing=8)
-        get_fitter("svi")(model, x, y, n_steps=5, batch_size=25, init="effects")
+        _fitter("svi")(model, x, y, n_steps=5, batch_size=25, init="effects")
     else:
         model = ClusteredGPModel(2, expert_kwargs={"max_iter": 10})
-        assert get_fitter("clustered")(model, x, y) is model
+        assert _fitter("clustered")(model, x, y) is model
     return model
 
 
@@ -93,13 +89,15 @@ def test_unfitted_models_are_push_models_without_outputs():
     assert not isinstance(object(), PushModel)
 
 
-def test_fitter_registry(data):
-    assert {"em", "svi", "clustered"} <= set(FITTERS)
-    assert get_fitter("em") is fit_em and get_fitter("svi") is fit_svi
+def _fitter(name):
+    return model_kind(name).fit
+
+
+def test_each_kind_fits_by_name(data):
+    assert _fitter("em") is fit_em and _fitter("svi") is fit_svi
     x, y, _, _ = data
-    em = get_fitter("em")
     assert isinstance(
-        em(
+        _fitter("em")(
             MixtureOfGPExperts(1, gp_max_iter=5),
             x,
             y,
@@ -111,28 +109,15 @@ def test_fitter_registry(data):
         EMHistory,
     )
     assert isinstance(
-        get_fitter("svi")(
+        _fitter("svi")(
             VariationalMixtureOfGPExperts(1, n_inducing=4), x, y, n_steps=2, init="effects"
         ),
         SVIHistory,
     )
     with pytest.raises(
         InputError,
-        match=r"unknown fitter 'vb'.*'clustered', 'em', 'monolithic', 'svi', 'transition'",
+        match=r"unknown model kind 'vb'.*'clustered', 'em', 'monolithic', 'svi', 'transition'",
     ):
-        get_fitter("vb")
+        _fitter("vb")
     with pytest.raises(InputError, match="ClusteredGPModel"):
-        get_fitter("clustered")(MixtureOfGPExperts(2), x, y)
-    with pytest.raises(InputError, match="non-empty"):
-        register_fitter("")
-
-    @register_fitter("mine")
-    def mine(model, X, Y):
-        return np.shape(X)
-
-    try:
-        assert get_fitter("mine") is mine
-        with pytest.raises(InputError, match="'mine'"):
-            get_fitter("nope")
-    finally:
-        del registry.FITTERS["mine"]
+        _fitter("clustered")(MixtureOfGPExperts(2), x, y)

@@ -16,7 +16,6 @@ import probaff.models as models
 from probaff._checks import check_count
 from probaff.errors import InputError, NotFittedError
 from probaff.models import (
-    FITTERS,
     ClusteredGPModel,
     EMOptions,
     MixtureOfGPExperts,
@@ -29,7 +28,6 @@ from probaff.models import (
     VariationalMixtureOfGPExperts,
     fit,
     fit_em,
-    get_fitter,
     load,
     model_kind,
     model_kinds,
@@ -133,7 +131,7 @@ def test_a_new_kind_is_fitted_built_saved_and_loaded(constant_kind, tmp_path):
     fit(model, x, y, rows=20)
     assert torch.equal(model.mean, y[:20].mean(0))
     assert isinstance(model, PushModel)
-    assert get_fitter("constant") is fit_constant and "constant" in FITTERS
+    assert model_kind("constant").fit is fit_constant and "constant" in model_kinds()
     assert FORMATS[ConstantGaussian] == "tests.ConstantGaussian/1"
     save(model, tmp_path / "constant.pt")
     loaded = load(tmp_path / "constant.pt")
@@ -176,7 +174,6 @@ def test_builtin_kinds():
         assert kinds[name].model_class is cls
         assert kinds[name].codec.format == f"probaff.models.{cls.__name__}/1"
         assert FORMATS[cls] == kinds[name].codec.format
-        assert get_fitter(name) is kinds[name].fit
 
 
 def test_a_subclass_is_its_parents_kind():

@@ -18,7 +18,7 @@ from probaff.models import (
     SkillTransitionModel,
     TransitionHistory,
     fit_transition,
-    get_fitter,
+    model_kind,
 )
 from probaff.models.persistence import FORMATS, load, save
 
@@ -241,10 +241,10 @@ def test_skill_checks_and_bad_input(data, backward_model, forward_model):
 
 def test_registered_fitter_fits_the_model(data):
     (x, y, r), (xt, _, _) = data
-    assert get_fitter("transition") is fit_transition
+    assert model_kind("transition").fit is fit_transition
     a = SkillTransitionModel("place", gp_max_iter=5)
     b = SkillTransitionModel("place", gp_max_iter=5)
-    get_fitter("transition")(a, x, y, R=r)
+    model_kind("transition").fit(a, x, y, R=r)
     fit_transition(b, x, y, r)
     assert a.is_fitted and torch.equal(a.predict(xt).mean, b.predict(xt).mean)
 

@@ -52,7 +52,7 @@ from probaff.models import (
     VariationalMixtureOfGPExperts,
     fit_em_path,
     fit_svi,
-    get_fitter,
+    model_kind,
 )
 
 __all__ = ["FoldTask", "run"]
@@ -222,7 +222,7 @@ def _fit_clustered(task: FoldTask, X: np.ndarray, Y: np.ndarray) -> dict[str, An
                 "noise_floor": None if isinstance(floor, str) else floor,
             },
         )
-        get_fitter("clustered")(model, X[train][:, cols], Y[train])
+        model_kind("clustered").fit(model, X[train][:, cols], Y[train])
         pred = model.predict(X[test][:, cols])
     assert model.labels_ is not None
     row = {
