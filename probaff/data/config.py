@@ -34,8 +34,7 @@ def scene_kind(scene: str) -> str:
 
     Raises:
         InputError: If `scene` is not a string, names no scene (the message lists every
-            known scene; the error is also a `ConfigError`), or belongs to a world kind that
-            makes no dataset.
+            known scene), or belongs to a world kind that makes no dataset.
         ConfigError: If two world kinds hold a scene of that name.
     """
     world = kind_of_scene(scene)

@@ -56,12 +56,8 @@ __all__ = [
 ]
 
 
-class UnknownSceneError(InputError, ConfigError):
-    """An unknown scene name: a bad ``scene`` argument (`InputError`) naming no world file.
-
-    It is also a `ConfigError`, which is what an unknown scene raised before the side-view
-    scenes existed, so code catching either keeps working.
-    """
+class UnknownSceneError(InputError):
+    """An unknown scene name: a bad ``scene`` argument naming no world file."""
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ import pytest
 import probaff.data.generation as gen_mod
 from probaff.data import GenerateConfig, generate, load_dataset, summarize
 from probaff.data.schema import SCHEMA_VERSION, PushDataset
-from probaff.errors import ConfigError, DatasetError, InputError
+from probaff.errors import DatasetError, InputError
 
 CFG = GenerateConfig(scene="two_objects", n=20, seed=4, shard_size=8, cloud_points=32)
 
@@ -146,7 +146,7 @@ def test_bad_generate_options(tmp_path, field, value):
 def test_unknown_scene_fails_before_work(tmp_path):
     from dataclasses import replace
 
-    with pytest.raises(ConfigError, match="unknown scene"):
+    with pytest.raises(InputError, match="unknown scene"):
         generate(replace(CFG, scene="kitchen"), tmp_path / "x", workers=0, progress=False)
 
 
