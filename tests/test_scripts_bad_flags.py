@@ -36,6 +36,8 @@ CASES = [
     (AFFORDANCE, ["--n-maps", "0"], "n_maps must be a positive integer, got 0"),
     (AFFORDANCE, ["--sensor", "lidar"], "sensor must be one of camera, scanner, got 'lidar'"),
     (AFFORDANCE, ["--sensor-noise", "0.2"], "sensor_noise sets the idealised scanner's range"),
+    (AFFORDANCE, ["--symmetry-coupling", "nan"], r"symmetry_coupling must be a finite number"),
+    (AFFORDANCE, ["--symmetry-coupling", "inf"], r"symmetry_coupling must be a finite number"),
     (POINT_CLOUD, ["--n-scenes", "0"], "n_scenes must be an integer >= 2, got 0"),
     (POINT_CLOUD, ["--min-gains", "-1"], "min_gains must be finite numbers >= 0"),
     (POINT_CLOUD, ["--merge-proximities", "foo"], "merge_proximities must hold distinct names"),

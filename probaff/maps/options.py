@@ -25,6 +25,7 @@ __all__ = [
     "DEFAULT_MAX_ITERATIONS",
     "DEFAULT_TOL",
     "MAX_COUPLING",
+    "THESIS_SYMMETRY_COUPLING",
     "BPOptions",
     "MRFParams",
     "check_alpha",
@@ -47,6 +48,15 @@ DEFAULT_COUPLING = 0.4
 DEFAULT_ALPHA = 0.8
 """Weight ``alpha`` of the reward against the travel cost in ``G = alpha R - (1 - alpha) C``."""
 
+THESIS_SYMMETRY_COUPLING = DEFAULT_COUPLING
+"""``J_sym`` of the thesis's symmetry pairs (chapter 3, §3.3.4 and §3.4).
+
+§3.3.4 introduces the symmetry pairs ("if a cell is not pushable upward, the cell above should
+be not pushable down") as part of the one pairwise factor ``ψ_ij = exp(J x_i x_j)``, and §3.4
+builds every pairwise potential "using the Ising model with J = 0.4". The thesis gives no
+separate number for the pairs, so they take that same ``J``. `MRFParams` leaves them out by
+default; the affordance-map study turns them on at this value."""
+
 MAX_COUPLING = 5.0
 """Largest accepted ``|J|`` (and ``|J_sym|``): ``exp(2 * 5) ≈ 2.2e4`` already makes
 neighbours almost deterministic, and larger values only cost numerical precision."""
@@ -61,12 +71,23 @@ def check_coupling(name: str, value: float) -> float:
 
     Returns:
         The coupling as a Python float.
+
+    Raises:
+        InputError: Naming `name` and the accepted range, for a value that is not a number
+            (a bool included), not finite (NaN, inf) or stronger than `MAX_COUPLING`.
     """
+    if isinstance(value, bool):
+        raise InputError(f"{name} must be a number, got {value!r}; pass e.g. {DEFAULT_COUPLING}.")
     try:
         v = float(value)
     except (TypeError, ValueError):
         raise InputError(f"{name} must be a number, got {value!r}.") from None
-    if not math.isfinite(v) or abs(v) > MAX_COUPLING:
+    if not math.isfinite(v):
+        raise InputError(
+            f"{name} must be a finite number, got {value!r}; pass a coupling with "
+            f"|{name}| <= {MAX_COUPLING} (the thesis's J is {DEFAULT_COUPLING})."
+        )
+    if abs(v) > MAX_COUPLING:
         raise InputError(
             f"{name} must be finite with |{name}| <= {MAX_COUPLING}, got {value!r}; stronger "
             "couplings make neighbouring boxes deterministic copies of each other."

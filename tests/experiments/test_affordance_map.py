@@ -25,6 +25,8 @@ ROOT = Path(__file__).resolve().parents[2]
 FILES = (
     "entropy.csv",
     "summary.md",
+    "fig_3_7.csv",
+    "fig_3_7.png",
     "entropy_vs_step.png",
     "accuracy_vs_step.png",
     "distance_vs_step.png",
@@ -55,6 +57,10 @@ def test_run_writes_everything_and_resumes(tmp_path):
     assert "| information gain |" in text and "| exhaustive |" in text and "| up |" in text
     assert "information gain minus exhaustive, paired by map" in text
     assert "idealised scanner" in text
+    assert "J_sym = 0.4 (the up/down and left/right symmetry pairs)" in text
+    assert "## Fig. 3.7: map entropy by manipulation step" in text and "tail flat" in text
+    fig_rows = (tmp_path / "am" / "fig_3_7.csv").read_text().splitlines()
+    assert len(fig_rows) == 1 + 3 and fig_rows[1].startswith("1,")  # steps 1-3
     tasks = sorted((tmp_path / "am" / "tasks").glob("map-*.json"))
     assert len(tasks) == 2
     saved = json.loads(tasks[0].read_text())
@@ -77,6 +83,9 @@ def test_bad_config(tmp_path):
         run(AffordanceMapConfig(n_maps=0, out=str(tmp_path)))
     with pytest.raises(InputError, match="coupling"):
         run(AffordanceMapConfig(coupling=50.0, out=str(tmp_path)))
+    with pytest.raises(InputError, match="symmetry_coupling must be a finite number"):
+        run(AffordanceMapConfig(symmetry_coupling=math.nan, out=str(tmp_path / "nan")))
+    assert not (tmp_path / "nan").exists()  # refused before any work
 
 
 def test_demo(tmp_path, capsys):

@@ -85,6 +85,8 @@ def test_bp_options_normalise_and_stay_frozen():
         ({"alpha": 1.5}, "alpha must lie in"),
         ({"alpha": "a"}, "alpha must be a number"),
         ({"symmetry_coupling": -6.0}, "symmetry_coupling"),
+        ({"symmetry_coupling": math.nan}, "symmetry_coupling must be a finite number"),
+        ({"symmetry_coupling": True}, "symmetry_coupling must be a number"),
         ({"along_coupling": math.inf}, "along_coupling"),
     ],
 )

@@ -8,10 +8,18 @@ Modules:
     demo: one small map, pushed by information gain (``probaff demo``).
 """
 
-from probaff.experiments.affordance_map.config import SMOKE, AffordanceMapConfig, world
+from probaff.experiments.affordance_map.config import SMOKE, STUDY_MRF, AffordanceMapConfig, world
 from probaff.experiments.affordance_map.run import run, train_classifier
 
 Config = AffordanceMapConfig
 """The study's config class (the registry's name for it)."""
 
-__all__ = ["SMOKE", "AffordanceMapConfig", "Config", "run", "train_classifier", "world"]
+__all__ = [
+    "SMOKE",
+    "STUDY_MRF",
+    "AffordanceMapConfig",
+    "Config",
+    "run",
+    "train_classifier",
+    "world",
+]

@@ -5,21 +5,27 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Mapping
-from dataclasses import InitVar, dataclass, field
+from dataclasses import InitVar, dataclass
 from types import MappingProxyType
 from typing import Any, ClassVar
 
 from probaff._checks import check_count
 from probaff.errors import InputError
 from probaff.experiments.base import StudyConfig
-from probaff.maps.options import MRFParams
+from probaff.maps.options import THESIS_SYMMETRY_COUPLING, MRFParams
 from probaff.sim.warehouse_config import SENSOR_KINDS, WarehouseSpec, load_warehouse
 
-__all__ = ["NOISY_SENSOR", "SMOKE", "AffordanceMapConfig", "world"]
+__all__ = ["NOISY_SENSOR", "SMOKE", "STUDY_MRF", "AffordanceMapConfig", "world"]
 
 NOISY_SENSOR = 0.2
 """Range noise (m) of the degraded idealised scanner (``sensor="scanner"``): the world file's
 0.01 m makes the classifier almost certain; 0.2 m leaves it unsure of a few boxes per map."""
+
+STUDY_MRF = MRFParams(symmetry_coupling=THESIS_SYMMETRY_COUPLING)
+"""The study's MRF: the thesis's chapter 3 MRF (§3.3.4, §3.4), Ising ``J = 0.4`` between the
+same direction of neighbouring boxes plus the up/down and left/right symmetry pairs at the
+same ``J`` (`probaff.maps.options.THESIS_SYMMETRY_COUPLING`), and ``alpha = 0.8``.
+``--symmetry-coupling none`` leaves the symmetry pairs out."""
 
 SMOKE: Mapping[str, Any] = MappingProxyType(
     {"n_maps": 2, "train_maps": 2, "max_steps": 3, "progress": False}
@@ -37,7 +43,8 @@ class AffordanceMapConfig(StudyConfig):
         n_maps: Test maps.
         train_maps: Maps the classifier is trained on.
         mrf: The MRF's couplings ``J``, ``J_sym``, ``J_along`` and the reward weight
-            ``alpha`` of ``G = alpha R - (1 - alpha) C`` (validated by `MRFParams`). The
+            ``alpha`` of ``G = alpha R - (1 - alpha) C`` (validated by `MRFParams`); the
+            default is `STUDY_MRF`, the thesis's MRF with its symmetry pairs. The
             keywords ``alpha``, ``coupling``, ``symmetry_coupling`` and ``along_coupling``
             are accepted by the constructor as shorthands that replace those fields of
             `mrf`, and are readable as properties.
@@ -56,7 +63,7 @@ class AffordanceMapConfig(StudyConfig):
     out: str = "results/affordance_map"
     n_maps: int = 20
     train_maps: int = 20
-    mrf: MRFParams = field(default_factory=MRFParams)
+    mrf: MRFParams = STUDY_MRF
     max_steps: int = 20
     sensor_noise: float | None = None
     sensor: str | None = None
