@@ -7,6 +7,9 @@ Modules:
     config: `PushTStudyConfig`, the planners, the diffusion policy's result, the smoke sizes.
     env: creating the Push-T environment, and `PushTWorker`, the process that runs it.
     geometry: the T, its frames, distances and the vertex cost.
+    perception: the goal, the T's outline and the block's pose read off the diffusion
+        policy's 96 x 96 image, with an uncertainty and a flag for frames it cannot read.
+    observe: what the planner observes, the state or only the image and the agent's position.
     primitives: push primitives (contact, direction, length) as agent targets.
     data: random pushes recorded as an observation-only probaff push dataset.
     models: features, the mixture and the single GP, the analytic quasi-static model.

@@ -8,8 +8,14 @@ object per line. Every request is ``{"cmd": NAME, ...}``; every answer is ``{"ok
 
 Commands:
     hello: the versions of gym_pusht, gymnasium, pymunk and numpy.
-    reset(seed): reset the episode's environment (``gym.make("gym_pusht/PushT-v0")``, its own
-        300-step limit) with `seed`; its state.
+    reset(seed, obs_type): reset the episode's environment (``gym.make("gym_pusht/PushT-v0")``,
+        its own 300-step limit) with `seed`; its state. `obs_type` is the environment's own
+        observation type: ``"state"`` (the default) or ``"pixels_agent_pos"``, the diffusion
+        policy's (a 96 x 96 RGB image and the agent's position). With the latter, the answers
+        of reset and step also hold ``pixels`` (the image's bytes, row-major uint8 of shape
+        ``pixels_shape``, ``[96, 96, 3]``, in base64) and ``agent_pos``, exactly as the
+        environment returned them (a step's: one per step taken), beside the state (``obs``,
+        the state observation's five numbers), which is kept for scoring.
     step(actions, stop): step the episode's environment through the agent targets `actions`
         (a list of ``[x, y]``), stopping early when it terminates (coverage > 95 %) or is
         truncated; the observation, coverage and flags after every step taken.
@@ -24,6 +30,7 @@ about the block's centre of gravity that it applies) and the agent's velocity at
 
 from __future__ import annotations
 
+import base64
 import json
 import sys
 import traceback
@@ -35,6 +42,7 @@ import numpy as np
 from gym_pusht.envs.pusht import pymunk_to_shapely
 
 ENV_ID = "gym_pusht/PushT-v0"
+OBS_TYPES = ("state", "pixels_agent_pos")
 
 
 def _versions() -> dict:
@@ -67,6 +75,30 @@ def _full_state(env) -> dict:
     }
 
 
+def _state_obs(env) -> list[float]:
+    """The state observation (``obs_type="state"``): agent x, y, block x, y, angle mod 2 pi."""
+    u = env.unwrapped
+    angle = float(u.block.angle) % (2 * np.pi)
+    return [*(float(v) for v in u.agent.position), *(float(v) for v in u.block.position), angle]
+
+
+def _observation(env, obs, obs_type: str) -> dict:
+    """One step's observation as JSON: the state, and the image and agent position if asked.
+
+    With ``obs_type="state"`` the environment's own observation is the state; otherwise the
+    state is read off the environment (`_state_obs`) beside the image it returned.
+    """
+    if obs_type == "state":
+        return {"obs": [float(v) for v in obs]}
+    pixels = np.ascontiguousarray(obs["pixels"], dtype=np.uint8)
+    return {
+        "obs": _state_obs(env),
+        "pixels": base64.b64encode(pixels.tobytes()).decode("ascii"),
+        "pixels_shape": list(pixels.shape),
+        "agent_pos": [float(v) for v in obs["agent_pos"]],
+    }
+
+
 def _set_full_state(env, state: dict) -> None:
     """Put `state` into `env` through its own reset option, undoing its rotation about the cog."""
     u = env.unwrapped
@@ -85,7 +117,8 @@ class Worker:
     """The episode's environment and the model's copy."""
 
     def __init__(self) -> None:
-        self.env = gym.make(ENV_ID, obs_type="state")
+        self.obs_type = "state"
+        self.env = gym.make(ENV_ID, obs_type=self.obs_type)
         self.model = gym.make(ENV_ID, obs_type="state")
         self.model.reset(seed=0)
         self.steps = 0
@@ -94,28 +127,39 @@ class Worker:
         return {"versions": _versions(), "max_episode_steps": self.env.spec.max_episode_steps}
 
     def reset(self, msg: dict) -> dict:
+        obs_type = str(msg.get("obs_type", "state"))
+        if obs_type not in OBS_TYPES:
+            raise ValueError(f"obs_type {obs_type!r} is not one of {list(OBS_TYPES)}")
+        if obs_type != self.obs_type:  # the same environment, observed otherwise
+            self.env.close()
+            self.env = gym.make(ENV_ID, obs_type=obs_type)
+            self.obs_type = obs_type
         obs, info = self.env.reset(seed=int(msg["seed"]))
         self.steps = 0
         u = self.env.unwrapped
         return {
-            "obs": [float(v) for v in obs],
+            **_observation(self.env, obs, obs_type),
             "coverage": _coverage(u),
             "goal": [float(v) for v in info["goal_pose"]],
             **_full_state(self.env),
         }
 
     def step(self, msg: dict) -> dict:
-        obs_list, coverage, terminated, truncated = [], [], False, False
+        coverage, terminated, truncated = [], False, False
+        seen: dict[str, list] = {"obs": []}
         u = self.env.unwrapped
         for action in msg["actions"]:
             obs, _, terminated, truncated, _ = self.env.step(np.asarray(action, dtype=np.float64))
             self.steps += 1
-            obs_list.append([float(v) for v in obs])
+            for key, value in _observation(self.env, obs, self.obs_type).items():
+                seen.setdefault(key, []).append(value)
             coverage.append(_coverage(u))
             if terminated or truncated:
                 break
+        if "pixels_shape" in seen:  # one shape for every image
+            seen["pixels_shape"] = seen["pixels_shape"][0]
         return {
-            "obs": obs_list,
+            **seen,
             "coverage": coverage,
             "terminated": bool(terminated),
             "truncated": bool(truncated),

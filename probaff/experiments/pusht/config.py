@@ -11,6 +11,7 @@ from probaff._checks import check_count
 from probaff.errors import InputError
 from probaff.experiments.base import StudyConfig
 from probaff.experiments.config_cli import option_flags
+from probaff.experiments.pusht.observe import OBSERVATIONS
 from probaff.experiments.pusht.planner import SearchSettings
 from probaff.experiments.pusht.primitives import PrimitiveSettings
 from probaff.models import EMOptions
@@ -100,6 +101,10 @@ class PushTStudyConfig(StudyConfig):
         env_search: The search over the environment itself, a smaller budget since every
             candidate is simulated (flags ``--env-search-candidates``, ...).
         keep_trajectories: Episodes per planner whose poses are kept for the figures.
+        observation: What the planners observe in the episodes: ``"state"`` (the
+            environment's state) or ``"pixels"`` (only the diffusion policy's observation,
+            the 96 x 96 image and the agent's position; the goal and the block's pose are
+            perceived, and the state is kept for scoring only).
     """
 
     out: str = "results/pusht"
@@ -127,6 +132,7 @@ class PushTStudyConfig(StudyConfig):
         metadata=option_flags(("candidates", "beam", "children")),
     )
     keep_trajectories: int = 6
+    observation: str = "state"
 
     RUN_ONLY: ClassVar[frozenset[str]] = StudyConfig.RUN_ONLY | {"python"}
     SMOKE: ClassVar[Mapping[str, Any]] = SMOKE
@@ -138,6 +144,10 @@ class PushTStudyConfig(StudyConfig):
             raise InputError(
                 f"planners: unknown or no planners {unknown or list(self.planners)}; choose from "
                 f"{list(PLANNERS)}."
+            )
+        if self.observation not in OBSERVATIONS:
+            raise InputError(
+                f"observation must be one of {list(OBSERVATIONS)}, got {self.observation!r}."
             )
         sizes = tuple(check_count("train_pushes", n) for n in self.train_pushes)
         if not sizes:

@@ -16,14 +16,18 @@ else ``.venv-pusht/bin/python`` under the working folder (`pusht_python`).
 from __future__ import annotations
 
 import argparse
+import base64
+import binascii
 import contextlib
 import json
 import os
 import subprocess
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from probaff.errors import ProbaffError
 
@@ -34,6 +38,7 @@ __all__ = [
     "PushTEnvError",
     "PushTWorker",
     "create_env",
+    "pixel_observations",
     "pusht_python",
 ]
 
@@ -173,6 +178,42 @@ class PushTWorker:
     def __del__(self) -> None:
         if hasattr(self, "_proc"):
             self.close()
+
+
+def pixel_observations(answer: Mapping[str, Any]) -> list[dict[str, np.ndarray]]:
+    """The ``pixels_agent_pos`` observations in a worker's ``reset`` or ``step`` answer.
+
+    Args:
+        answer: The answer of ``reset`` (one observation) or ``step`` (one per step taken) of
+            an episode reset with ``obs_type="pixels_agent_pos"``.
+
+    Returns:
+        One dict per observation, as the environment returned it: ``pixels``, the (H, W, 3)
+        uint8 RGB image (96 x 96 by default; row i, column j), and ``agent_pos``, the (2,)
+        agent position in world units. The state (``obs``) is not in it.
+
+    Raises:
+        PushTEnvError: If the answer holds no images (an episode observed as ``"state"``) or
+            an image that does not decode to its shape.
+    """
+    if "pixels" not in answer or "agent_pos" not in answer:
+        raise PushTEnvError(
+            "the worker's answer holds no images: reset the episode with "
+            "obs_type='pixels_agent_pos' to observe it as the diffusion policy does."
+        )
+    single = isinstance(answer["pixels"], str)
+    images = [answer["pixels"]] if single else list(answer["pixels"])
+    agents = [answer["agent_pos"]] if single else list(answer["agent_pos"])
+    shape = tuple(int(v) for v in answer["pixels_shape"]) if images else ()
+    out = []
+    for text, agent in zip(images, agents, strict=True):
+        try:
+            raw = np.frombuffer(base64.b64decode(text, validate=True), dtype=np.uint8)
+            pixels = raw.reshape(shape).copy()
+        except (binascii.Error, ValueError) as exc:
+            raise PushTEnvError(f"the worker sent an image that does not decode: {exc}") from exc
+        out.append({"pixels": pixels, "agent_pos": np.asarray(agent, dtype=float)})
+    return out
 
 
 def create_env(

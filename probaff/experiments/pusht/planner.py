@@ -30,7 +30,6 @@ from probaff.experiments.pusht.env import PushTWorker
 from probaff.experiments.pusht.geometry import (
     AGENT_RADIUS,
     ARENA,
-    GOAL_ORIGIN_POSE,
     KEYPOINTS,
     cog_pose,
     distance_to_tee,
@@ -39,6 +38,7 @@ from probaff.experiments.pusht.geometry import (
     to_world,
 )
 from probaff.experiments.pusht.models import predict_moments
+from probaff.experiments.pusht.observe import observer
 from probaff.experiments.pusht.primitives import (
     PrimitiveSettings,
     primitive_actions,
@@ -240,6 +240,7 @@ def run_episode(
     prims: PrimitiveSettings,
     *,
     trajectory: bool = False,
+    observation: str = "state",
 ) -> dict[str, Any]:
     """One closed-loop episode in the environment, from its reset with `seed`.
 
@@ -250,23 +251,36 @@ def run_episode(
         search: The search's settings.
         prims: The primitives' settings.
         trajectory: Keep the block's pose after every push.
+        observation: What the planner observes (`probaff.experiments.pusht.observe`):
+            ``"state"``, the environment's state; or ``"pixels"``, only the diffusion
+            policy's observation (the 96 x 96 image and the agent's position), from which the
+            goal and the block's pose are perceived. The state is then used for scoring only.
 
     Returns:
         ``success`` (the environment terminated: coverage > 95 %), ``max_coverage``,
         ``final_coverage``, ``pushes``, ``steps``, ``plan_seconds`` (mean per push),
         ``error_px`` (mean distance of the executed from the predicted pose's vertices), and
-        ``poses`` (centre-of-gravity poses, px) when `trajectory`.
+        ``poses`` (the state's centre-of-gravity poses, px) when `trajectory`. With
+        ``observation="pixels"`` also ``observation``, ``flagged`` (frames not read),
+        ``retreats`` (times the pusher backed away), ``perception_px`` and ``perception_deg``
+        (mean error of the perceived poses planned on, px of the image and degrees) and
+        ``lost`` (the block could not be read even after backing away; the episode ends).
+
+    Raises:
+        InputError: For an unknown `observation`.
     """
-    state = worker.ask("reset", seed=int(seed))
-    goal = cog_pose(GOAL_ORIGIN_POSE)
+    eye = observer(observation, worker)
+    seen = eye.reset(int(seed))
+    goal = eye.goal
     rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(7,)))
-    coverage = [float(state["coverage"])]
-    poses = [cog_pose(np.array(state["block"]))]
+    coverage = list(seen.coverage)
+    poses = [seen.truth]
     plan_s: list[float] = []
     errors: list[float] = []
-    done, success, steps = False, False, 0
-    while not done:
-        node = Node(poses[-1], np.array(state["agent"]), np.array(state["agent_vel"]))
+    done, success, lost = seen.terminated or seen.truncated, seen.terminated, seen.lost
+    steps = seen.steps
+    while not done and not lost:
+        node = Node(seen.pose, seen.agent, seen.agent_vel)
         t0 = time.perf_counter()
         if transition is None:
             prim = _sample(rng, node.pose, 1, prims)
@@ -276,14 +290,15 @@ def run_episode(
             prim, predicted, _ = plan_push(node, goal, transition, rng, search, prims)
         plan_s.append(time.perf_counter() - t0)
         actions = primitive_actions(node.pose, node.agent, prim, prims).actions
-        state = worker.ask("step", actions=actions.tolist())
-        coverage += [float(c) for c in state["coverage"]]
-        poses.append(cog_pose(np.array(state["block"])))
+        seen = eye.step(actions)
+        coverage += seen.coverage
+        poses.append(seen.truth)
         if predicted is not None:
             errors.append(float(keypoint_cost(poses[-1], predicted)))
-        steps = int(state["steps"])
-        success = bool(state["terminated"])
-        done = success or bool(state["truncated"])
+        steps = seen.steps
+        success = seen.terminated
+        done = success or seen.truncated
+        lost = seen.lost
     record: dict[str, Any] = {
         "seed": int(seed),
         "success": success,
@@ -291,9 +306,11 @@ def run_episode(
         "final_coverage": float(coverage[-1]),
         "pushes": len(plan_s),
         "steps": steps,
-        "plan_seconds": float(np.mean(plan_s)),
+        "plan_seconds": float(np.mean(plan_s)) if plan_s else math.nan,
         "error_px": float(np.mean(errors)) if errors else math.nan,
     }
+    if observation != "state":
+        record |= {**eye.record(), "lost": bool(lost and not done)}
     if trajectory:
         record["poses"] = np.array(poses).round(3).tolist()
     return record

@@ -84,6 +84,7 @@ def episode_task(
     env_search: SearchSettings,
     primitives: PrimitiveSettings,
     python: str | None,
+    observation: str = "state",
 ) -> dict[str, Any]:
     """Run one episode of one planner (a study task; Dask workers import it).
 
@@ -97,6 +98,7 @@ def episode_task(
         env_search: The search over the environment itself.
         primitives: The push primitives.
         python: The Push-T environment's Python.
+        observation: What the planner observes: ``"state"`` or ``"pixels"`` (`run_episode`).
 
     Returns:
         The episode's record (`run_episode`) with ``planner`` and ``episode``.
@@ -113,7 +115,13 @@ def episode_task(
             transition = ModelTransition(models[spec.model])
         with torch_threads(1):
             return run_episode(
-                worker, env_seed, transition, settings, primitives, trajectory=trajectory
+                worker,
+                env_seed,
+                transition,
+                settings,
+                primitives,
+                trajectory=trajectory,
+                observation=observation,
             )
 
     record = with_worker(python, one)
@@ -191,6 +199,8 @@ def _episodes(
 ) -> list[dict[str, Any]]:
     """Run (or resume) the episodes `jobs` ((planner, index) pairs): their records."""
     c = study.config
+    if c.observation != "state":  # episodes observed otherwise are other tasks
+        tag = f"{tag}.{c.observation}"
     tasks = [
         (f"{planner}.ep{i:04d}.{tag}", (planner, i, c.seed + i, i < c.keep_trajectories))
         for planner, i in jobs
@@ -201,6 +211,7 @@ def _episodes(
         "env_search": c.env_search,
         "primitives": c.primitives,
         "python": c.python,
+        "observation": c.observation,
     }
     return study.tasks(
         episode_task, tasks, desc="Push-T episodes", shared=shared, measured=_MEASURED

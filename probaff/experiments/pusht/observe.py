@@ -1,0 +1,287 @@
+"""What the Push-T planner observes: the environment's state, or only the policy's image.
+
+`run_episode` plans on what an observer hands it. `StateObserver` reads the block's pose off the
+environment's state (``obs_type="state"``). `PixelObserver` sees the episode as LeRobot's
+diffusion policy does (``obs_type="pixels_agent_pos"``): the goal, the T's outline and the
+block's pose are perceived from the 96 x 96 image (`probaff.experiments.pusht.perception`), the
+agent's position is the observation's ``agent_pos``, and its velocity the difference of the last
+two. The state the worker also returns is kept apart, in `Observed.truth`, for scoring only:
+nothing the planner receives (`Observed.pose`, `agent`, `agent_vel`, `PixelObserver.goal`) is
+read from it. A frame where the block cannot be read (`BlockEstimate.ok` False) is never planned
+on: the pusher backs away from the block and the scene is observed again, up to
+`PixelObserver.retries` times; if it still cannot be read, `Observed.lost` ends the episode.
+
+Poses handed to the planner are centre-of-gravity poses (`probaff.experiments.pusht.geometry`),
+the planner's own frame.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from probaff.errors import InputError
+from probaff.experiments.pusht.env import PushTWorker, pixel_observations
+from probaff.experiments.pusht.geometry import ARENA, GOAL_ORIGIN_POSE, cog_pose
+from probaff.experiments.pusht.perception import (
+    CLASSES,
+    WORLD_SIZE,
+    BlockEstimate,
+    PerceptionOptions,
+    Scene,
+    check_observation,
+    class_fractions,
+    perceive_block,
+    perceive_scene,
+    pixel_to_world,
+)
+
+__all__ = ["CONTROL_DT", "OBSERVATIONS", "Observed", "PixelObserver", "StateObserver", "observer"]
+
+OBSERVATIONS = ("state", "pixels")
+"""What the planner may observe: the environment's state, or the policy's image."""
+CONTROL_DT = 0.1
+"""Seconds between two observations (gym-pusht's 10 Hz control), for the agent's velocity."""
+
+
+@dataclass(frozen=True)
+class Observed:
+    """One observation as the planner receives it, and the state kept apart for scoring.
+
+    Attributes:
+        pose: (3,) the block's centre-of-gravity pose the planner plans on (world units, rad).
+        agent: (2,) the agent's position.
+        agent_vel: (2,) the agent's velocity (world units per second).
+        coverage: The environment's coverage after each step taken (scoring only).
+        steps: Control steps taken in the episode.
+        terminated: The environment's own success flag.
+        truncated: The environment's own step limit.
+        truth: (3,) the state's centre-of-gravity pose, for scoring only.
+        lost: The block could not be read even after backing away (pixels only).
+    """
+
+    pose: np.ndarray
+    agent: np.ndarray
+    agent_vel: np.ndarray
+    coverage: list[float]
+    steps: int
+    terminated: bool
+    truncated: bool
+    truth: np.ndarray
+    lost: bool = False
+
+
+def _flags(answer: dict[str, Any], coverage: list[float]) -> dict[str, Any]:
+    return {
+        "coverage": coverage,
+        "steps": int(answer.get("steps", 0)),
+        "terminated": bool(answer.get("terminated", False)),
+        "truncated": bool(answer.get("truncated", False)),
+    }
+
+
+class StateObserver:
+    """The planner reads the environment's state (``obs_type="state"``)."""
+
+    name = "state"
+
+    def __init__(self, worker: PushTWorker) -> None:
+        self.worker = worker
+        self.goal = cog_pose(GOAL_ORIGIN_POSE)
+
+    def reset(self, seed: int) -> Observed:
+        """Reset the episode with `seed`."""
+        return self._observed(self.worker.ask("reset", seed=int(seed)), reset=True)
+
+    def step(self, actions: np.ndarray) -> Observed:
+        """Run the agent targets `actions` (T, 2)."""
+        return self._observed(self.worker.ask("step", actions=np.asarray(actions).tolist()))
+
+    def _observed(self, answer: dict[str, Any], reset: bool = False) -> Observed:
+        pose = cog_pose(np.array(answer["block"]))
+        coverage = [float(answer["coverage"])] if reset else [float(c) for c in answer["coverage"]]
+        return Observed(
+            pose=pose,
+            agent=np.array(answer["agent"]),
+            agent_vel=np.array(answer["agent_vel"]),
+            truth=pose,
+            **_flags(answer, coverage),
+        )
+
+    def record(self) -> dict[str, Any]:
+        """What the observer adds to the episode's record."""
+        return {"observation": self.name}
+
+
+@dataclass
+class _Log:
+    estimates: list[BlockEstimate] = field(default_factory=list)
+    errors_px: list[float] = field(default_factory=list)
+    errors_deg: list[float] = field(default_factory=list)
+    flagged: int = 0
+    retreats: int = 0
+
+
+class PixelObserver:
+    """The planner sees only ``pixels_agent_pos``: the image and the agent's position.
+
+    Args:
+        worker: The Push-T worker.
+        options: Perception settings.
+        retries: Times the pusher backs away and the scene is observed again when the block
+            cannot be read, before the episode is given up.
+        retreat: How far (world units) the pusher's target moves away from the block.
+        retreat_steps: Control steps each retreat holds its target.
+    """
+
+    name = "pixels"
+
+    def __init__(
+        self,
+        worker: PushTWorker,
+        options: PerceptionOptions | None = None,
+        *,
+        retries: int = 3,
+        retreat: float = 80.0,
+        retreat_steps: int = 6,
+    ) -> None:
+        self.worker = worker
+        self.options = options or PerceptionOptions()
+        self.retries, self.retreat, self.retreat_steps = retries, retreat, retreat_steps
+        self.scene: Scene | None = None
+        self.goal = np.full(3, np.nan)
+        self._last: np.ndarray | None = None  # last accepted origin pose
+        self._log = _Log()
+
+    def reset(self, seed: int) -> Observed:
+        """Reset the episode with `seed`, perceive the scene from its first frames.
+
+        Where the goal or the block cannot be perceived, the pusher backs away and the scene
+        is perceived from the frames so far, up to `retries` times; after that the
+        observation is `Observed.lost`.
+        """
+        self._log, self._last = _Log(), None
+        answer = self.worker.ask("reset", seed=int(seed), obs_type="pixels_agent_pos")
+        frames = pixel_observations(answer)
+        coverage = [float(answer["coverage"])]
+        for attempt in range(self.retries + 1):
+            try:
+                self.scene = perceive_scene([f["pixels"] for f in frames], self.options)
+                break
+            except InputError:  # the goal or the block is hidden: back away, look again
+                if attempt == self.retries or _ended(answer):
+                    break
+                answer, seen, more = self._back_away(frames[-1], None)
+                frames += seen
+                coverage += more
+        if self.scene is None:  # never planned on: the episode ends, marked lost
+            self._log.flagged += 1
+            return Observed(
+                pose=np.full(3, np.nan),
+                agent=np.asarray(frames[-1]["agent_pos"], dtype=float),
+                agent_vel=np.zeros(2),
+                truth=cog_pose(np.array(answer["block"])),
+                lost=True,
+                **_flags(answer, coverage),
+            )
+        self.goal = cog_pose(self.scene.goal)
+        return self._observe(answer, frames, coverage)
+
+    def step(self, actions: np.ndarray) -> Observed:
+        """Run the agent targets `actions` (T, 2) and observe the last frame."""
+        answer = self.worker.ask("step", actions=np.asarray(actions).tolist())
+        frames = pixel_observations(answer)
+        return self._observe(answer, frames, [float(c) for c in answer["coverage"]])
+
+    def _back_away(
+        self, frame: dict[str, np.ndarray], block: np.ndarray | None
+    ) -> tuple[dict[str, Any], list[dict[str, np.ndarray]], list[float]]:
+        """Move the pusher's target away from the block: its last pose, else its colour."""
+        agent = np.asarray(frame["agent_pos"], dtype=float)
+        centre = _colour_centre(frame["pixels"]) if block is None else block[:2]
+        away = agent - centre
+        norm = float(np.hypot(*away))
+        away = away / norm if norm > 1e-6 else np.array([1.0, 0.0])
+        target = np.clip(agent + self.retreat * away, ARENA[0], ARENA[1])
+        if np.allclose(target, agent, atol=1.0):  # cornered: go along the wall instead
+            target = np.clip(agent + self.retreat * away[::-1] * [1, -1], ARENA[0], ARENA[1])
+        self._log.retreats += 1
+        answer = self.worker.ask("step", actions=[target.tolist()] * self.retreat_steps)
+        return answer, pixel_observations(answer), [float(c) for c in answer["coverage"]]
+
+    def _observe(
+        self, answer: dict[str, Any], frames: list[dict[str, np.ndarray]], coverage: list[float]
+    ) -> Observed:
+        """Perceive the block in the last frame; back away and look again while unreadable."""
+        assert self.scene is not None
+        size = self.scene.frame_size
+        pixels, agent = check_observation(frames[-1], size)
+        est = perceive_block(pixels, self.scene, self.options, guess=self._last)
+        tries = 0
+        while not est.ok and tries < self.retries and not _ended(answer):
+            self._log.flagged += 1
+            tries += 1
+            answer, frames, more = self._back_away(frames[-1], self._last)
+            coverage += more
+            pixels, agent = check_observation(frames[-1], size)
+            est = perceive_block(pixels, self.scene, self.options, guess=self._last)
+        if est.ok:
+            self._last = est.pose
+        truth = cog_pose(np.array(answer["block"]))  # scoring only, never planned on
+        pose = cog_pose(est.pose) if est.ok else np.full(3, np.nan)
+        if est.ok:
+            self._log.estimates.append(est)
+            self._log.errors_px.append(float(np.hypot(*(pose[:2] - truth[:2]))) * size / WORLD_SIZE)
+            d = pose[2] - truth[2]
+            self._log.errors_deg.append(abs(math.degrees(math.atan2(math.sin(d), math.cos(d)))))
+        before = frames[-2]["agent_pos"] if len(frames) > 1 else agent
+        return Observed(
+            pose=pose,
+            agent=agent,
+            agent_vel=(agent - before) / CONTROL_DT,
+            truth=truth,
+            lost=not est.ok,
+            **_flags(answer, coverage),
+        )
+
+    def record(self) -> dict[str, Any]:
+        """What the observer adds to the episode's record (perception scored on the state)."""
+        log = self._log
+        return {
+            "observation": self.name,
+            "flagged": log.flagged,
+            "retreats": log.retreats,
+            "perception_px": float(np.mean(log.errors_px)) if log.errors_px else math.nan,
+            "perception_deg": float(np.mean(log.errors_deg)) if log.errors_deg else math.nan,
+        }
+
+
+def _colour_centre(pixels: np.ndarray) -> np.ndarray:
+    """(2,) world centre of the block's colour in `pixels` (the image's centre if none)."""
+    block = class_fractions(pixels)[..., CLASSES.index("block")]
+    n = pixels.shape[0]
+    if block.sum() < 1.0:
+        return np.full(2, WORLD_SIZE / 2)
+    rows, cols = np.mgrid[0:n, 0:n]
+    points = pixel_to_world(rows.ravel(), cols.ravel(), n)
+    return np.asarray((points * block.reshape(-1, 1)).sum(0) / block.sum())
+
+
+def _ended(answer: dict[str, Any]) -> bool:
+    return bool(answer.get("terminated", False) or answer.get("truncated", False))
+
+
+def observer(observation: str, worker: PushTWorker) -> StateObserver | PixelObserver:
+    """The observer of `observation` (``"state"`` or ``"pixels"``).
+
+    Raises:
+        InputError: For another observation.
+    """
+    if observation == "state":
+        return StateObserver(worker)
+    if observation == "pixels":
+        return PixelObserver(worker)
+    raise InputError(f"observation must be one of {list(OBSERVATIONS)}, got {observation!r}.")

@@ -1,0 +1,690 @@
+"""Push-T perception from the diffusion policy's observation: the T's pose read off the image.
+
+LeRobot's diffusion policy observes gym-pusht as ``obs_type="pixels_agent_pos"``: a 96 x 96 RGB
+image and the agent's position. This module reads the block's pose ``(x, y, theta)``, with an
+uncertainty, off that image alone, and perceives the rest of the scene from the frames too: the
+goal region (the green T) and the T's outline. Nothing of the T's geometry or of the goal's
+pose is taken from the environment: the T is modelled as what the task calls it, a bar and a
+stem of unknown lengths and widths, and those four lengths, the goal's pose and the width of
+the block's drawn rim are fitted to the frames (`perceive_scene`).
+
+One idea: colour fractions, then a fitted template. Every pixel is unmixed into the fractions
+of the colours the renderer draws with (`class_fractions`; a pixel on an edge mixes two), and a
+T whose edges ramp over one world unit (the renderer's bilinear shrink of its screen) is fitted
+to the block's fraction by least squares, coarse to fine (`perceive_block`). Its covariance is
+the Gauss-Newton (Laplace) one of that fit, scaled by the residual, plus a block jackknife over
+the outline's eight edges (the fit again without the pixels nearest each edge): the image
+samples the world every 5.3 units, so one edge's pixels err together, which the Laplace
+approximation alone, counting every pixel as independent, would miss.
+
+One frame pins the T's outline down only to the sampling: the perceived lengths can be off by
+a unit or two (the bar's width against the stem's length most). Goal and block share the one
+outline, so their relative pose, which decides the coverage, is read with the same one.
+
+Frames. World coordinates are the environment's: ``[0, 512]`` on both axes, y downwards, as its
+actions and ``agent_pos`` are. The renderer draws the world on a 512 x 512 screen and shrinks it
+to the observed image by bilinear sampling, so pixel ``(row i, column j)`` of an N x N image is
+the world point ``((j + 0.5) s - 0.5, (i + 0.5) s - 0.5)`` with ``s = 512 / N``
+(`pixel_to_world`). A pose is the T's frame in the world: its origin at the middle of the
+bar's outer edge, its y axis along the stem towards the stem's foot, and ``theta`` the angle
+that turns the world's axes onto it (``world = R(theta) @ local + (x, y)``).
+
+Frames where the block cannot be read well enough (hidden under the pusher, mostly out of the
+image, or fitted poorly) are not errors: `perceive_block` returns them with a status other than
+``"ok"`` and `BlockEstimate.ok` False, and the caller observes again.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from probaff.errors import InputError
+
+__all__ = [
+    "CLASSES",
+    "FRAME_SIZE",
+    "PALETTE",
+    "WORLD_SIZE",
+    "BlockEstimate",
+    "PerceptionOptions",
+    "Scene",
+    "TeeShape",
+    "check_observation",
+    "check_pixels",
+    "class_fractions",
+    "perceive_block",
+    "perceive_scene",
+    "pixel_to_world",
+    "world_to_pixel",
+]
+
+FRAME_SIZE = 96
+"""Side of the diffusion policy's observed image (px)."""
+WORLD_SIZE = 512.0
+"""Side of the environment's world, the range of its actions and positions (world units)."""
+CLASSES = ("background", "goal", "block", "agent")
+"""What a pixel can show, in the order of `class_fractions`' last axis."""
+PALETTE: Mapping[str, tuple[tuple[int, int, int], ...]] = {
+    "background": ((255, 255, 255), (211, 211, 211)),
+    "goal": ((144, 238, 144),),
+    "block": ((143, 163, 184), (119, 136, 153)),
+    "agent": ((65, 105, 225), (78, 126, 255)),
+}
+"""The renderer's RGB colours of each class: the floor and the walls; the goal region; the
+block's face and rim; the pusher's rim and face."""
+_GOAL_RIM = 0.0  # world units: the fill covers the outline; the bilinear ramp is centred on it
+
+
+@dataclass(frozen=True)
+class PerceptionOptions:
+    """Settings of the template fits and of the checks that flag a frame.
+
+    Attributes:
+        ramps: Edge ramp widths (world units) of the coarse-to-fine fit; the last is the
+            renderer's own (one screen pixel).
+        starts: Starting angles of the block's global search (evenly spaced).
+        margin: Pixels around the block's colour that its fit looks at.
+        unknown: A pixel whose fraction of an occluding class exceeds this is left out.
+        min_visible: Least fraction of the T's expected area that must show its colour.
+        max_hidden: Most fraction of the fitted T's area that may lie under the pusher.
+        max_rms: Most mismatch of the fit: the summed absolute difference between the
+            fitted T's and the image's block fraction, over the fitted T's area.
+        max_std_px: Most standard deviation of the position (px of the image).
+        max_std_deg: Most standard deviation of the angle (degrees). A T whose edges lie
+            along the pixel grid is read to about a degree or two, however long it is looked
+            at, so these bounds flag only estimates too uncertain to plan on.
+    """
+
+    ramps: tuple[float, ...] = (8.0, 3.0, 1.0)
+    starts: int = 8
+    margin: int = 4
+    unknown: float = 0.02
+    min_visible: float = 0.5
+    max_hidden: float = 0.1
+    max_rms: float = 0.15
+    max_std_px: float = 2.0
+    max_std_deg: float = 5.0
+
+    def __post_init__(self) -> None:
+        if not self.ramps or any(not (math.isfinite(r) and r > 0) for r in self.ramps):
+            raise InputError(f"PerceptionOptions.ramps must be positive widths, got {self.ramps}.")
+        if self.starts < 1 or self.margin < 0:
+            raise InputError(
+                "PerceptionOptions.starts must be at least 1 and margin at least 0, got "
+                f"{self.starts} and {self.margin}."
+            )
+
+
+@dataclass(frozen=True)
+class TeeShape:
+    """The T's outline, perceived: a bar and a stem, in world units.
+
+    The T frame has its origin at the middle of the bar's outer edge and its y axis along the
+    stem: the bar spans ``[-bar_length / 2, bar_length / 2] x [0, bar_width]``, the stem
+    ``[-stem_width / 2, stem_width / 2] x [bar_width, bar_width + stem_length]``.
+
+    Attributes:
+        bar_length: Length of the bar (across the stem).
+        bar_width: Width of the bar (along the stem).
+        stem_width: Width of the stem.
+        stem_length: Length of the stem below the bar.
+    """
+
+    bar_length: float
+    bar_width: float
+    stem_width: float
+    stem_length: float
+
+    def as_array(self) -> np.ndarray:
+        """(4,) ``[bar_length, bar_width, stem_width, stem_length]``."""
+        return np.array([self.bar_length, self.bar_width, self.stem_width, self.stem_length])
+
+    def outline(self) -> np.ndarray:
+        """(8, 2) the T's corners in its frame, in drawing order (world units)."""
+        a, b, c, e = self.as_array() / [2.0, 1.0, 2.0, 1.0]
+        return np.array(
+            [[-a, 0], [a, 0], [a, b], [c, b], [c, b + e], [-c, b + e], [-c, b], [-a, b]],
+            dtype=float,
+        )
+
+    def area(self) -> float:
+        """The T's area (world units squared)."""
+        return float(self.bar_length * self.bar_width + self.stem_width * self.stem_length)
+
+    def centroid(self) -> np.ndarray:
+        """(2,) the T's centre of area in its frame."""
+        bar = self.bar_length * self.bar_width
+        stem = self.stem_width * self.stem_length
+        y = (bar * self.bar_width / 2 + stem * (self.bar_width + self.stem_length / 2)) / (
+            bar + stem
+        )
+        return np.array([0.0, y])
+
+
+@dataclass(frozen=True)
+class Scene:
+    """What is perceived once per episode: the T's outline, the goal and the block's rim.
+
+    Attributes:
+        shape: The T's outline (shared by the goal region and the block).
+        goal: (3,) the goal region's pose ``(x, y, theta)`` (world units, radians).
+        goal_cov: (3, 3) its covariance (the Laplace approximation of the fit).
+        block_rim: How far the block's drawn colour reaches beyond its outline (world units).
+        frame_size: Side of the images it was perceived from (px).
+    """
+
+    shape: TeeShape
+    goal: np.ndarray
+    goal_cov: np.ndarray
+    block_rim: float
+    frame_size: int = FRAME_SIZE
+
+
+@dataclass(frozen=True)
+class BlockEstimate:
+    """The block's pose read off one image.
+
+    Attributes:
+        pose: (3,) ``(x, y, theta)``: world units, radians in ``(-pi, pi]``.
+        cov: (3, 3) its covariance: the Laplace approximation of the template fit plus a
+            block jackknife over the outline's edges.
+        status: ``"ok"``; ``"not_visible"`` (too little of the block's colour in the image);
+            ``"occluded"`` (too much of the fitted T under the pusher); ``"poor_fit"`` (the
+            template does not explain the image, or the pose is too uncertain).
+        visible: Fraction of the T's expected area that shows the block's colour.
+        hidden: Fraction of the fitted T's area under the pusher.
+        rms: The fit's mismatch: summed absolute difference of the fitted T's and the image's
+            block fraction over the fitted T's area (0: a perfect fit).
+        extra: The fit's details: ``rim`` (the block's rim it used) and ``cost``.
+    """
+
+    pose: np.ndarray
+    cov: np.ndarray
+    status: str
+    visible: float
+    hidden: float
+    rms: float
+    extra: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def ok(self) -> bool:
+        """Whether the pose may be planned on."""
+        return self.status == "ok"
+
+    def std(self) -> np.ndarray:
+        """(3,) standard deviations of ``x, y`` (world units) and ``theta`` (radians)."""
+        return np.sqrt(np.maximum(np.diag(self.cov), 0.0))
+
+
+def check_pixels(pixels: Any, name: str = "pixels") -> np.ndarray:
+    """The image, checked: an N x N x 3 uint8 RGB array.
+
+    Args:
+        pixels: The image (row i, column j, channel RGB).
+        name: Its name in the error message.
+
+    Returns:
+        The same image as an ndarray.
+
+    Raises:
+        InputError: If it is not an array, not uint8, not three channels or not square.
+    """
+    if not isinstance(pixels, np.ndarray):
+        raise InputError(
+            f"{name} must be a numpy array of shape (96, 96, 3) and dtype uint8, as "
+            f"obs_type='pixels_agent_pos' returns it; got {type(pixels).__name__}."
+        )
+    if pixels.dtype != np.uint8:
+        raise InputError(
+            f"{name} must have dtype uint8 (RGB values 0-255, as the environment renders them), "
+            f"got {pixels.dtype}; pass the observation's image unconverted."
+        )
+    if pixels.ndim != 3 or pixels.shape[2] != 3:
+        raise InputError(
+            f"{name} must have three RGB channels, shape (H, W, 3), got shape {pixels.shape}; "
+            "pass the image of obs_type='pixels_agent_pos', not a grey or RGBA one."
+        )
+    if pixels.shape[0] != pixels.shape[1] or pixels.shape[0] < 16:
+        raise InputError(
+            f"{name} must be a square image of at least 16 x 16 (the environment's default is "
+            f"{FRAME_SIZE} x {FRAME_SIZE}), got {pixels.shape[0]} x {pixels.shape[1]}."
+        )
+    return pixels
+
+
+def check_observation(obs: Any, size: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The image and agent position of a ``pixels_agent_pos`` observation, checked.
+
+    Args:
+        obs: The observation dict, ``{"pixels": (N, N, 3) uint8, "agent_pos": (2,)}``.
+        size: The image side it must have (None: any square side).
+
+    Returns:
+        ``(pixels, agent_pos)``: the (N, N, 3) uint8 image and the (2,) float agent position
+        (world units).
+
+    Raises:
+        InputError: If it is not a mapping, lacks ``pixels`` or ``agent_pos``, or either is
+            malformed (see `check_pixels`).
+    """
+    if not isinstance(obs, Mapping):
+        raise InputError(
+            "obs must be the observation dict of obs_type='pixels_agent_pos' with keys 'pixels' "
+            f"and 'agent_pos', got {type(obs).__name__}."
+        )
+    missing = [k for k in ("pixels", "agent_pos") if k not in obs]
+    if missing:
+        raise InputError(
+            f"obs lacks {missing} (it has {sorted(map(str, obs))}); make the environment with "
+            "obs_type='pixels_agent_pos', which observes the image and the agent's position."
+        )
+    pixels = check_pixels(obs["pixels"], "obs['pixels']")
+    if size is not None and pixels.shape[:2] != (size, size):
+        raise InputError(
+            f"obs['pixels'] must be {size} x {size} like the frames the scene was perceived "
+            f"from, got {pixels.shape[0]} x {pixels.shape[1]}; keep the environment's "
+            "observation_width and observation_height."
+        )
+    agent = np.asarray(obs["agent_pos"], dtype=float)
+    if agent.shape != (2,) or not np.all(np.isfinite(agent)):
+        raise InputError(
+            f"obs['agent_pos'] must be two finite numbers (world units), got {obs['agent_pos']!r}."
+        )
+    return pixels, agent
+
+
+def pixel_to_world(rows: np.ndarray, cols: np.ndarray, size: int = FRAME_SIZE) -> np.ndarray:
+    """World points of image pixels (the renderer's bilinear sample points).
+
+    Args:
+        rows: (...) row indices i (may be fractional).
+        cols: (...) column indices j, broadcast against `rows`.
+        size: The image's side N.
+
+    Returns:
+        (..., 2) world ``(x, y)``.
+    """
+    s = WORLD_SIZE / size
+    x = (np.asarray(cols, dtype=float) + 0.5) * s - 0.5
+    y = (np.asarray(rows, dtype=float) + 0.5) * s - 0.5
+    return np.stack(np.broadcast_arrays(x, y), axis=-1)
+
+
+def world_to_pixel(points: np.ndarray, size: int = FRAME_SIZE) -> np.ndarray:
+    """Image coordinates ``(column j, row i)`` of world points (the inverse of `pixel_to_world`).
+
+    Args:
+        points: (..., 2) world ``(x, y)``.
+        size: The image's side N.
+
+    Returns:
+        (..., 2) fractional ``(j, i)``.
+    """
+    return (np.asarray(points, dtype=float) + 0.5) * (size / WORLD_SIZE) - 0.5
+
+
+def _palette() -> tuple[np.ndarray, np.ndarray]:
+    colours, labels = [], []
+    for k, name in enumerate(CLASSES):
+        for colour in PALETTE[name]:
+            colours.append(colour)
+            labels.append(k)
+    return np.asarray(colours, dtype=float), np.asarray(labels)
+
+
+_COLOURS, _LABELS = _palette()
+_PAIRS = np.array([(p, q) for p in range(len(_COLOURS)) for q in range(p, len(_COLOURS))])
+
+
+def class_fractions(pixels: np.ndarray) -> np.ndarray:
+    """Per pixel, the fraction of each class (`CLASSES`) it shows.
+
+    Each pixel's colour is explained as the mix of two palette colours (`PALETTE`) nearest to
+    it in RGB: a pixel on an edge is the renderer's bilinear mix of the two sides.
+
+    Args:
+        pixels: (N, N, 3) uint8 RGB image.
+
+    Returns:
+        (N, N, 4) fractions summing to 1 over the last axis.
+
+    Raises:
+        InputError: If `pixels` is malformed (`check_pixels`).
+    """
+    img = check_pixels(pixels).astype(float)
+    c = img.reshape(-1, 1, 3)
+    p = _COLOURS[_PAIRS[:, 0]][None]
+    q = _COLOURS[_PAIRS[:, 1]][None]
+    d = p - q
+    denom = np.maximum(np.sum(d * d, axis=-1), 1e-12)
+    t = np.clip(np.sum((c - q) * d, axis=-1) / denom, 0.0, 1.0)  # (P, pairs): weight of p
+    err = np.sum((c - (q + t[..., None] * d)) ** 2, axis=-1)
+    best = np.argmin(err, axis=1)
+    rows = np.arange(len(best))
+    w = t[rows, best]
+    out = np.zeros((len(best), len(CLASSES)))
+    np.add.at(out, (rows, _LABELS[_PAIRS[best, 0]]), w)
+    np.add.at(out, (rows, _LABELS[_PAIRS[best, 1]]), 1.0 - w)
+    return out.reshape(*img.shape[:2], len(CLASSES))
+
+
+def _tee_fraction(
+    params: np.ndarray, dims: np.ndarray, rim: float, points: np.ndarray, ramp: float
+) -> np.ndarray:
+    """The T's drawn fraction at world `points`: (P,) for pose `params` (3,) and `dims` (4,)."""
+    x, y, theta = params
+    a, b, c, e = np.abs(dims)
+    co, si = math.cos(theta), math.sin(theta)
+    dx, dy = points[:, 0] - x, points[:, 1] - y
+    u = co * dx + si * dy  # the T's frame
+    v = -si * dx + co * dy
+    au = np.abs(u)
+    # the stem reaches into the bar, so that the union's inside has no seam
+    sd_bar = _box_distance(au - a / 2, np.abs(v - b / 2) - b / 2)
+    stem_half = (b / 2 + e) / 2
+    sd_stem = _box_distance(au - c / 2, np.abs(v - (b / 2 + stem_half)) - stem_half)
+    sd = np.minimum(sd_bar, sd_stem) - rim
+    return np.clip(0.5 - sd / ramp, 0.0, 1.0)
+
+
+def _box_distance(qx: np.ndarray, qy: np.ndarray) -> np.ndarray:
+    outside = np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0))
+    return outside + np.minimum(np.maximum(qx, qy), 0.0)
+
+
+def _edge_groups(pose: np.ndarray, shape: TeeShape, points: np.ndarray) -> np.ndarray:
+    """(P,) index of the outline edge nearest each world point, for the T at `pose`."""
+    x, y, theta = pose
+    co, si = math.cos(theta), math.sin(theta)
+    dx, dy = points[:, 0] - x, points[:, 1] - y
+    local = np.stack([co * dx + si * dy, -si * dx + co * dy], axis=-1)
+    a = shape.outline()
+    b = np.roll(a, -1, axis=0)
+    d = b - a
+    t = np.clip(
+        np.einsum("pkj,kj->pk", local[:, None] - a[None], d) / np.sum(d * d, axis=1), 0.0, 1.0
+    )
+    nearest = a[None] + t[..., None] * d[None]
+    return np.asarray(np.argmin(np.linalg.norm(local[:, None] - nearest, axis=-1), axis=1))
+
+
+def _wrap(theta: float) -> float:
+    return float(math.atan2(math.sin(theta), math.cos(theta)))
+
+
+@dataclass
+class _Fit:
+    x: np.ndarray
+    cost: float
+    jac: np.ndarray
+    residual: np.ndarray
+
+
+def _fit(fun: Any, x0: np.ndarray, scale: np.ndarray, max_nfev: int | None = None) -> _Fit:
+    res = least_squares(fun, x0, x_scale=scale, method="lm", max_nfev=max_nfev, diff_step=1e-3)
+    return _Fit(np.asarray(res.x, dtype=float), float(res.cost), res.jac, res.fun)
+
+
+def _laplace(fit: _Fit, n_params: int) -> np.ndarray:
+    """Covariance ``s^2 (J^T J)^-1`` of a least-squares fit, s^2 its residual variance."""
+    n = fit.residual.size
+    s2 = float(np.sum(fit.residual**2)) / max(n - n_params, 1)
+    jtj = fit.jac.T @ fit.jac
+    return np.asarray(s2 * np.linalg.pinv(jtj), dtype=float)
+
+
+def _window(mask: np.ndarray, margin: int) -> tuple[slice, slice]:
+    rows, cols = np.nonzero(mask)
+    n = mask.shape[0]
+    return (
+        slice(max(int(rows.min()) - margin, 0), min(int(rows.max()) + margin + 1, n)),
+        slice(max(int(cols.min()) - margin, 0), min(int(cols.max()) + margin + 1, n)),
+    )
+
+
+def _grid(size: int, window: tuple[slice, slice]) -> np.ndarray:
+    rows, cols = np.mgrid[window[0], window[1]]
+    return pixel_to_world(rows.ravel(), cols.ravel(), size)
+
+
+def _start_poses(centroid: np.ndarray, local: np.ndarray, starts: int) -> list[np.ndarray]:
+    """Poses whose T's centre of area lies on `centroid`, at `starts` angles."""
+    out = []
+    for theta in np.linspace(-math.pi, math.pi, starts, endpoint=False):
+        co, si = math.cos(theta), math.sin(theta)
+        offset = np.array([co * local[0] - si * local[1], si * local[0] + co * local[1]])
+        out.append(np.array([*(centroid - offset), theta]))
+    return out
+
+
+def _frames(frames: Any) -> list[np.ndarray]:
+    if isinstance(frames, np.ndarray):
+        frames = [frames] if frames.ndim == 3 else list(frames)
+    if isinstance(frames, (str, bytes)) or not isinstance(frames, Sequence) or not frames:
+        raise InputError(
+            "frames must be one (N, N, 3) uint8 image or a non-empty sequence of them (the first "
+            "frames of an episode)."
+        )
+    out = [check_pixels(f, f"frames[{i}]") for i, f in enumerate(frames)]
+    if len({f.shape for f in out}) != 1:
+        raise InputError(f"frames must all have one size, got {sorted({f.shape for f in out})}.")
+    return out
+
+
+def perceive_scene(frames: Any, options: PerceptionOptions | None = None) -> Scene:
+    """Perceive the T's outline, the goal region and the block's rim from frames of an episode.
+
+    The goal region is the green T; where the block or the pusher hides it in one frame another
+    frame may show it, so the goal's colour is averaged over the frames where each pixel is
+    unoccluded. A T (pose and four lengths) is fitted to it, starting from a T of the goal
+    region's size. The block's rim is then fitted, with the same outline, to the block in the
+    first frame where it is seen well.
+
+    Args:
+        frames: One (N, N, 3) uint8 image or a sequence of them (e.g. an episode's first).
+        options: Fit settings.
+
+    Returns:
+        The `Scene`.
+
+    Raises:
+        InputError: If the frames are malformed, or no frame shows the goal region or the block
+            well enough to fit them.
+    """
+    opts = options or PerceptionOptions()
+    images = _frames(frames)
+    size = images[0].shape[0]
+    fractions = [class_fractions(f) for f in images]
+    goal_sum = np.zeros((size, size))
+    seen = np.zeros((size, size))
+    for frac in fractions:
+        clear = frac[..., 2] + frac[..., 3] <= opts.unknown
+        goal_sum += np.where(clear, frac[..., 1], 0.0)
+        seen += clear
+    weight = (seen > 0).astype(float)
+    goal = np.where(seen > 0, goal_sum / np.maximum(seen, 1), 0.0)
+    pixel_area = (WORLD_SIZE / size) ** 2
+    area = float(goal.sum()) * pixel_area
+    if goal.sum() < 4:
+        raise InputError(
+            "frames show no goal region (green T) to perceive; pass the episode's first frames."
+        )
+    rows, cols = np.mgrid[0:size, 0:size].reshape(2, -1)
+    points = pixel_to_world(rows, cols, size)
+    observed, w = goal.ravel(), weight.ravel()
+    inside = observed > 0.5
+    centroid = (points * observed[:, None]).sum(0) / observed.sum()
+    extent = float(np.max(np.linalg.norm(points[inside] - centroid, axis=1))) * 2
+    # a first T: bar and stem of one length L and one width t, as large as the region
+    length = extent / math.sqrt(2)
+    width = length - math.sqrt(max(length**2 - area, 0.0))
+    dims0 = np.array([length, width, width, length - width])
+    best: _Fit | None = None
+    for start in _start_poses(centroid, TeeShape(*dims0).centroid(), opts.starts):
+        x0 = np.r_[start, dims0]
+
+        def res(p: np.ndarray, ramp: float = opts.ramps[0]) -> np.ndarray:
+            return w * (_tee_fraction(p[:3], p[3:], _GOAL_RIM, points, ramp) - observed)
+
+        fit = _fit(res, x0, np.r_[1.0, 1.0, 0.02, 1.0, 1.0, 1.0, 1.0], max_nfev=60)
+        if best is None or fit.cost < best.cost:
+            best = fit
+    assert best is not None
+    for ramp in opts.ramps[1:]:
+
+        def res_r(p: np.ndarray, ramp: float = ramp) -> np.ndarray:
+            return w * (_tee_fraction(p[:3], p[3:], _GOAL_RIM, points, ramp) - observed)
+
+        best = _fit(res_r, best.x, np.r_[1.0, 1.0, 0.02, 1.0, 1.0, 1.0, 1.0])
+    shape = TeeShape(*(float(v) for v in np.abs(best.x[3:])))
+    goal_pose = np.array([best.x[0], best.x[1], _wrap(best.x[2])])
+    goal_cov = _laplace(best, 7)[:3, :3]
+    rim = None
+    for frac in fractions:
+        est = _fit_block(frac, shape, None, opts, rim_free=True)
+        if est is not None and est.status == "ok":
+            rim = float(est.extra["rim"])
+            break
+    if rim is None:
+        raise InputError(
+            "no frame shows the block well enough to perceive its rim; pass more of the "
+            "episode's frames."
+        )
+    return Scene(shape, goal_pose, goal_cov, rim, size)
+
+
+def perceive_block(
+    pixels: np.ndarray,
+    scene: Scene,
+    options: PerceptionOptions | None = None,
+    guess: np.ndarray | None = None,
+) -> BlockEstimate:
+    """The block's pose in one image, with its uncertainty and whether it may be used.
+
+    Args:
+        pixels: (N, N, 3) uint8 RGB image, N the scene's frame size.
+        scene: The perceived scene (`perceive_scene`): the T's outline and the block's rim.
+        options: Fit settings and the checks' thresholds.
+        guess: (3,) a pose to start from (e.g. the last one); None, or a start that ends in a
+            frame not accepted, searches over `PerceptionOptions.starts` angles.
+
+    Returns:
+        The `BlockEstimate`; a frame that does not show the block well enough has a status
+        other than ``"ok"`` (its pose is then the best fit found, or NaN if none).
+
+    Raises:
+        InputError: If `pixels` is malformed or not of the scene's size.
+    """
+    opts = options or PerceptionOptions()
+    img = check_pixels(pixels)
+    if img.shape[0] != scene.frame_size:
+        raise InputError(
+            f"pixels must be {scene.frame_size} x {scene.frame_size} like the frames the scene "
+            f"was perceived from, got {img.shape[0]} x {img.shape[1]}."
+        )
+    frac = class_fractions(img)
+    est = _fit_block(frac, scene.shape, scene.block_rim, opts, guess=guess)
+    if guess is not None and est is not None and not est.ok:  # lost track: search again
+        est = _fit_block(frac, scene.shape, scene.block_rim, opts)
+    if est is None:
+        nan = np.full(3, np.nan)
+        return BlockEstimate(nan, np.full((3, 3), np.nan), "not_visible", 0.0, 0.0, math.nan)
+    return est
+
+
+def _fit_block(
+    frac: np.ndarray,
+    shape: TeeShape,
+    rim: float | None,
+    opts: PerceptionOptions,
+    *,
+    guess: np.ndarray | None = None,
+    rim_free: bool = False,
+) -> BlockEstimate | None:
+    """Fit the T to the block's colour fraction `frac[..., 2]`; None if it shows nowhere."""
+    size = frac.shape[0]
+    block, agent = frac[..., 2], frac[..., 3]
+    pixel_area = (WORLD_SIZE / size) ** 2
+    rim0 = 2.5 if rim is None else rim
+    expected = shape.area() + rim0 * 2 * (shape.bar_length + shape.bar_width + shape.stem_length)
+    visible = float(block.sum()) * pixel_area / expected
+    if block.sum() < 1.0:
+        return None
+    window = _window((block > 0.05) | (agent > opts.unknown), opts.margin)
+    points = _grid(size, window)
+    observed = block[window].ravel()
+    weight = (agent[window].ravel() <= opts.unknown).astype(float)
+    dims = shape.as_array()
+    n = 4 if rim_free else 3
+    scale = np.r_[1.0, 1.0, 0.02, 0.5][:n]
+
+    def model(p: np.ndarray, ramp: float) -> np.ndarray:
+        r = p[3] if rim_free else rim0
+        return _tee_fraction(p[:3], dims, r, points, ramp)
+
+    if guess is not None:
+        starts = [np.asarray(guess, dtype=float)[:3]]
+    else:
+        centroid = (points * observed[:, None]).sum(0) / max(observed.sum(), 1e-9)
+        starts = _start_poses(centroid, shape.centroid(), opts.starts)
+    best: _Fit | None = None
+    for start in starts:
+        x0 = np.r_[start, rim0][:n]
+
+        def res0(p: np.ndarray) -> np.ndarray:
+            return weight * (model(p, opts.ramps[0]) - observed)
+
+        fit = _fit(res0, x0, scale, max_nfev=20)
+        if best is None or fit.cost < best.cost:
+            best = fit
+    assert best is not None
+    for ramp in opts.ramps[1:]:
+
+        def res(p: np.ndarray, ramp: float = ramp) -> np.ndarray:
+            return weight * (model(p, ramp) - observed)
+
+        best = _fit(res, best.x, scale)
+    predicted = model(best.x, opts.ramps[-1])
+    hidden = float((predicted * (1.0 - weight)).sum() / max(predicted.sum(), 1e-9))
+    seen = weight > 0
+    rms = float(np.abs(predicted - observed)[seen].sum() / max(predicted[seen].sum(), 1e-9))
+    groups = _edge_groups(best.x[:3], shape, points)
+    subsets = []
+    for g in range(groups.max() + 1):
+        keep = weight * (groups != g)
+
+        def res_g(p: np.ndarray, keep: np.ndarray = keep) -> np.ndarray:
+            return keep * (model(p, opts.ramps[-1]) - observed)
+
+        subsets.append(_fit(res_g, best.x, scale, max_nfev=12).x[:3])
+    sub = np.asarray(subsets)
+    sub[:, 2] = best.x[2] + np.array([_wrap(t - best.x[2]) for t in sub[:, 2]])
+    dev = sub - sub.mean(0)
+    cov = _laplace(best, n)[:3, :3] + (len(sub) - 1) / len(sub) * dev.T @ dev
+    std = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    px = size / WORLD_SIZE
+    if hidden > opts.max_hidden:
+        status = "occluded"
+    elif visible < opts.min_visible:
+        status = "not_visible"
+    elif (
+        rms > opts.max_rms
+        or not np.all(np.isfinite(std))
+        or max(std[0], std[1]) * px > opts.max_std_px
+        or math.degrees(std[2]) > opts.max_std_deg
+    ):
+        status = "poor_fit"
+    else:
+        status = "ok"
+    pose = np.array([best.x[0], best.x[1], _wrap(best.x[2])])
+    extra = {
+        "rim": float(best.x[3]) if rim_free else rim0,
+        "cost": best.cost,
+    }
+    return BlockEstimate(pose, cov, status, visible, hidden, rms, extra)

@@ -1,0 +1,326 @@
+"""Push-T perception from the diffusion policy's observation (``obs_type="pixels_agent_pos"``).
+
+Covers probaff.experiments.pusht.perception and the worker's image observation
+(probaff.experiments.pusht._worker, probaff.experiments.pusht.env.pixel_observations): the
+image comes from the unmodified environment beside the state; the goal region, the T's outline
+and the block's pose are read off real frames and scored against the state; a frame where the
+block is hidden is flagged, not planned on; malformed images and observations are refused.
+"""
+
+import base64
+import math
+
+import numpy as np
+import pytest
+
+from probaff.errors import InputError
+from probaff.experiments.pusht.env import PushTEnvError, PushTWorker, pixel_observations
+from probaff.experiments.pusht.perception import (
+    CLASSES,
+    FRAME_SIZE,
+    PALETTE,
+    WORLD_SIZE,
+    PerceptionOptions,
+    Scene,
+    TeeShape,
+    check_observation,
+    class_fractions,
+    perceive_block,
+    perceive_scene,
+    pixel_to_world,
+    world_to_pixel,
+)
+
+PX = FRAME_SIZE / WORLD_SIZE  # image px per world unit
+
+
+def _angle_deg(a: float, b: float) -> float:
+    return abs(math.degrees(math.atan2(math.sin(a - b), math.cos(a - b))))
+
+
+@pytest.fixture(scope="module")
+def episode(pusht_python):
+    """An episode observed as the policy observes it: its reset, and frames of a push."""
+    w = PushTWorker(pusht_python)
+    try:
+        start = w.ask("reset", seed=3, obs_type="pixels_agent_pos")
+        block = np.array(start["block"])
+        # push towards the block's far side, so that the pusher touches the T
+        moved = w.ask("step", actions=[block[:2].tolist()] * 12)
+        state = w.ask("reset", seed=3)
+    finally:
+        w.close()
+    frames = pixel_observations(start) + pixel_observations(moved)
+    states = [start["obs"], *moved["obs"]]
+    return {
+        "start": start,
+        "moved": moved,
+        "state_reset": state,
+        "frames": frames,
+        "states": states,
+    }
+
+
+@pytest.fixture(scope="module")
+def scene(episode):
+    return perceive_scene(episode["frames"][0]["pixels"])
+
+
+def test_worker_returns_the_policys_observation_beside_the_state(episode):
+    start, moved, state = episode["start"], episode["moved"], episode["state_reset"]
+    first = episode["frames"][0]
+    assert first["pixels"].shape == (FRAME_SIZE, FRAME_SIZE, 3)
+    assert first["pixels"].dtype == np.uint8
+    assert np.allclose(first["agent_pos"], start["agent"])
+    # the same seeded episode, whichever way it is observed; the state is kept for scoring
+    assert start["block"] == state["block"] and start["obs"] == state["obs"]
+    assert len(pixel_observations(moved)) == len(moved["obs"]) == 12
+    assert np.allclose(episode["frames"][-1]["agent_pos"], moved["obs"][-1][:2])
+    # the image shows the floor, the goal, the block and the pusher, in their colours
+    counts = class_fractions(first["pixels"]).sum(axis=(0, 1))
+    assert counts[CLASSES.index("background")] > 0.8 * FRAME_SIZE**2
+    assert min(counts[1:]) > 10
+    with pytest.raises(PushTEnvError, match="obs_type='pixels_agent_pos'"):
+        pixel_observations(state)
+
+
+def test_worker_refuses_an_unknown_observation_type(pusht_python):
+    w = PushTWorker(pusht_python)
+    try:
+        with pytest.raises(PushTEnvError, match="obs_type"):
+            w.ask("reset", seed=0, obs_type="keypoints")
+    finally:
+        w.close()
+
+
+def test_goal_outline_and_block_perceived_within_a_pixel(episode, scene):
+    goal = np.array(episode["start"]["goal"])
+    assert np.hypot(*(scene.goal[:2] - goal[:2])) * PX < 0.5
+    assert _angle_deg(scene.goal[2], goal[2]) < 1.0
+    shape = scene.shape
+    assert shape.bar_length > 2 * shape.bar_width and shape.stem_length > 2 * shape.stem_width
+    assert 0.0 < scene.block_rim < 5.0
+    assert np.isfinite(scene.goal_cov).all()
+    # the outline's corners: the bar's outer edge at y = 0, the stem's foot at its length
+    outline = shape.outline()
+    assert outline.shape == (8, 2)
+    assert np.isclose(outline[:, 1].max(), shape.bar_width + shape.stem_length)
+    errors = []
+    for obs, state in zip(episode["frames"][::4], episode["states"][::4], strict=True):
+        est = perceive_block(obs["pixels"], scene)
+        assert est.ok, est.status
+        std = est.std()
+        assert np.all(std > 0) and np.all(np.isfinite(est.cov))
+        errors.append(
+            (np.hypot(*(est.pose[:2] - state[2:4])) * PX, _angle_deg(est.pose[2], state[4]))
+        )
+    px, deg = np.array(errors).T
+    assert px.max() < 1.0 and deg.max() < 1.5, errors
+    # a start from the last pose gives the same pose
+    last = episode["frames"][-1]["pixels"]
+    tracked = perceive_block(last, scene, guess=perceive_block(last, scene).pose)
+    assert np.hypot(*(tracked.pose[:2] - episode["states"][-1][2:4])) * PX < 1.0
+
+
+def _paint(pixels: np.ndarray, centre: np.ndarray, radius: float, colour) -> np.ndarray:
+    rows, cols = np.mgrid[0:FRAME_SIZE, 0:FRAME_SIZE]
+    j, i = world_to_pixel(centre)
+    out = pixels.copy()
+    out[(rows - i) ** 2 + (cols - j) ** 2 <= radius**2] = colour
+    return out
+
+
+def test_a_frame_without_a_visible_block_is_flagged_not_a_crash(episode, scene):
+    pixels = episode["frames"][0]["pixels"]
+    block = np.array(episode["start"]["block"])
+    centre = block[:2] + 40 * np.array([-math.sin(block[2]), math.cos(block[2])])
+    hidden = _paint(pixels, centre, 12, PALETTE["agent"][1])  # the pusher over the T
+    est = perceive_block(hidden, scene)
+    assert not est.ok and est.status == "occluded" and est.hidden > 0.1
+    frac = class_fractions(pixels)
+    gone = pixels.copy()
+    gone[frac[..., CLASSES.index("block")] > 0] = 255  # the T out of view
+    est = perceive_block(gone, scene)
+    assert est.status == "not_visible" and not est.ok
+    assert np.isnan(est.pose).all()
+    half = pixels.copy()
+    half[(frac[..., CLASSES.index("block")] > 0) & (np.arange(FRAME_SIZE)[None, :] < 48)] = 255
+    half[(frac[..., CLASSES.index("block")] > 0) & (np.arange(FRAME_SIZE)[:, None] < 37)] = 255
+    assert not perceive_block(half, scene).ok
+
+
+def test_bad_images_and_observations_are_refused(episode, scene):
+    pixels = episode["frames"][0]["pixels"]
+    agent = episode["frames"][0]["agent_pos"]
+    with pytest.raises(InputError, match="uint8"):
+        perceive_block(pixels.astype(np.float32), scene)
+    with pytest.raises(InputError, match="three RGB channels"):
+        perceive_block(np.concatenate([pixels, pixels[..., :1]], axis=-1), scene)
+    with pytest.raises(InputError, match="three RGB channels"):
+        perceive_block(pixels[..., 0], scene)
+    with pytest.raises(InputError, match="96 x 96"):
+        perceive_block(pixels[:64, :64], scene)
+    with pytest.raises(InputError, match="square"):
+        perceive_block(pixels[:, :80], scene)
+    with pytest.raises(InputError, match="numpy array"):
+        perceive_block(pixels.tolist(), scene)
+    with pytest.raises(InputError, match="frames"):
+        perceive_scene([])
+    with pytest.raises(InputError, match="goal region"):
+        perceive_scene(np.full_like(pixels, 255))
+    with pytest.raises(InputError, match=r"\['agent_pos'\]"):
+        check_observation({"pixels": pixels})
+    with pytest.raises(InputError, match=r"\['pixels'\]"):
+        check_observation({"agent_pos": agent})
+    with pytest.raises(InputError, match="dict"):
+        check_observation(pixels)
+    with pytest.raises(InputError, match="agent_pos"):
+        check_observation({"pixels": pixels, "agent_pos": [1.0, math.nan]})
+    with pytest.raises(InputError, match="96 x 96"):
+        check_observation({"pixels": pixels[:48, :48], "agent_pos": agent}, size=96)
+    seen, where = check_observation({"pixels": pixels, "agent_pos": agent}, size=96)
+    assert seen is pixels and np.allclose(where, agent)
+    with pytest.raises(InputError, match="ramps"):
+        PerceptionOptions(ramps=(2.0, 0.0))
+
+
+def test_pixel_frame_and_colour_fractions():
+    ij = np.array([[0.0, 0.0], [95.0, 47.5]])
+    world = pixel_to_world(ij[:, 0], ij[:, 1])
+    assert np.allclose(world[0], [WORLD_SIZE / 96 / 2 - 0.5] * 2)
+    assert np.allclose(world_to_pixel(world), ij[:, ::-1])
+    img = np.zeros((16, 16, 3), dtype=np.uint8)
+    img[:] = PALETTE["goal"][0]
+    img[0, 0] = PALETTE["block"][1]
+    mix = 0.25 * np.array(PALETTE["block"][0]) + 0.75 * np.array(PALETTE["background"][0])
+    img[0, 1] = np.round(mix).astype(np.uint8)
+    frac = class_fractions(img)
+    assert np.allclose(frac.sum(-1), 1.0)
+    assert np.allclose(frac[5, 5], [0, 1, 0, 0]) and np.allclose(frac[0, 0], [0, 0, 1, 0])
+    assert np.allclose(frac[0, 1], [0.75, 0, 0.25, 0], atol=0.01)
+
+
+def test_shape_outline_area_and_centroid():
+    shape = TeeShape(4.0, 1.0, 2.0, 3.0)
+    assert shape.area() == pytest.approx(10.0)
+    # bar area 4 at y 0.5, stem area 6 at y 2.5
+    assert np.allclose(shape.centroid(), [0.0, (4 * 0.5 + 6 * 2.5) / 10])
+    scene = Scene(shape, np.zeros(3), np.eye(3), 1.0)
+    assert scene.frame_size == FRAME_SIZE
+
+
+class _Poisoned:
+    """A worker whose answers carry no usable state: what the planner plans on is perceived.
+
+    The state's fields (the block's pose, the agent's state, the goal, the state observation)
+    are replaced by NaN when `poison`; the observation (``pixels``, ``agent_pos``) and the
+    environment's own flags are kept. The episode is cut after `steps` step calls.
+    """
+
+    STATE = ("block", "agent", "agent_vel", "goal", "obs")
+
+    def __init__(self, worker, poison: bool, steps: int) -> None:
+        self.worker, self.poison, self.left = worker, poison, steps
+        self.actions: list[list[list[float]]] = []
+
+    def ask(self, cmd, **fields):
+        answer = self.worker.ask(cmd, **fields)
+        if cmd == "step":
+            self.actions.append(fields["actions"])
+            self.left -= 1
+            answer["truncated"] = answer["truncated"] or self.left <= 0
+        if self.poison:
+            for key in self.STATE:
+                if key in answer:
+                    answer[key] = np.full(np.shape(answer[key]), np.nan).tolist()
+        return answer
+
+
+class _Spy:
+    """A transition that records the nodes the planner searches from; pushes move nothing."""
+
+    def __init__(self) -> None:
+        self.nodes = []
+
+    def expand(self, node, prims, settings):
+        from probaff.experiments.pusht.planner import Node
+
+        self.nodes.append(node)
+        kids = [Node(node.pose.copy(), node.agent.copy(), node.agent_vel.copy()) for _ in prims]
+        return kids, np.zeros(len(prims))
+
+
+def test_pixel_episodes_never_hand_the_state_to_the_planner(pusht_python):
+    from probaff.experiments.pusht.planner import SearchSettings, run_episode
+    from probaff.experiments.pusht.primitives import PrimitiveSettings
+
+    search = SearchSettings(candidates=8, beam=1, children=2, depth=1)
+    runs = {}
+    w = PushTWorker(pusht_python)
+    try:
+        for poison in (False, True):
+            proxy, spy = _Poisoned(w, poison, steps=2), _Spy()
+            record = run_episode(
+                proxy, 5, spy, search, PrimitiveSettings(), trajectory=True, observation="pixels"
+            )
+            runs[poison] = (proxy.actions, spy.nodes, record)
+    finally:
+        w.close()
+    (actions, nodes, record), (p_actions, p_nodes, p_record) = runs[False], runs[True]
+    # with the state made useless, the planner plans and acts exactly as before
+    assert actions == p_actions and len(p_nodes) == len(nodes) >= 2
+    for a, b in zip(nodes, p_nodes, strict=True):
+        assert np.all(np.isfinite(b.pose)) and np.all(np.isfinite(b.agent))
+        assert np.array_equal(a.pose, b.pose) and np.array_equal(a.agent, b.agent)
+    # the perceived poses are close to the state's, but not the state's
+    truth = np.array(record["poses"])[: len(nodes)]
+    planned = np.array([n.pose for n in nodes])
+    assert not np.any(np.all(planned == truth, axis=1))
+    assert np.abs(planned[:, :2] - truth[:, :2]).max() * PX < 1.0
+    assert record["observation"] == "pixels" and record["perception_px"] < 1.0
+    assert not record["lost"]
+    # the poisoned run can score nothing against the state, and does not pretend to
+    assert math.isnan(p_record["perception_px"])
+
+
+def test_observation_setting_is_checked():
+    from probaff.experiments.pusht import PushTStudyConfig
+    from probaff.experiments.pusht.observe import observer
+
+    with pytest.raises(InputError, match="observation"):
+        PushTStudyConfig(observation="camera").check()
+    with pytest.raises(InputError, match="observation"):
+        observer("camera", None)
+
+
+class _Blank:
+    """A worker whose camera shows an empty floor: nothing to perceive, ever."""
+
+    def __init__(self) -> None:
+        self.steps = 0
+        self.image = base64.b64encode(np.full((96, 96, 3), 255, np.uint8).tobytes()).decode()
+
+    def ask(self, cmd, **fields):
+        state = {"agent": [100.0, 100.0], "agent_vel": [0.0, 0.0], "block": [256.0, 300.0, 0.0]}
+        seen = {"pixels_shape": [96, 96, 3], "obs": [[100.0, 100.0, 256.0, 300.0, 0.0]]}
+        if cmd == "reset":
+            return {**state, **seen, "pixels": self.image, "agent_pos": [100.0, 100.0],
+                    "obs": seen["obs"][0], "coverage": 0.0, "goal": [0.0, 0.0, 0.0]}  # fmt: skip
+        n = len(fields["actions"])
+        self.steps += n
+        return {**state, **seen, "pixels": [self.image] * n, "agent_pos": [[100.0, 100.0]] * n,
+                "obs": seen["obs"] * n, "coverage": [0.0] * n, "terminated": False,
+                "truncated": False, "steps": self.steps}  # fmt: skip
+
+
+def test_an_episode_that_never_shows_the_t_ends_lost_without_planning():
+    from probaff.experiments.pusht.planner import SearchSettings, run_episode
+    from probaff.experiments.pusht.primitives import PrimitiveSettings
+
+    spy = _Spy()
+    record = run_episode(
+        _Blank(), 0, spy, SearchSettings(), PrimitiveSettings(), observation="pixels"
+    )
+    assert record["lost"] and record["pushes"] == 0 and not spy.nodes
+    assert record["retreats"] == 3 and record["flagged"] == 1 and record["steps"] == 18
+    assert not record["success"] and math.isnan(record["plan_seconds"])
