@@ -54,7 +54,7 @@ CASES = [
     (PLANNING, ["--tool-planners", "teleport"], "tool_planners"),
     (POINT_CLOUD, ["--n-splits", "1"], "n_splits must be an integer >= 2, got 1"),
     (MODULAR, ["--n-experts", "0"], "n_experts must be a positive integer, got 0"),
-    (MODULAR, ["--em-iterations", "0"], "em_iterations must be a positive integer, got 0"),
+    (MODULAR, ["--em-max-iter", "0"], "em_max_iter must be a positive integer, got 0"),
     (MODULAR, ["--push-groups", "pose,pose"], r"push_groups names \['pose'\] more than once"),
     (MODULAR, ["--skill-groups", "pose,colour"], r"skill_groups: unknown feature groups"),
     (MODULAR, ["--trials", "0"], "trials must be a positive integer, got 0"),

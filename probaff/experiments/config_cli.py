@@ -11,8 +11,7 @@ A field that is itself a dataclass is opened: its fields become flags of their o
 their own names (`probaff.maps.MRFParams`' ``alpha`` -> ``--alpha``), or, for a field whose
 metadata is `option_flags` (fit options such as `probaff.models.EMOptions`), under the
 field's name as a prefix (``em.max_iter`` -> ``--em-max-iter``), so a value keeps its name
-from the flag to the fit; such a field can keep older flag names as aliases
-(``--em-iterations``), and stored results keep being keyed by those (`settings_view`).
+from the flag to the fit, and stored results are keyed by those names (`settings_view`).
 """
 
 from __future__ import annotations
@@ -65,26 +64,24 @@ class Flag:
         path: Attribute path of the value in the config (``("em", "max_iter")``).
         owner: The dataclass that declares the value's field.
         default: The value in the default config.
-        aliases: Older names of the flag, with underscores.
     """
 
     dest: str
     path: tuple[str, ...]
     owner: type
     default: Any
-    aliases: tuple[str, ...] = ()
 
     @property
     def hint(self) -> Any:
         """The value field's type hint."""
         return typing.get_type_hints(self.owner)[self.path[-1]]
 
-    def option_strings(self) -> list[str]:
-        """``--dest`` and ``--alias`` for every alias."""
-        return ["--" + n.replace("_", "-") for n in (self.dest, *self.aliases)]
+    def option_string(self) -> str:
+        """``--dest`` with dashes."""
+        return "--" + self.dest.replace("_", "-")
 
 
-def option_flags(flags: Sequence[str], aliases: Mapping[str, str] | None = None) -> dict[str, Any]:
+def option_flags(flags: Sequence[str]) -> dict[str, Any]:
     """Field metadata of a config field holding fit options: which of them are flags.
 
     Used as ``em: EMOptions = field(default=EMOptions(), metadata=option_flags(...))``.
@@ -92,12 +89,11 @@ def option_flags(flags: Sequence[str], aliases: Mapping[str, str] | None = None)
     Args:
         flags: Names of the options' fields that get a flag ``--<field>-<name>``; the others
             keep the default's values.
-        aliases: Older flag name (underscores) -> the options' field it sets.
 
     Returns:
         The metadata mapping.
     """
-    return {_OPTIONS: {"flags": tuple(flags), "aliases": dict(aliases or {})}}
+    return {_OPTIONS: {"flags": tuple(flags)}}
 
 
 def _field_help(cls: type) -> dict[str, str]:
@@ -133,6 +129,22 @@ def _parser_for(hint: Any, name: str) -> tuple[Callable[[str], Any], str]:
             return None if text.lower() in ("none", "") else convert(text)
 
         return optional, metavar
+    numbers = [a for a in args if a in (int, float)]
+    if origin in (typing.Union, types.UnionType) and bool in args and numbers:  # bool | float
+
+        def switch_or_number(text: str) -> Any:
+            words = {"true": True, "yes": True, "on": True, "false": False, "no": False}
+            words["off"] = False
+            if text.lower() in words:
+                return words[text.lower()]
+            try:
+                return numbers[0](text)
+            except ValueError:
+                raise argparse.ArgumentTypeError(
+                    f"--{name.replace('_', '-')} takes true, false or a number, got {text!r}"
+                ) from None
+
+        return switch_or_number, f"true|false|{numbers[0].__name__.upper()}"
     if origin in (typing.Union, types.UnionType):  # e.g. str | Tensor: the first with a form
         for arg in args:
             try:
@@ -174,12 +186,9 @@ def _flags(cls: type, instance: Any, path: tuple[str, ...]) -> list[Flag]:
         here = (*path, f.name)
         spec = f.metadata.get(_OPTIONS)
         if spec is not None:
-            names: dict[str, list[str]] = {name: [] for name in spec["flags"]}
-            for old, name in spec["aliases"].items():
-                names[name].append(old)
             out += [
-                Flag(f"{f.name}_{n}", (*here, n), type(value), getattr(value, n), tuple(old))
-                for n, old in names.items()
+                Flag(f"{f.name}_{n}", (*here, n), type(value), getattr(value, n))
+                for n in spec["flags"]
             ]
         elif dataclasses.is_dataclass(inner) and isinstance(inner, type):
             out += _flags(inner, value, here)
@@ -195,15 +204,14 @@ def config_flags(config_cls: type) -> list[Flag]:
         config_cls: A dataclass whose fields all have defaults.
 
     Raises:
-        TypeError: If two flags (or aliases) share a name.
+        TypeError: If two flags share a name.
     """
     flags = _flags(config_cls, config_cls(), ())
     seen: set[str] = set()
     for flag in flags:
-        for name in (flag.dest, *flag.aliases):
-            if name in seen:
-                raise TypeError(f"two fields named {name!r} in {config_cls.__name__}.")
-            seen.add(name)
+        if flag.dest in seen:
+            raise TypeError(f"two fields named {flag.dest!r} in {config_cls.__name__}.")
+        seen.add(flag.dest)
     return flags
 
 
@@ -234,18 +242,14 @@ def add_config_arguments(
         default = flag.default
         shown = ",".join(map(str, default)) if isinstance(default, tuple) else default
         help_text = f"{text} (default: {shown})" if text else f"(default: {shown})"
-        main, *aliases = flag.option_strings()
         if flag.hint is bool:
             kwargs: dict[str, Any] = {"action": argparse.BooleanOptionalAction}
         else:
             convert, metavar = _parser_for(flag.hint, flag.dest)
             kwargs = {"type": convert, "metavar": metavar}
-        parser.add_argument(main, dest=flag.dest, default=default, help=help_text, **kwargs)
-        for alias in aliases:  # its own action, so that messages name the flag typed
-            text = f"the same as {main}"
-            parser.add_argument(
-                alias, dest=flag.dest, default=argparse.SUPPRESS, help=text, **kwargs
-            )
+        parser.add_argument(
+            flag.option_string(), dest=flag.dest, default=default, help=help_text, **kwargs
+        )
 
 
 def rebuild(instance: Any, **changes: Any) -> Any:
@@ -339,16 +343,14 @@ def field_settings(instance: Any, f: dataclasses.Field[Any]) -> dict[str, Any]:
     """The settings one field of a config stands for, by the names its flags first had.
 
     A plain field is itself; a nested dataclass is its own settings (a mapping); fit options
-    (`option_flags`) are one setting per flag, named by its first alias if it has one (the
-    flag's older name, so that a stored result's fingerprint survives the move of a setting
-    into options), and one per other field whose value is not the options' default.
+    (`option_flags`) are one setting per flag, named as the flag, and one per other field
+    whose value is not the options' default.
     """
     value = getattr(instance, f.name)
     spec = f.metadata.get(_OPTIONS)
     if spec is not None:
-        older = {field: alias for alias, field in reversed(spec["aliases"].items())}
         default = type(value)()
-        out = {older.get(n, f"{f.name}_{n}"): getattr(value, n) for n in spec["flags"]}
+        out = {f"{f.name}_{n}": getattr(value, n) for n in spec["flags"]}
         for g in dataclasses.fields(value):
             if g.name not in spec["flags"] and getattr(value, g.name) != getattr(default, g.name):
                 out[f"{f.name}_{g.name}"] = getattr(value, g.name)

@@ -94,7 +94,7 @@ class TrialSettings:
         chain_samples: Samples of every chained prediction.
         n_experts: Experts of the mixture option.
         em: The EM fit of the mixture option (`probaff.models.EMOptions`; flag
-            ``--em-max-iter``, also ``--em-iterations``); its seed is the trial's.
+            ``--em-max-iter``); its seed is the trial's.
         gp_max_iter: L-BFGS iterations of every GP fit.
         chain_backward: Chain with the push model with the backward component (else
             without).
@@ -110,7 +110,7 @@ class TrialSettings:
     n_experts: int = 2
     em: EMOptions = field(
         default=EMOptions(max_iter=10),
-        metadata=option_flags(("max_iter",), {"em_iterations": "max_iter"}),
+        metadata=option_flags(("max_iter",)),
     )
     gp_max_iter: int = 50
     chain_backward: bool = True

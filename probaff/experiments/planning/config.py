@@ -47,7 +47,7 @@ class PlanningStudyConfig(StudyConfig):
         trials: Episodes per planner (the same seeded starts for every planner).
         planners: Names from `probaff.planning.EDGE_PLANNERS`.
         em: The EM fits of the mixture models (`probaff.models.EMOptions`; flag
-            ``--em-max-iter``, also ``--em-iterations``); their seed is the study's.
+            ``--em-max-iter``); their seed is the study's.
         tool_trials: Tool-push trials per planner (0 skips chapter 5).
         tool_train_pushes: Training pushes of the tool-push scene for chapter 5's mixture.
         tool_planners: Names from `probaff.planning.TOOL_PUSH_PLANNERS`.
@@ -59,7 +59,7 @@ class PlanningStudyConfig(StudyConfig):
     planners: tuple[str, ...] = tuple(EDGE_PLANNERS)
     em: EMOptions = field(
         default=EMOptions(max_iter=10),
-        metadata=option_flags(("max_iter",), {"em_iterations": "max_iter"}),
+        metadata=option_flags(("max_iter",)),
     )
     tool_trials: int = 50
     tool_train_pushes: int = 300

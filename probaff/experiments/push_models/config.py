@@ -82,23 +82,20 @@ class PushModelStudyConfig(StudyConfig):
         ch4_folds: Cross-validation folds.
         ch4_features: Names from `CH4_FEATURES`.
         em: The EM fits (`probaff.models.EMOptions`; flags ``--em-max-iter``,
-            ``--em-init``, ``--em-n-restarts``, also ``--em-iterations``, ``--em-restarts``);
-            its seed is the study's.
+            ``--em-init``, ``--em-n-restarts``); its seed is the study's.
         gate: Kind of gate of the EM mixture (``"linear"`` or ``"fourier"``).
         vi_features: Feature configurations (of `ch5_features`) that VI is also fitted on;
             every VI mixture starts from the EM mixture of the same fold and M.
-        svi: The SVI fits (`probaff.models.SVIOptions`; flag ``--svi-n-steps``, also
-            ``--vi-steps``); its seed is the study's, its start the EM mixture. From that
-            start 100 steps (about 30 passes over a fold's training rows) do as well as
-            400: on the ``oc`` folds at M = 3 and 6 the held-out NLPD of the two differs
-            by at most 0.06 nats per push (summed over the six effects), and both stay
-            within 0.03 of EM's.
+        svi: The SVI fits (`probaff.models.SVIOptions`; flag ``--svi-n-steps``); its seed is the
+            study's, its start the EM mixture. From that start 100 steps (about 30 passes over a
+            fold's training rows) do as well as 400: on the ``oc`` folds at M = 3 and 6 the held-out
+            NLPD of the two differs by at most 0.06 nats per push (summed over the six effects), and
+            both stay within 0.03 of EM's.
         vi_inducing: Inducing points per variational expert.
         gp: Every GP expert (`probaff.models.GPOptions`; flags ``--gp-max-iter`` and
-            ``--gp-lengthscale-prior``, also ``--lengthscale-prior``): L-BFGS iterations
-            per expert fit, and the dimension-scaled log-normal prior on the ARD length
-            scales (MAP instead of ML-II; with N close to D, ML-II overfits). Its noise
-            floor comes from `pose_noise`.
+            ``--gp-lengthscale-prior``): L-BFGS iterations per expert fit, and the
+            dimension-scaled log-normal prior on the ARD length scales (MAP instead of ML-II;
+            with N close to D, ML-II overfits). Its noise floor comes from `pose_noise`.
         pose_noise: Observe object poses with `probaff.data.PoseNoise`'s default noise
             (3 mm, 1 degree), as a depth camera would; the models then get the matching
             noise floor (the standard deviation of a difference of two noisy poses,
@@ -117,23 +114,18 @@ class PushModelStudyConfig(StudyConfig):
     ch4_features: tuple[str, ...] = ("o", "oc", "ocx")
     em: EMOptions = field(
         default=EMOptions(max_iter=10, init="auto", n_restarts=3),
-        metadata=option_flags(
-            ("max_iter", "init", "n_restarts"),
-            {"em_iterations": "max_iter", "em_restarts": "n_restarts"},
-        ),
+        metadata=option_flags(("max_iter", "init", "n_restarts")),
     )
     gate: str = "linear"
     vi_features: tuple[str, ...] = ("oc",)
     svi: SVIOptions = field(
         default=SVIOptions(n_steps=100),
-        metadata=option_flags(("n_steps",), {"vi_steps": "n_steps"}),
+        metadata=option_flags(("n_steps",)),
     )
     vi_inducing: int = 128
     gp: GPOptions = field(
         default=GPOptions(max_iter=50, lengthscale_prior=True),
-        metadata=option_flags(
-            ("max_iter", "lengthscale_prior"), {"lengthscale_prior": "lengthscale_prior"}
-        ),
+        metadata=option_flags(("max_iter", "lengthscale_prior")),
     )
     pose_noise: bool = True
 
