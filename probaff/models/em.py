@@ -2,6 +2,28 @@
 
 `fit_em` fits one mixture; `fit_em_path` fits `M = 1, 2, ...` together, each `M` grown from
 the best `M - 1` solution, so that the training objective never falls as experts are added.
+
+The starts of `fit_em` (its option `init`; see `probaff.models.initialization`):
+
+* ``"effects"``: a Gaussian mixture in effect space (the thesis's start);
+* ``"joint"``: a Gaussian mixture on [gate features, effects];
+* ``"grow"``: fit `M = 1`, then each `M` by splitting the expert of the `M - 1`
+  solution that explains its samples worst and running EM from there; if no run beats
+  the `M - 1` objective, that solution is kept with the expert duplicated, so the
+  objective never falls as `M` grows;
+* ``"auto"`` (default): at every `M` on the way up, the grown start and
+  `n_restarts - 1` cold starts (``"joint"``, ``"effects"``, then again with the next
+  seeds) each run EM (or only `screen_iter` iterations, after which the best
+  `n_finish` run to convergence); the best by the objective is kept, and the grow
+  guarantee holds as above.
+
+Large training sets: with more than `search_rows` training rows (`EMOptions`), `fit_em`'s
+whole search (the starts above, split-and-merge) runs on a seeded random subset of
+`search_rows` rows with `search_restarts` starts (and the experts the whole set would get);
+the kept fit then gives every row its responsibilities and its experts' hyperparameters
+start one more run on the whole set, of up to `max_iter` iterations (coarse to fine).
+Measured on `probaff.models.synthetic.regime_features` (see `benchmarks/mixture_scale.py`),
+this keeps the search's cost fixed as `N` grows.
 """
 
 from __future__ import annotations
@@ -16,7 +38,7 @@ from torch import Tensor
 from probaff._checks import check_count, check_probability
 from probaff._threads import threads_by_rows
 from probaff.errors import InputError
-from probaff.models.em_run import EMHistory, EMRun, RunSettings
+from probaff.models.em_run import EMHistory, EMRun
 from probaff.models.em_starts import _fresh, fit_level
 from probaff.models.gated import mixture_payload
 from probaff.models.mixture import MixtureOfGPExperts
@@ -27,26 +49,13 @@ from probaff.models.tensors import as_matrix
 __all__ = ["FORMAT", "EMHistory", "fit_em", "fit_em_path"]
 
 
-def _settings(model: MixtureOfGPExperts, options: EMOptions) -> RunSettings:
-    """The run settings of `options` for mixtures like `model` (checks `prune_below`)."""
+def _check_prune(model: MixtureOfGPExperts, options: EMOptions) -> None:
+    """Refuse a `prune_below` that would prune every expert of mixtures like `model`."""
     if options.prune_below >= 1.0 / max(model.n_experts, 2):
         raise InputError(
             f"prune_below={options.prune_below} must be below 1/n_experts = "
             f"{1.0 / max(model.n_experts, 2):.4g}."
         )
-    first = model.gp_max_iter if options.gp_max_iter is None else options.gp_max_iter
-    return RunSettings(
-        options.max_iter,
-        options.tol,
-        options.n_init,
-        options.prune_below,
-        options.min_size,
-        first,
-        options.warm_max_iter,
-        options.anneal,
-        options.anneal_start,
-        options.anneal_iter,
-    )
 
 
 def _given_responsibilities(init: Tensor, n: int, sizes: list[int]) -> Tensor:
@@ -98,7 +107,7 @@ def fit_em_path(
     if not sizes:
         raise InputError("n_experts is empty; pass the mixture sizes to fit, e.g. (1, 2, 3).")
     template = MixtureOfGPExperts(**{**model.config(), "n_experts": sizes[-1]})
-    settings = _settings(template, opts)
+    _check_prune(template, opts)
     x, y = template.check_data(X, Y)
     init = opts.init
     if isinstance(init, Tensor):
@@ -113,13 +122,8 @@ def fit_em_path(
             y,
             m,
             prev,
-            settings,
+            opts,
             init=init,
-            n_restarts=opts.n_restarts,
-            screen_iter=opts.screen_iter,
-            n_finish=opts.n_finish,
-            split_merge=opts.split_merge,
-            seed=opts.seed,
         )
         prev = fitted
         if m in sizes:
@@ -161,19 +165,8 @@ def fit_em(
     `RuntimeWarning`; if no expert has enough samples to give, it is re-seeded from the
     samples the model explains worst.
 
-    Initialisation (`init`, see `probaff.models.initialization`):
-
-    * ``"effects"``: a Gaussian mixture in effect space (the thesis's start);
-    * ``"joint"``: a Gaussian mixture on [gate features, effects];
-    * ``"grow"``: fit `M = 1`, then each `M` by splitting the expert of the `M - 1`
-      solution that explains its samples worst and running EM from there; if no run beats
-      the `M - 1` objective, that solution is kept with the expert duplicated, so the
-      objective never falls as `M` grows;
-    * ``"auto"`` (default): at every `M` on the way up, the grown start and
-      `n_restarts - 1` cold starts (``"joint"``, ``"effects"``, then again with the next
-      seeds) each run EM (or only `screen_iter` iterations, after which the best
-      `n_finish` run to convergence); the best by the objective is kept, and the grow
-      guarantee holds as above.
+    The starts (`init`) and how a large training set is searched are in the module's
+    docstring (`probaff.models.em`).
 
     After the best run has converged, up to `split_merge` rounds of split-and-merge moves
     (merge the two experts that explain each other's samples best, split the one that
@@ -187,14 +180,6 @@ def fit_em(
     a growing start's way up; fitted on its own otherwise) becomes the single GP that
     `MixtureOfGPExperts.predict_point` stacks with the mixture's mean
     (`MixtureOfGPExperts.fit_point`).
-
-    With more than `search_rows` training rows, all of the above runs on a seeded random
-    subset of `search_rows` rows with `search_restarts` starts (and the experts the whole
-    set would get); the kept fit
-    then gives every row its responsibilities and its experts' hyperparameters start one
-    more run on the whole set, of up to `max_iter` iterations (coarse to fine). Measured on
-    `probaff.models.synthetic.regime_features` (see `benchmarks/mixture_scale.py`), this
-    keeps the search's cost fixed as `N` grows.
 
     With ``"effects"`` or ``"joint"``, `n_restarts` starts of that kind (seeds `seed`,
     `seed + 1`, ...) are screened the same way. Everything is deterministic given `seed`.
@@ -216,6 +201,21 @@ def fit_em(
     Raises:
         InputError: For NaN/inf, empty or mismatched inputs, an unknown feature group,
             initialisation or option, an option out of range, or more experts than samples.
+
+    Example:
+        One start, a few iterations (the defaults search more: three starts per `M`,
+        split-and-merge):
+
+        >>> from probaff.models import EMOptions, MixtureOfGPExperts, fit_em
+        >>> from probaff.models.synthetic import softmax_regimes
+        >>> x, y, _ = softmax_regimes(60, seed=0)
+        >>> model = MixtureOfGPExperts(3, gate_features=[0, 1])
+        >>> options = EMOptions(init="joint", n_restarts=1, split_merge=0, seed=0)
+        >>> history = fit_em(model, x, y, options, max_iter=3)  # keywords override options
+        >>> history.init, len(history.objective) <= 3, history.best == max(history.objective)
+        ('joint', True, True)
+        >>> tuple(history.responsibilities.shape)  # (N, M)
+        (60, 3)
     """
     opts = resolve_options(EMOptions, options, overrides)
     x, y = model.check_data(X, Y)
@@ -268,14 +268,14 @@ def _coarse_to_fine(
     subset = subset.sort().values.to(x.device)
     search = dataclasses.replace(opts, n_restarts=opts.search_restarts)
     coarse_path = fit_em_path(template, x[subset], y[subset], sizes, search)
-    settings = _settings(template, opts)
+    _check_prune(template, opts)
     out: dict[int, tuple[MixtureOfGPExperts, EMHistory]] = {}
     for m, (coarse, found) in coarse_path.items():
         fine = _fresh(template, m, x, y)
         for mine, theirs in zip(fine.experts, coarse.experts, strict=True):
             mine.load_state_dict(theirs.state_dict())
         resp = torch.softmax(coarse.log_joint(x, y), dim=1)
-        run = EMRun(fine, x, y, resp, settings, init=found.init, seed=opts.seed, warm=True)
+        run = EMRun(fine, x, y, resp, opts, init=found.init, seed=opts.seed, warm=True)
         history = run.step(opts.max_iter if m > 1 else 1).finish()
         history.candidates, history.split_merge = found.candidates, found.split_merge
         out[m] = (fine, history)

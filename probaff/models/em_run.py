@@ -19,8 +19,9 @@ from torch import Tensor
 
 from probaff.models.initialization import split_responsibilities
 from probaff.models.mixture import MixtureOfGPExperts
+from probaff.models.options import EMOptions
 
-__all__ = ["EMHistory", "EMRun", "RunSettings", "loo_terms"]
+__all__ = ["EMHistory", "EMRun", "loo_terms"]
 
 # EM logs under the module users call.
 logger = logging.getLogger("probaff.models.em")
@@ -67,35 +68,6 @@ class EMHistory:
     def n_iter(self) -> int:
         """Number of EM iterations run in the kept run."""
         return len(self.objective)
-
-
-@dataclass(frozen=True)
-class RunSettings:
-    """The settings of one EM run (validated `EMOptions` fields, see `fit_em`).
-
-    Attributes:
-        max_iter: Maximum number of iterations of the run.
-        tol: Convergence tolerance on the objective per sample.
-        n_init: Restarts of each initial Gaussian mixture.
-        prune_below: Responsibilities below this are 0 in the experts' M-step.
-        min_size: Minimum summed responsibility of an expert before it is repaired.
-        first_iters: L-BFGS iterations of the first M-step of a cold start.
-        warm_iters: L-BFGS iterations of later (and warm) M-steps.
-        anneal: Temper the E-step.
-        anneal_start: First inverse temperature of the annealing.
-        anneal_iter: Iterations over which the inverse temperature rises to 1.
-    """
-
-    max_iter: int
-    tol: float
-    n_init: int
-    prune_below: float
-    min_size: float
-    first_iters: int
-    warm_iters: int
-    anneal: bool
-    anneal_start: float
-    anneal_iter: int
 
 
 def _reseed_collapsed(
@@ -160,7 +132,7 @@ def _pruned(resp: Tensor, prune_below: float) -> Tensor:
     return torch.where(resp >= prune_below, resp, torch.zeros_like(resp))
 
 
-def _beta(settings: RunSettings, iteration: int) -> float:
+def _beta(settings: EMOptions, iteration: int) -> float:
     """Inverse temperature of the E-step: geometric from `anneal_start` to 1."""
     if not settings.anneal or iteration > settings.anneal_iter:
         return 1.0
@@ -175,6 +147,9 @@ class EMRun:
     of split-and-merge): only those experts are refitted, and only they share out again
     the responsibility they hold together; the other experts keep their hyperparameters
     and responsibilities. `release` turns later iterations into full ones.
+
+    `settings` are the fit's `EMOptions` whole; its `gp_max_iter` (None: the mixture's own)
+    sets the first M-step of a cold start, `warm_max_iter` every later one.
     """
 
     def __init__(
@@ -183,7 +158,7 @@ class EMRun:
         x: Tensor,
         y: Tensor,
         resp: Tensor,
-        settings: RunSettings,
+        settings: EMOptions,
         *,
         init: str,
         seed: int,
@@ -192,6 +167,9 @@ class EMRun:
     ) -> None:
         self.model, self.x, self.y, self.resp = model, x, y, resp
         self.settings, self.init, self.seed, self.warm = settings, init, seed, warm
+        self.first_iters = (
+            model.gp_max_iter if settings.gp_max_iter is None else settings.gp_max_iter
+        )
         self.active = None if active is None else sorted(set(active))
         self.history = EMHistory(init=init)
         self.log_lik: Tensor | None = None  # (N, M) leave-one-out expert log densities
@@ -224,7 +202,7 @@ class EMRun:
             self._repair(it)
             weights = _pruned(self.resp, s.prune_below)
             self.model.fit_gate(self.x, self.resp, reuse_choice=it > 1)
-            iters = s.warm_iters if (self.warm or it > 1) else s.first_iters
+            iters = s.warm_max_iter if (self.warm or it > 1) else self.first_iters
             self.model.fit_experts(self.x, self.y, weights, max_iter=iters, only=self.active)
             log_joint, self.log_lik = loo_terms(self.model, self.x, self.y)
             total = float(torch.logsumexp(log_joint, dim=1).sum())

@@ -13,9 +13,10 @@ import math
 import torch
 from torch import Tensor
 
-from probaff.models.em_run import EMHistory, EMRun, RunSettings, loo_terms
+from probaff.models.em_run import EMHistory, EMRun, loo_terms
 from probaff.models.initialization import initial_responsibilities, split_responsibilities
 from probaff.models.mixture import MixtureOfGPExperts
+from probaff.models.options import EMOptions
 
 __all__ = ["fit_level"]
 
@@ -72,7 +73,7 @@ def _split_merge(
     history: EMHistory,
     x: Tensor,
     y: Tensor,
-    settings: RunSettings,
+    settings: EMOptions,
     *,
     rounds: int,
     n_candidates: int,
@@ -167,7 +168,7 @@ def _inherit_hyperparameters(
 
 
 def _grow(
-    prev: MixtureOfGPExperts, x: Tensor, y: Tensor, settings: RunSettings, seed: int
+    prev: MixtureOfGPExperts, x: Tensor, y: Tensor, settings: EMOptions, seed: int
 ) -> tuple[EMRun, int]:
     """Start an EM run for `M` experts by splitting one expert of the `M - 1` solution."""
     m = prev.n_experts + 1
@@ -225,16 +226,17 @@ def fit_level(
     y: Tensor,
     m: int,
     prev: MixtureOfGPExperts | None,
-    settings: RunSettings,
+    settings: EMOptions,
     *,
     init: str | Tensor,
-    n_restarts: int,
-    screen_iter: int | None,
-    n_finish: int,
-    split_merge: int,
-    seed: int,
 ) -> tuple[MixtureOfGPExperts, EMHistory]:
-    """Fit `m` experts: screen every start, finish the best, never fall below `prev`."""
+    """Fit `m` experts: screen every start, finish the best, never fall below `prev`.
+
+    `settings` are the fit's `EMOptions` whole (`n_restarts`, `screen_iter`, `n_finish`,
+    `split_merge`, `seed`, ...); `init` is its start, responsibilities already checked.
+    """
+    n_restarts, screen_iter, n_finish = settings.n_restarts, settings.screen_iter, settings.n_finish
+    split_merge, seed = settings.split_merge, settings.seed
     if isinstance(init, Tensor):
         model = _fresh(template, m, x, y)
         run = EMRun(model, x, y, init, settings, init="given", seed=seed)

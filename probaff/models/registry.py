@@ -77,8 +77,9 @@ class ModelSettings:
             log-normal prior; True puts it at the default width, a number > 0 at that
             width (`GPOptions`).
         gp_max_iter: L-BFGS iterations per GP expert fit; None for the kind's default.
-        fit: Overrides of the kind's fitting options (e.g. ``{"max_iter": 10}`` for EM),
-            applied by `ModelKind.fit_new`.
+        fit: The kind's fitting options, whole (an instance of its `options_type`, e.g. a
+            study's `EMOptions`), or overrides of its defaults (e.g. ``{"max_iter": 10}``
+            for EM); applied by `ModelKind.fit_new`.
 
     Raises:
         InputError: On construction, for a field out of range.
@@ -91,7 +92,7 @@ class ModelSettings:
     seed: int = 0
     lengthscale_prior: bool | float = False
     gp_max_iter: int | None = None
-    fit: Mapping[str, Any] = field(default_factory=dict)
+    fit: Any = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         """Validate every field and store groups and fit overrides as copies."""
@@ -105,9 +106,15 @@ class ModelSettings:
         set_(self, "lengthscale_prior", check_lengthscale_prior(self.lengthscale_prior))
         if self.groups is not None and not isinstance(self.groups, Mapping):
             raise InputError(f"groups must map group names to columns, got {self.groups!r}.")
-        if not isinstance(self.fit, Mapping) or not all(isinstance(k, str) for k in self.fit):
-            raise InputError(f"fit must map option names to values, got {self.fit!r}.")
-        set_(self, "fit", dict(self.fit))
+        if dataclasses.is_dataclass(self.fit) and not isinstance(self.fit, type):
+            pass  # a kind's options, whole (checked against the kind by `fit_new`)
+        elif not isinstance(self.fit, Mapping) or not all(isinstance(k, str) for k in self.fit):
+            raise InputError(
+                f"fit must be a kind's fitting options (e.g. EMOptions) or map option names "
+                f"to values, got {self.fit!r}."
+            )
+        else:
+            set_(self, "fit", dict(self.fit))
         if self.groups is not None:
             set_(self, "groups", dict(self.groups))
 
@@ -214,8 +221,9 @@ class ModelKind:
     def fit_new(self, X: Any, Y: Any, settings: ModelSettings | None = None, **fields: Any) -> Any:
         """Build a model of this kind (`build`) and fit it on `X` `(N, D)` and `Y` `(N, E)`.
 
-        The fit gets the settings' `fit` overrides, and their `seed` when the kind's options
-        have one (models whose constructor takes the seed get it from `build`).
+        The fit gets the settings' `fit` (options whole, or overrides), and their `seed` when
+        the kind's options have one (models whose constructor takes the seed get it from
+        `build`).
 
         Args:
             X: Features, `(N, D)`.
@@ -231,10 +239,21 @@ class ModelKind:
         """
         base = ModelSettings() if settings is None else settings
         resolved = dataclasses.replace(base, **fields) if fields else base
+        options = None if isinstance(resolved.fit, Mapping) else resolved.fit
+        if options is not None and (
+            self.options_type is None or not isinstance(options, self.options_type)
+        ):
+            want = "no options" if self.options_type is None else self.options_type.__name__
+            raise InputError(
+                f"fit holds {type(options).__name__}, but model kind {self.name!r} takes "
+                f"{want}; give its options or a mapping of overrides."
+            )
         model = self.build(resolved)
-        overrides = dict(resolved.fit)
+        overrides = {} if options is not None else dict(resolved.fit)
         if "seed" in self.option_names:
             overrides.setdefault("seed", resolved.seed)
+        if options is not None:
+            overrides["options"] = options
         self.fit(model, X, Y, **overrides)
         return model
 

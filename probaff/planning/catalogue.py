@@ -41,7 +41,7 @@ from probaff.errors import InputError
 from probaff.features.ch4 import chapter4_features
 from probaff.features.ch5 import chapter5_features
 from probaff.features.featureset import FeatureSet
-from probaff.models import ModelSettings, model_kind
+from probaff.models import EMOptions, ModelSettings, model_kind
 from probaff.planning.learned import FeaturePushModel
 from probaff.planning.push_to_edge.episode import EDGE_SEARCHES
 from probaff.planning.push_to_edge.task import EdgeTask
@@ -156,6 +156,23 @@ def edge_transition(
     Raises:
         InputError: For a `spec` that is not an `EdgePlannerSpec`, a search that is not one
             of `EDGE_SEARCHES`, or a learned model that `models` lacks.
+
+    Example:
+        Plan pushes of the book towards the table's edge with the A* planner over the
+        analytic quasi-static model (a learned planner takes its fitted model from
+        `fit_edge_model` in `models`); `probaff.planning.run_edge_episode` executes such plans
+        closed-loop:
+
+        >>> import numpy as np
+        >>> from probaff.planning import EDGE_PLANNERS, PushReachability, edge_transition
+        >>> from probaff.planning import load_edge_task, plan_astar, sample_episode
+        >>> task = load_edge_task()
+        >>> transition = edge_transition(EDGE_PLANNERS["astar-quasistatic"], task, {})
+        >>> scene = sample_episode(task, np.random.default_rng(0))
+        >>> book, battery = scene.poses  # world (x, y, theta)
+        >>> plan = plan_astar(task, transition, book, battery, PushReachability(task))
+        >>> plan.reaches_goal, len(plan), plan.predicted.shape  # pushes, predicted poses
+        (True, 3, (3, 3))
     """
     if not isinstance(spec, EdgePlannerSpec) or spec.search not in EDGE_SEARCHES:
         raise InputError(
@@ -180,7 +197,7 @@ def fit_edge_model(
     cloud_points: int | None = None,
     cloud_noise: float | None = None,
     seed: int = 0,
-    em_iterations: int = 10,
+    em: EMOptions | None = None,
 ) -> FeaturePushModel:
     """Fit one of `EDGE_MODELS` on a push dataset of the task's scene.
 
@@ -189,16 +206,16 @@ def fit_edge_model(
         ds: The training pushes (object 0 is the book).
         cloud_points: Points per cloud of `ds` (read from its clouds when ``None``).
         cloud_noise: Cloud noise of `ds` (m); from its metadata when ``None``.
-        seed: Seeds the fit.
-        em_iterations: Iterations of a kind whose fit iterates (its ``max_iter`` option,
-            e.g. EM's).
+        seed: Seeds the fit (it replaces `em`'s seed).
+        em: The EM options of a kind fitted by EM (``"em"``), whole (e.g. a study's
+            ``config.em``); None for `EMOptions()`. Kinds without options ignore it.
 
     Returns:
         The fitted model with its features.
 
     Raises:
         InputError: For an unknown name or model kind, a `ds` that is not a `PushDataset` or
-            holds fewer than 10 pushes, or a bad seed or iteration count.
+            holds fewer than 10 pushes, a bad seed, or `em` that is not `EMOptions`.
     """
     if not isinstance(name, str) or name not in EDGE_MODELS:
         raise InputError(f"unknown planner model {name!r}; choose one of {sorted(EDGE_MODELS)}.")
@@ -208,7 +225,7 @@ def fit_edge_model(
             f"push_to_edge), got {type(ds).__name__}."
         )
     seed = check_count("seed", seed, minimum=0)
-    em_iterations = check_count("em_iterations", em_iterations)
+    em = _check_em(em)
     if len(ds) < 10:
         raise InputError(
             f"the training dataset has {len(ds)} pushes; fit planner models on at least 10 "
@@ -221,7 +238,7 @@ def fit_edge_model(
         gate=spec.gate,
         experts=spec.experts,
         seed=seed,
-        fit={"max_iter": em_iterations} if "max_iter" in kind.option_names else {},
+        fit=em if kind.options_type is EMOptions else {},
     )
     Y = np.asarray(ds["effect"][:, 0], dtype=float)
     settings = replace(settings, lengthscale_prior=EDGE_PRIOR_WIDTH)
@@ -240,8 +257,7 @@ def fit_tool_push_model(
     *,
     n_experts: int = 3,
     groups: tuple[str, ...] = ("f_o", "f_c"),
-    max_iter: int = 10,
-    n_restarts: int = 3,
+    em: EMOptions | None = None,
     gp_max_iter: int = 50,
     seed: int = 0,
 ) -> FeaturePushModel:
@@ -254,24 +270,24 @@ def fit_tool_push_model(
         ds: Pushes of a two-object scene (e.g. ``probaff generate --scene tool_push``).
         n_experts: Experts M.
         groups: Chapter-5 feature groups, e.g. ``("f_o", "f_c")``.
-        max_iter: EM iterations.
-        n_restarts: EM starts.
+        em: The EM options, whole (e.g. a study's ``config.em``); None for `EMOptions()`
+            (10 iterations, 3 starts).
         gp_max_iter: L-BFGS iterations per expert fit.
-        seed: Seed of the fit.
+        seed: Seed of the fit (it replaces `em`'s seed).
 
     Returns:
         The fitted model with the features it reads.
 
     Raises:
-        InputError: If `ds` holds fewer than two objects per push, or for bad counts.
+        InputError: If `ds` holds fewer than two objects per push, for bad counts, or for
+            `em` that is not `EMOptions`.
     """
     if not isinstance(ds, PushDataset) or ds["effect"].shape[1] < _N_TOOL_OBJECTS:
         raise InputError(
             "ds must be a PushDataset of a two-object scene (probaff generate --scene tool_push)."
         )
     n_experts = check_count("n_experts", n_experts)
-    for name, value in (("max_iter", max_iter), ("n_restarts", n_restarts)):
-        check_count(name, value)
+    em = _check_em(em)
     gp_max_iter = check_count("gp_max_iter", gp_max_iter)
     check_count("seed", seed, minimum=0)
     groups = (groups,) if isinstance(groups, str) else tuple(groups)
@@ -287,9 +303,20 @@ def fit_tool_push_model(
         seed=seed,
         gp_max_iter=gp_max_iter,
         lengthscale_prior=True,
-        fit={"max_iter": max_iter, "n_restarts": n_restarts},
+        fit=em,
     )
     return _fit("em", settings, "ch5", fs, groups, Y, ds)
+
+
+def _check_em(em: EMOptions | None) -> EMOptions:
+    """`em`, or `EMOptions()` for None; `InputError` naming `em` for anything else."""
+    if em is None:
+        return EMOptions()
+    if not isinstance(em, EMOptions):
+        raise InputError(
+            f"em must be EMOptions (e.g. EMOptions(max_iter=10)) or None, got {type(em).__name__}."
+        )
+    return em
 
 
 def _fit(

@@ -42,7 +42,7 @@ from probaff.features import (
     push_interactions,
     scene_features,
 )
-from probaff.models import MixtureOfGPExperts, fit_em
+from probaff.models import EMOptions, MixtureOfGPExperts, fit_em
 from probaff.planning import plan_astar
 from probaff.planning.catalogue import EDGE_PLANNERS, edge_transition, fit_edge_model
 from probaff.planning.push_to_edge.planners import PushReachability
@@ -124,8 +124,8 @@ def test_planner_runs_on_a_model_fitted_to_observations():
     full = _pushes("push_to_edge", 12, trajectories=False)
     rebuilt = _rebuilt(full)
     assert rebuilt.observation_only
-    fitted = fit_edge_model("gp", rebuilt, em_iterations=1)
-    reference = fit_edge_model("gp", full, em_iterations=1)
+    fitted = fit_edge_model("gp", rebuilt, em=EMOptions(max_iter=1))
+    reference = fit_edge_model("gp", full, em=EMOptions(max_iter=1))
     a, b = fitted.predict(rebuilt), reference.predict(full)
     assert torch.equal(a.mean, b.mean) and torch.equal(a.variance, b.variance)
     task = load_edge_task()

@@ -17,7 +17,6 @@ from probaff.data.generation import GenerateConfig, generate
 from probaff.errors import InputError
 from probaff.features import chapter5_features
 from probaff.models import MixtureOfGPExperts, fit_em, fit_em_path
-from probaff.models.em import _settings
 from probaff.models.em_run import EMRun, loo_terms
 from probaff.models.em_starts import _copy_state, _objective
 from probaff.models.initialization import initial_responsibilities, split_responsibilities
@@ -189,9 +188,7 @@ def test_partial_iterations_move_only_the_active_experts():
     start[:, :2] = start[:, :2].mean(1, keepdim=True)  # experts 0 and 1 merged, as a trial does
     before = [copy.deepcopy(e.state_dict()) for e in model.experts]
     options = EMOptions(**{**FAST, "max_iter": 5})
-    run = EMRun(
-        model, x_t, y_t, start.clone(), _settings(model, options), init="t", seed=0, active=(0, 1)
-    )
+    run = EMRun(model, x_t, y_t, start.clone(), options, init="t", seed=0, active=(0, 1))
     run.step(2)
     assert run.iteration == 2
     torch.testing.assert_close(run.resp[:, 2], start[:, 2], rtol=0, atol=0)

@@ -228,6 +228,18 @@ def test_building_from_settings_matches_direct_construction():
     fit_em(direct, x, y, seed=3, max_iter=2, n_restarts=1)
     assert built.config() == direct.config()
     assert torch.equal(built.predict(x).mean, direct.predict(x).mean)
+    # the options whole (as a study's config holds them) fit the same model; the seed is
+    # the settings'
+    whole = model_kind("em").fit_new(x, y, settings, fit=EMOptions(max_iter=2, n_restarts=1))
+    assert torch.equal(whole.predict(x).mean, direct.predict(x).mean)
+    with pytest.raises(
+        InputError, match=r"fit holds SVIOptions, but model kind 'em' takes EMOptions"
+    ):
+        model_kind("em").fit_new(x, y, settings, fit=SVIOptions())
+    with pytest.raises(InputError, match=r"model kind 'clustered' takes no options"):
+        model_kind("clustered").fit_new(x, y, n_experts=2, fit=EMOptions())
+    with pytest.raises(InputError, match="fit must be a kind's fitting options"):
+        ModelSettings(2, fit=[("max_iter", 2)])
 
     clustered = model_kind("clustered").build(n_experts=2, seed=4, lengthscale_prior=True)
     assert (

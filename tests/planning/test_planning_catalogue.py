@@ -13,7 +13,7 @@ from torch.distributions import Independent, Normal
 
 from probaff.data.schema import PushDataset
 from probaff.errors import InputError
-from probaff.models import ModelKind, register_model_kind, unregister_model_kind
+from probaff.models import EMOptions, ModelKind, register_model_kind, unregister_model_kind
 from probaff.planning.catalogue import (
     EDGE_MODELS,
     EDGE_PLANNERS,
@@ -104,7 +104,7 @@ def test_each_planner_gets_its_transition(task):
 def test_the_models_fit_through_the_registry(edge_data):
     clustered = fit_edge_model("clustered", edge_data, seed=1)
     assert type(clustered.model).__name__ == "ClusteredGPModel"
-    gp = fit_edge_model("gp", edge_data, em_iterations=1, cloud_points=64, cloud_noise=0.0)
+    gp = fit_edge_model("gp", edge_data, em=EMOptions(max_iter=1), cloud_points=64, cloud_noise=0.0)
     assert gp.model.n_experts == 1 and (gp.cloud_points, gp.cloud_noise) == (64, 0.0)
 
 

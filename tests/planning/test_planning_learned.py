@@ -6,6 +6,7 @@ import torch
 from torch.distributions import Independent, Normal
 
 from probaff.errors import InputError
+from probaff.models import EMOptions
 from probaff.planning.catalogue import fit_edge_model
 from probaff.planning.learned import FeaturePushModel, apply_effects
 from probaff.planning.push_to_edge.episode import run_edge_episode
@@ -28,7 +29,7 @@ def test_apply_effects_inverts_the_pushing_frame_effect():
 
 @pytest.fixture(scope="module")
 def gp(edge_data):
-    return fit_edge_model("gp", edge_data, em_iterations=1)
+    return fit_edge_model("gp", edge_data, em=EMOptions(max_iter=1))
 
 
 class _FakeModel:
@@ -131,8 +132,8 @@ def test_learned_transition_and_fit_refuse_bad_arguments(gp, edge_data):
         LearnedTransition(gp, task, seed=-1)
     with pytest.raises(InputError, match="LearnedTransition needs the tabletop world"):
         LearnedTransition(gp, "push_to_edge")
-    with pytest.raises(InputError, match="em_iterations must be a positive integer, got 0"):
-        fit_edge_model("gp", edge_data, em_iterations=0)
+    with pytest.raises(InputError, match="em must be EMOptions"):
+        fit_edge_model("gp", edge_data, em=0)
     with pytest.raises(InputError, match="ds must be a PushDataset"):
         fit_edge_model("gp", edge_data.arrays)  # type: ignore[arg-type]
 

@@ -180,7 +180,7 @@ def edge_models(study: StudyRun[PlanningStudyConfig], names: set[str]) -> dict[s
     return {
         name: _fit_or_load(
             study.out / "models" / f"{name}.{tag}.pt",
-            partial(fit_edge_model, name, ds, seed=config.seed, em_iterations=config.em.max_iter),
+            partial(fit_edge_model, name, ds, seed=config.seed, em=config.em),
             "ch4",
             EDGE_MODELS[name].groups,
             ds,
@@ -197,7 +197,7 @@ def _tool_model(study: StudyRun[PlanningStudyConfig]) -> FeaturePushModel:
     return _fit_or_load(
         study.out / "models" / f"tool.{tag}.pt",
         lambda: fit_tool_push_model(
-            ds, n_experts=3, groups=_TOOL_GROUPS, max_iter=config.em.max_iter, seed=config.seed
+            ds, n_experts=3, groups=_TOOL_GROUPS, em=config.em, seed=config.seed
         ),
         "ch5",
         _TOOL_GROUPS,

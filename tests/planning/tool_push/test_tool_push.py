@@ -17,6 +17,7 @@ from torch.distributions import Independent, Normal
 from probaff._threads import torch_threads
 from probaff.data.generation import GenerateConfig, generate
 from probaff.errors import InputError
+from probaff.models import EMOptions
 from probaff.planning.catalogue import fit_tool_push_model
 from probaff.planning.learned import FeaturePushModel
 from probaff.planning.tool_push import (
@@ -61,7 +62,7 @@ def dataset(tmp_path_factory):
 @pytest.fixture(scope="module")
 def model(dataset):
     return fit_tool_push_model(
-        dataset, n_experts=2, max_iter=2, n_restarts=1, gp_max_iter=10, seed=0
+        dataset, n_experts=2, em=EMOptions(max_iter=2, n_restarts=1), gp_max_iter=10, seed=0
     )
 
 
@@ -264,7 +265,11 @@ def test_bad_states_planners_and_models_are_refused(dataset, model):
         plan_tool_push(model, _state(0), np.random.default_rng(0))
     # a model fitted on f_o alone, presented as if it read f_o and f_c
     only_o = fit_tool_push_model(
-        dataset, n_experts=1, groups=("f_o",), max_iter=1, n_restarts=1, gp_max_iter=5
+        dataset,
+        n_experts=1,
+        groups=("f_o",),
+        em=EMOptions(max_iter=1, n_restarts=1),
+        gp_max_iter=5,
     )
     assert list(only_o.model.groups) == ["f_o"]
     with pytest.raises(
@@ -337,8 +342,8 @@ def test_fit_tool_push_model_refuses_bad_settings(dataset):
         InputError, match=r"groups \['f_q'\] must name distinct chapter-5 feature groups"
     ):
         fit_tool_push_model(dataset, groups=("f_q",))
-    with pytest.raises(InputError, match="n_restarts must be a positive integer, got 0"):
-        fit_tool_push_model(dataset, n_restarts=0)
+    with pytest.raises(InputError, match=r"em must be EMOptions .* got dict"):
+        fit_tool_push_model(dataset, em={"n_restarts": 0})
     with pytest.raises(InputError, match="seed must be an integer >= 0, got -2"):
         fit_tool_push_model(dataset, seed=-2)
 
