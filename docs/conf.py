@@ -36,19 +36,21 @@ exclude_patterns = ["_build"]
 root_doc = "index"
 
 # Single backticks. The docstrings write names of classes, functions, arguments, fields and
-# array shapes in single backticks (`MixtureOfGPExperts`, `n_experts`, `(N, D)`). As
-# cross-references ("any" or "py:obj") most of them could not resolve (arguments, fields, shapes)
-# and `-n` would fail on each; docutils' default, title-reference, renders them as italic
-# citations. "literal" renders them as code, which is what they are, and checks nothing. Links
-# come from what is precise: signatures and type annotations, and explicit roles.
-default_role = "literal"
+# array shapes in single backticks (`MixtureOfGPExperts`, `n_experts`, `(N, D)`). The default
+# role, "probaff-name" (docs/_ext/probaff_api.py), makes each a Python cross-reference: a name of
+# a probaff object described in the reference renders as a link, anything else (an argument, a
+# field, a shape, a third-party name) as code, without a warning. Explicit roles (:py:class:`...`)
+# and the links of signatures and type annotations are checked: one that resolves to nothing
+# fails the build under -n.
+default_role = "probaff-name"
 
-# The pages are written by the probaff-package directive (docs/_ext/probaff_api.py): a package's
-# and each module's __all__, in its order, each object described once. The extension also
-# resolves a reference that Sphinx cannot as Python would in the module that writes it, links
-# probaff's public names and leaves third-party, standard-library, private and type-variable
-# names as text (no intersphinx: the build needs no network); a name that resolves to nothing
-# still fails the build under -n.
+# The pages: api/NAME.rst for each subpackage (its public face and the table of its modules) and
+# api/modules/NAME.rst, written by the extension when the build starts, for each public module
+# and nested package, one page each. The probaff-package and probaff-module directives describe
+# each object once, under the name a user imports it by, on the page of the module that defines
+# it. The extension also resolves a reference that Sphinx cannot as Python would in the module
+# that writes it, links probaff's public names and leaves third-party, standard-library, private
+# and type-variable names as text (no intersphinx: the build needs no network).
 #
 # autodoc: class members in source order; type hints go into the parameter lists napoleon
 # writes (with short names), leaving signatures readable; defaults as the source writes them.

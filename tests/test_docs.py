@@ -55,6 +55,23 @@ def site(build):
     return build[1]
 
 
+def _public_modules(sub):
+    """The public modules and nested packages of `probaff.SUB`, by dotted name."""
+    for path in sorted((ROOT / "probaff" / sub).rglob("*.py")):
+        parts = path.relative_to(ROOT).with_suffix("").parts
+        if path.name == "__init__.py":
+            parts = parts[:-1]
+        if not any(part.startswith("_") for part in parts):
+            yield ".".join(parts)
+
+
+def _page(site, module):
+    """The page of `module`: ``api/SUB.html`` for a subpackage, else ``api/modules/NAME.html``."""
+    if module.count(".") == 1:
+        return site / "api" / f"{module.split('.')[1]}.html"
+    return site / "api" / "modules" / f"{module}.html"
+
+
 @needs_sphinx
 @pytest.mark.slow
 def test_docs_build_without_warnings(build):
@@ -69,33 +86,54 @@ def test_docs_build_without_warnings(build):
 @needs_sphinx
 @pytest.mark.slow
 def test_every_public_name_is_described(site):
+    ids = "".join(p.read_text() for p in (site / "api").rglob("*.html"))
     for sub in SUBPACKAGES:
         package = importlib.import_module(f"probaff.{sub}")
-        page = (site / "api" / f"{sub}.html").read_text()
         for name in package.__all__:
             obj = getattr(package, name)
             home = getattr(obj, "__module__", None) or package.__name__
             if home.startswith(package.__name__):  # else: described where it is defined
-                assert f'id="{package.__name__}.{name}"' in page, f"{package.__name__}.{name}"
+                assert f'id="{package.__name__}.{name}"' in ids, f"{package.__name__}.{name}"
 
 
 @needs_sphinx
 @pytest.mark.slow
-def test_every_public_module_has_a_section(site):
+def test_every_public_module_has_a_page(site):
     for sub in SUBPACKAGES:
-        page = (site / "api" / f"{sub}.html").read_text()
-        for path in sorted((ROOT / "probaff" / sub).rglob("*.py")):
-            parts = path.relative_to(ROOT).with_suffix("").parts
-            if path.name == "__init__.py":
-                parts = parts[:-1]
-            if any(part.startswith("_") for part in parts):
-                continue
-            module = ".".join(parts)
-            # a module's section carries its index target, or its heading's slug where the
-            # package exports an object under the module's name (not indexed)
+        index = (site / "api" / f"{sub}.html").read_text()
+        for module in _public_modules(sub):
+            page = _page(site, module)
+            assert page.is_file(), module
+            # the module's index target, or its title's slug where the package exports an
+            # object under the module's name (not indexed)
             slug = re.sub(r"[._]", "-", module)
-            sections = (f'<section id="module-{module}">', f'<section id="{slug}">')
-            assert any(section in page for section in sections), module
+            assert any(f'id="{i}"' in page.read_text() for i in (f"module-{module}", slug))
+            if module.count(".") == 2:  # listed on its subpackage's page
+                assert f'href="modules/{module}.html"' in index, module
+
+
+@needs_sphinx
+@pytest.mark.slow
+def test_pages_are_per_module(site):
+    largest = max(p.stat().st_size for p in (site / "api").rglob("*.html"))
+    assert largest < 300_000, largest  # one page per subpackage was up to 900 kB
+
+
+@needs_sphinx
+@pytest.mark.slow
+def test_single_backtick_names_are_links(site):
+    page = (site / "api" / "modules" / "probaff.models.mixture.html").read_text()
+    # `fit_em` in MixtureOfGPExperts's docstring names the function it is described under
+    assert re.search(
+        r'<a class="reference internal" href="probaff\.models\.em\.html#'
+        r'probaff\.models\.fit_em"[^>]*><code class="xref py py-obj',
+        page,
+    )
+    # an argument's name stays code
+    assert (
+        '<code class="xref py py-obj docutils literal notranslate"><span class="pre">'
+        "n_experts</span></code>" in page
+    )
 
 
 @needs_sphinx
@@ -115,10 +153,10 @@ def test_getting_started_shows_the_readme_examples(site):
 @needs_sphinx
 @pytest.mark.slow
 def test_type_annotations_link_to_the_reference(site):
-    page = (site / "api" / "models.html").read_text()
+    page = (site / "api" / "modules" / "probaff.models.em.html").read_text()
     # fit_em's `model` is annotated with the class where its module defines it; the link goes
-    # to the class's description in the package's public face.
-    href = 'href="#probaff.models.MixtureOfGPExperts"'
+    # to the class's description, under the name the package exports it by.
+    href = 'href="probaff.models.mixture.html#probaff.models.MixtureOfGPExperts"'
     assert f'{href} title="probaff.models.mixture.MixtureOfGPExperts"' in page
 
 

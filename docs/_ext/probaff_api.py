@@ -1,28 +1,33 @@
-"""The ``probaff-package`` directive and the reference's name resolution.
+"""The reference's pages and name resolution: one page per module, links for names.
 
-``.. probaff-package:: probaff.models`` writes, in order:
+``.. probaff-package:: probaff.models`` writes a package's page:
 
-- the package's public face: its docstring and every name of its ``__all__``;
-- a "Modules" section with one subsection per public module (a name starting with ``_`` is
-  private): the module's docstring, the names of its ``__all__`` that no enclosing package
-  already documents, and links to those it does;
-- a "Subpackages" section, each nested package documented the same way, recursively (the flag
-  ``:no-subpackages:`` leaves them out, for the top-level ``probaff`` page).
+- its docstring and its public face: each name of its ``__all__``, linked to where it is
+  described (grouped by the module that defines it), or described here when no public module
+  of the package lists it (constants, objects of private modules);
+- a "Modules" table of contents with one page per public module (a name starting with ``_`` is
+  private), and a "Subpackages" one with one page per nested package, documented the same way
+  (the flag ``:no-subpackages:`` leaves them out, for the top-level ``probaff`` page).
 
-Modules and subpackages are found with `pkgutil`, so a new module appears in the reference
-without editing the docs. Each object is documented once, under the name a user imports it by:
-a class or function that a package exports is described in the package's public face, and a
-name that a package re-exports from outside itself links to where it is described. Autodoc
-records a class's defining module as its canonical name, so a reference to
-``probaff.models.mixture.MixtureOfGPExperts`` (as type annotations write it) finds
-``probaff.models.MixtureOfGPExperts``.
+``.. probaff-module:: probaff.models.mixture`` writes a module's page: its docstring and the
+names of its ``__all__`` that it defines, each described once, under the name a user imports it
+by (``probaff.models.MixtureOfGPExperts`` for a class the package exports), with links to those
+it imports. The pages of modules and nested packages are written into ``api/modules/`` when the
+build starts (`write_module_pages`); modules are found with `pkgutil`, so a new module gets its
+page without editing the docs. Autodoc records a class's defining module as its canonical
+name, so a reference to ``probaff.models.mixture.MixtureOfGPExperts`` (as type annotations
+write it) finds ``probaff.models.MixtureOfGPExperts``.
+
+Single backticks (the default role, ``probaff-name``) are Python cross-references: a name that
+names a probaff object described in the reference is a link, anything else (an argument, a
+field, a shape such as ``(N, D)``, a third-party name) stays code, without a warning.
 
 Cross-references that Sphinx cannot resolve by itself are resolved as Python resolves the name
 in the module where it is written (`resolve_in_scope`): ``Tensor`` in a module that imports it
 from torch is ``torch.Tensor``. The reference links probaff's public names; what resolves to a
 third-party or standard-library object, a type variable or a private name (a dotted component
-starting with ``_``) is shown as text, unlinked. A name that resolves to nothing still fails the
-build (``-n``).
+starting with ``_``) is shown as text, unlinked. Written with an explicit role, a name that
+resolves to nothing still fails the build (``-n``).
 """
 
 from __future__ import annotations
@@ -32,6 +37,8 @@ import importlib
 import inspect
 import pkgutil
 import re
+import sys
+from pathlib import Path
 from types import ModuleType
 from typing import Any, TypeVar
 
@@ -40,6 +47,7 @@ from docutils.parsers.rst import directives
 from docutils.statemachine import StringList
 from sphinx import addnodes
 from sphinx.application import Sphinx
+from sphinx.domains.python import PyXRefRole
 from sphinx.environment import BuildEnvironment
 from sphinx.pycode import ModuleAnalyzer
 from sphinx.util.docutils import SphinxDirective
@@ -51,6 +59,7 @@ _LEVELS = "-~^\"'`"
 _MAX_VALUE = 72
 _MISSING = object()
 _NAME = re.compile(r"[A-Za-z_][\w.]*")
+_NOT_MODULES: set[str] = set()  # names that failed to import, asked again for each argument
 
 
 def _heading(text: str, depth: int) -> list[str]:
@@ -169,13 +178,50 @@ def _member(full_name: str, obj: Any) -> list[str]:
     return [f".. autofunction:: {full_name}", ""]
 
 
+def _page_ancestors(module: ModuleType) -> list[ModuleType]:
+    """The enclosing packages whose pages describe names for `module`'s page, outermost first.
+
+    A top-level subpackage's page is its own root (``probaff``'s face describes only what
+    ``probaff`` itself holds), so only ``probaff``'s own modules count ``probaff`` itself.
+    """
+    parts = module.__name__.split(".")
+    names = [".".join(parts[:i]) for i in range(1, len(parts))]
+    if len(parts) > 2 or hasattr(module, "__path__"):
+        names = names[1:]
+    return [importlib.import_module(name) for name in names]
+
+
+def _home(name: str, obj: Any, package: ModuleType) -> ModuleType | None:
+    """The public module of `package` whose page describes the class or function `obj`.
+
+    That is the module that defines `obj` and lists it as `name` in its ``__all__``, when
+    `package` is among the packages its page answers to; else None (`package` describes it).
+    """
+    if not _is_api(obj):
+        return None
+    module = sys.modules.get(getattr(obj, "__module__", None) or "")
+    if module is None or hasattr(module, "__path__") or not _inside(module.__name__, package):
+        return None
+    if any(part.startswith("_") for part in module.__name__.split(".")):
+        return None
+    if name not in getattr(module, "__all__", ()) or getattr(module, name, None) is not obj:
+        return None
+    return module if package in _page_ancestors(module) else None
+
+
+def _page(module: ModuleType) -> str:
+    """The document of `module`'s page (absolute, for ``:doc:``)."""
+    return f"/api/modules/{module.__name__}"
+
+
 def _names_lines(
     module: ModuleType, ancestors: list[ModuleType], modules: list[ModuleType], face: bool
 ) -> list[str]:
     """Directives for the names of `module`'s ``__all__`` not described by `ancestors`.
 
     In a package's public face (`face`), a class or function defined outside the package is
-    linked, not described; in a module, one defined in another module is linked.
+    linked, not described, and so is one that a module of the package describes on its page;
+    in a module, one defined in another module is linked.
     """
     lines: list[str] = []
     links: dict[str, list[str]] = {}  # the page's wording -> links to the descriptions
@@ -185,14 +231,19 @@ def _names_lines(
         elsewhere = _is_api(obj) and (
             not _defined_in(obj, module) if face else obj.__module__ != module.__name__
         )
-        if owner is not None:
-            where = f"Described with its package :py:mod:`{owner.__name__}`"
+        home = _home(name, obj, module) if face and owner is None and not elsewhere else None
+        described_here = not face and _is_api(obj) and obj.__module__ == module.__name__
+        if owner is not None and not described_here:
+            where = f"Described under the name its package :py:mod:`{owner.__name__}` exports"
             links.setdefault(where, []).append(f":py:obj:`{name} <{owner.__name__}.{name}>`")
         elif elsewhere:
             where = "Imported from the module that defines it"
             links.setdefault(where, []).append(f":py:obj:`{name} <{_target(obj, name, module)}>`")
+        elif home is not None:
+            where = f"From :doc:`{home.__name__} <{_page(home)}>`"
+            links.setdefault(where, []).append(f":py:obj:`{name} <{module.__name__}.{name}>`")
         elif _is_api(obj):
-            lines += _member(f"{module.__name__}.{name}", obj)
+            lines += _member(f"{(owner or module).__name__}.{name}", obj)
         else:
             lines += _constant(name, obj, module.__name__, [module, *modules])
     for where, names in links.items():
@@ -210,59 +261,105 @@ def _automodule(module: ModuleType) -> list[str]:
     return [*lines, ""]
 
 
-def package_lines(
-    package: ModuleType, ancestors: list[ModuleType], depth: int, subpackages: bool = True
-) -> list[str]:
-    """The reST source documenting `package` below `ancestors`, with headings from `depth`.
+def _toctree(modules: list[ModuleType]) -> list[str]:
+    return [".. toctree::", "   :maxdepth: 1", "", *(f"   {_page(m)}" for m in modules), ""]
+
+
+def package_lines(package: ModuleType, subpackages: bool = True) -> list[str]:
+    """The reST source of `package`'s page: its public face and its modules' pages.
 
     Args:
         package: The package to document.
-        ancestors: Enclosing packages already documented on the page, outermost first.
-        depth: Index into the heading adornments of this package's section headings.
-        subpackages: Document nested subpackages as well.
+        subpackages: List the pages of nested subpackages as well.
 
     Returns:
         reST lines.
     """
-    inside = [m for m in _submodules(package) if subpackages or "." not in _relative(m, package)]
-    lines = _automodule(package) + _names_lines(package, ancestors, inside, face=True)
-    inner = [*ancestors, package]
-    children = [m for m in inside if "." not in _relative(m, package)]
+    children = [m for m in _submodules(package) if "." not in _relative(m, package)]
+    lines = _automodule(package)
+    lines += _names_lines(package, _page_ancestors(package), children, face=True)
     modules = [m for m in children if not hasattr(m, "__path__")]
     if modules:
-        lines += _heading("Modules", depth)
-        for module in modules:
-            lines += _heading(f"``{module.__name__}``", depth + 1) + _automodule(module)
-            lines += _names_lines(module, inner, [], face=False)
+        lines += _heading("Modules", 0) + _toctree(modules)
     packages = [m for m in children if hasattr(m, "__path__")]
     if subpackages and packages:
-        lines += _heading("Subpackages", depth)
-        for sub in packages:
-            lines += _heading(f"``{sub.__name__}``", depth + 1)
-            lines += package_lines(sub, inner, depth + 2)
+        lines += _heading("Subpackages", 0) + _toctree(packages)
     return lines
+
+
+def module_lines(module: ModuleType) -> list[str]:
+    """The reST source of `module`'s page: its docstring and the names it defines.
+
+    Returns:
+        reST lines.
+    """
+    return _automodule(module) + _names_lines(module, _page_ancestors(module), [], face=False)
 
 
 def _relative(module: ModuleType, package: ModuleType) -> str:
     return module.__name__[len(package.__name__) + 1 :]
 
 
-class PackageDirective(SphinxDirective):
-    """``.. probaff-package:: NAME``: the reference of one package (see the module docstring)."""
-
+class _GeneratedDirective(SphinxDirective):
     required_arguments = 1
-    option_spec = {"no-subpackages": directives.flag}  # noqa: RUF012 (docutils API)
+
+    def lines(self, target: ModuleType) -> list[str]:
+        raise NotImplementedError
 
     def run(self) -> list[nodes.Node]:
-        """Generate the package's reST and parse it in place, section headings included."""
-        package = importlib.import_module(self.arguments[0])
-        source = package_lines(package, [], 0, subpackages="no-subpackages" not in self.options)
-        where = f"<probaff-package {package.__name__}>"
+        """Generate the page's reST and parse it in place, section headings included."""
+        target = importlib.import_module(self.arguments[0])
+        source = self.lines(target)
+        where = f"<{self.name} {target.__name__}>"
         content = StringList(source, items=[(where, i + 1) for i in range(len(source))])
         container = nodes.section()
         container.document = self.state.document
         nested_parse_with_titles(self.state, content, container)
         return container.children
+
+
+class PackageDirective(_GeneratedDirective):
+    """``.. probaff-package:: NAME``: a package's page (see the module docstring)."""
+
+    option_spec = {"no-subpackages": directives.flag}  # noqa: RUF012 (docutils API)
+
+    def lines(self, target: ModuleType) -> list[str]:
+        """The package's face and the tables of contents of its modules and subpackages."""
+        return package_lines(target, subpackages="no-subpackages" not in self.options)
+
+
+class ModuleDirective(_GeneratedDirective):
+    """``.. probaff-module:: NAME``: a module's page (see the module docstring)."""
+
+    def lines(self, target: ModuleType) -> list[str]:
+        """The module's docstring and the names it defines."""
+        return module_lines(target)
+
+
+def write_module_pages(app: Sphinx) -> None:
+    """Write ``api/modules/NAME.rst`` for each public module and nested package of probaff.
+
+    The top-level subpackages' pages are ``api/NAME.rst``. A page is rewritten only when its
+    text changes (incremental builds stay incremental), and pages of modules that are gone
+    are removed.
+    """
+    folder = Path(app.srcdir) / "api" / "modules"
+    folder.mkdir(parents=True, exist_ok=True)
+    pages = {}
+    for module in _submodules(importlib.import_module("probaff")):
+        package = hasattr(module, "__path__")
+        if package and module.__name__.count(".") == 1:
+            continue
+        name = module.__name__
+        directive = "probaff-package" if package else "probaff-module"
+        pages[f"{name}.rst"] = f"{name}\n{'=' * len(name)}\n\n.. {directive}:: {name}\n"
+    for stale in folder.glob("*.rst"):
+        if stale.name not in pages:
+            stale.unlink()
+    for file, text in pages.items():
+        path = folder / file
+        if not path.is_file() or path.read_text() != text:
+            path.write_text(text)
 
 
 def _lookup(dotted: str, scope: dict[str, Any]) -> Any:
@@ -272,10 +369,13 @@ def _lookup(dotted: str, scope: dict[str, Any]) -> Any:
         obj = scope[head]
     elif hasattr(builtins, head):
         obj = getattr(builtins, head)
+    elif head in _NOT_MODULES:
+        return _MISSING
     else:
         try:
             obj = importlib.import_module(head)
         except ImportError:
+            _NOT_MODULES.add(head)
             return _MISSING
     for part in rest:
         value = getattr(obj, part, _MISSING)
@@ -312,6 +412,29 @@ def _scopes(node: addnodes.pending_xref) -> list[dict[str, Any]]:
     return scopes
 
 
+class NameRole(PyXRefRole):
+    """The default role, ``probaff-name``: a Python cross-reference that may name nothing.
+
+    Docstrings write names of objects, arguments, fields and shapes alike in single backticks
+    (`MixtureOfGPExperts`, `n_experts`, `(N, D)`). Each becomes a ``py:obj`` reference,
+    marked: where it names a probaff object described in the reference it is a link, and where
+    it names nothing (or something outside probaff) it stays code, without a warning.
+    """
+
+    def run(self) -> tuple[list[nodes.Node], list[nodes.system_message]]:
+        """Make the ``py:obj`` reference and mark it as one that may name nothing."""
+        self.name = "py:obj"
+        made, messages = super().run()
+        for node in made:
+            for ref in node.findall(addnodes.pending_xref):
+                ref["probaff_name"] = True
+                # exact names only: a fuzzy search would warn "more than one target found"
+                # for every short name (`fit`, `config`) that several objects have
+                if "refspecific" in ref:
+                    del ref["refspecific"]
+        return made, messages
+
+
 def resolve_in_scope(
     app: Sphinx, env: BuildEnvironment, node: addnodes.pending_xref, contnode: nodes.Element
 ) -> nodes.Element | None:
@@ -319,10 +442,24 @@ def resolve_in_scope(
 
     Returns:
         A link to probaff's description of the object, the unlinked text for an object outside
-        probaff's public names, or None (Sphinx then warns) when the name resolves to nothing.
+        probaff's public names, or, when the name resolves to nothing, the unlinked text for
+        a single-backtick name (`NameRole`) and None (Sphinx then warns) for an explicit role.
     """
     if node.get("refdomain") != "py":
         return None
+    quiet = bool(node.get("probaff_name"))
+    try:
+        found = _resolve(app, env, node, contnode)
+    except Exception:  # a single-backtick text that is no Python name, such as "(N, D)"
+        if not quiet:
+            raise
+        found = None
+    return contnode if found is None and quiet else found
+
+
+def _resolve(
+    app: Sphinx, env: BuildEnvironment, node: addnodes.pending_xref, contnode: nodes.Element
+) -> nodes.Element | None:
     target = node["reftarget"]
     for scope in [*_scopes(node), {}]:
         obj = _lookup(target, scope)
@@ -342,7 +479,11 @@ def resolve_in_scope(
         return None
     if any(part.startswith("_") for part in canonical.split(".")):
         return contnode
-    documented = _documented_names(env).get(canonical, canonical)
+    names = _documented_names(env)
+    documented = names.get(canonical, canonical)
+    owner, _, member = canonical.rpartition(".")
+    if canonical not in names and owner in names:  # a method of a class described elsewhere
+        documented = f"{names[owner]}.{member}"
     if documented == target:
         return None
     domain = env.get_domain("py")
@@ -352,23 +493,27 @@ def resolve_in_scope(
 
 
 def _documented_names(env: BuildEnvironment) -> dict[str, str]:
-    """Defining name -> the name it is described under, for the functions of the reference.
+    """Defining name -> the name it is described under, for classes and functions.
 
     Autodoc records a class's defining name as an alias (``:canonical:``); this does the same
-    for functions, which a package's public face describes under the package's name.
+    for functions, which a package's public face describes under the package's name, and
+    lets a class's methods be found under the name the class is described by.
     """
-    # (name, display name, type, page, anchor, priority); priority -1 marks an alias
-    objects = list(env.get_domain("py").get_objects())
+    domain = env.get_domain("py")
+    size = len(domain.objects)  # type: ignore[attr-defined]
     cache = getattr(env, "_probaff_documented", None)
-    if cache is not None and cache[0] == len(objects):
+    if cache is not None and cache[0] == size:
         return cache[1]
     names: dict[str, str] = {}
-    for name, _display, objtype, _page, _anchor, priority in objects:
-        if objtype == "function" and priority != -1:
+    # (name, display name, type, page, anchor, priority); priority -1 marks an alias
+    for name, _display, objtype, _page, _anchor, priority in domain.get_objects():
+        if objtype in ("function", "class", "exception") and priority != -1:
             obj = _lookup(name, {})
-            if inspect.isroutine(obj) and getattr(obj, "__qualname__", None):
+            if (inspect.isroutine(obj) or inspect.isclass(obj)) and getattr(
+                obj, "__qualname__", None
+            ):
                 names.setdefault(f"{obj.__module__}.{obj.__qualname__}", name)
-    env._probaff_documented = (len(objects), names)  # type: ignore[attr-defined]
+    env._probaff_documented = (size, names)  # type: ignore[attr-defined]
     return names
 
 
@@ -416,6 +561,9 @@ def setup(app: Sphinx) -> dict[str, Any]:
     """Register the directive and the resolvers."""
     app.setup_extension("sphinx.ext.napoleon")
     app.add_directive("probaff-package", PackageDirective)
+    app.add_directive("probaff-module", ModuleDirective)
+    app.add_role("probaff-name", NameRole())
+    app.connect("builder-inited", write_module_pages)
     app.connect("missing-reference", resolve_in_scope)
     app.connect("autodoc-skip-member", skip_foreign_members)
     app.connect("autodoc-process-docstring", keep_attribute_prose, priority=600)

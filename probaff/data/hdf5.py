@@ -504,6 +504,24 @@ def import_hdf5(
             ``/data`` group, a missing or malformed attribute, an unknown array, a missing
             ``units`` attribute, an array of the wrong dtype, shape or units, NaN or inf, ...;
             the message names the array or attribute and what was expected).
+
+    Example:
+        Four simulated pushes out to one HDF5 file and back into a dataset folder:
+
+        >>> import shutil
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> from probaff.data import GenerateConfig, export_hdf5, generate, import_hdf5
+        >>> from probaff.data import load_dataset
+        >>> tmp = Path(tempfile.mkdtemp())
+        >>> config = GenerateConfig("two_objects", 4, seed=0)
+        >>> ds = generate(config, tmp / "pushes", workers=0, progress=False)
+        >>> export_hdf5(tmp / "pushes", tmp / "pushes.h5").name
+        'pushes.h5'
+        >>> copy = load_dataset(import_hdf5(tmp / "pushes.h5", tmp / "copy"))
+        >>> len(copy), bool((copy["effect"] == ds["effect"]).all())
+        (4, True)
+        >>> shutil.rmtree(tmp)
     """
     path = check_output_dir("out", out)
     if shard_size is not None:

@@ -96,10 +96,12 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
     The gate :math:`g` is a `SoftmaxGate` on the gate columns `f_g`; each expert :math:`p_j`
     is a `GPExpert` (E independent SE-ARD GPs) or a `SparseGPExpert` (the same with `m`
     inducing points per output, see `experts`) on the expert columns `f_e`. Columns are
-    chosen by index or by the names of column groups, e.g.
-    ``MixtureOfGPExperts(3, groups={"f_x": slice(0, 3), "f_o": slice(3, 40),
-    "f_c": slice(40, 101)}, gate_features=("f_x",), expert_features=("f_o", "f_c"))``.
-    The model is fitted with `probaff.models.em.fit_em`.
+    chosen by index or by the names of column groups: on chapter 5's features
+    (`probaff.features.chapter5_features`, whose ``groups`` are these),
+    ``MixtureOfGPExperts(3, groups={"f_o": slice(0, 8), "f_c": slice(8, 21),
+    "f_x": slice(21, 101)}, gate_features=("f_x",), expert_features=("f_o", "f_c"))`` gates on
+    the objects' profiles and gives the experts the poses and contacts. The model is fitted
+    with `probaff.models.em.fit_em`.
 
     Args:
         n_experts: Number of experts `M`.
@@ -150,6 +152,21 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
             `experts` is not a known kind, `n_inducing` or `hyper_rows` is not a
             positive integer, `hyper_rows` is below the inducing points
             (`probaff.models.options.check_hyper_rows`), or `point` is not a known kind.
+
+    Example:
+        Three regimes that inputs 0 and 1 decide
+        (`probaff.models.synthetic.softmax_regimes`), the gate on those two columns:
+
+        >>> from probaff.models import MixtureOfGPExperts, fit_em
+        >>> from probaff.models.synthetic import softmax_regimes
+        >>> x, y, _ = softmax_regimes(60, seed=0)  # (60, 4) features, (60, 2) effects
+        >>> model = MixtureOfGPExperts(3, gate_features=[0, 1])
+        >>> _ = fit_em(model, x, y, init="joint", n_restarts=1, split_merge=0, max_iter=3)
+        >>> pred = model.predict(x[:4])  # a torch MixtureSameFamily per row
+        >>> tuple(pred.batch_shape), tuple(pred.event_shape)
+        ((4,), (2,))
+        >>> tuple(model.predict_point(x[:4]).shape)  # the point to score by squared error
+        (4, 2)
     """
 
     not_fitted_message = _NOT_FITTED

@@ -144,6 +144,20 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
         seed_: The `EMOptions.seed` of the fit.
         feature_names_in_: Column names of `X`, when `fit` was given a DataFrame with string
             column names.
+
+    Example:
+        Two regimes along one input, numpy in and out:
+
+        >>> import numpy as np
+        >>> from probaff.models import MixtureOfGPExpertsRegressor
+        >>> X = np.linspace(0.0, 1.0, 40)[:, None]  # (40, 1)
+        >>> y = np.where(X[:, 0] < 0.5, np.sin(6.0 * X[:, 0]), 1.0)  # (40,)
+        >>> reg = MixtureOfGPExpertsRegressor(
+        ...     n_experts=2, init="joint", n_restarts=1, split_merge=0, max_iter=5, random_state=0
+        ... ).fit(X, y)
+        >>> mean, std = reg.predict(X[:3], return_std=True)
+        >>> mean.shape, std.shape, reg.n_features_in_
+        ((3,), (3,), 1)
     """
 
     def __init__(
