@@ -6,9 +6,10 @@ scores is apart from how it searches:
 
 - what is scored: one transition protocol (`Transition`: where N candidate pushes leave K
   objects), with learned, simulator and analytic implementations (`transitions`), over a
-  fitted push model joined to its features (`learned`);
+  fitted push model joined to its features (`learned`); a task with pushes of its own asks it
+  with its own batch (Push-T: `probaff.experiments.pusht.transitions`);
 - how it is searched: A*, the greedy one step and sampling in two steps, whatever the task
-  (`search`);
+  (`search`; Push-T's planner, `probaff.experiments.pusht.planner`, samples on it too);
 - the tasks, each in its own subpackage: `push_to_edge` (chapter 4: push a book over the
   table edge; A* and greedy planners, closed-loop episodes), `tool_push` (chapter 5: push a
   tool into a target to bring it within reach; two-step planner, trials) and `manipulation`

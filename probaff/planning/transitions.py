@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 import torch
@@ -58,6 +58,7 @@ from probaff.sim.tabletop_config import TabletopSpec
 __all__ = [
     "LearnedTransition",
     "PushBatch",
+    "Pushes",
     "QuasiStaticTransition",
     "QueryModel",
     "SimulatorTransition",
@@ -78,10 +79,18 @@ class TransitionPrediction:
             task adapter may hand its planner the pushed object's (N, 3) alone).
         samples: (S, N, K, 3) draws from the predictive distribution, or ``None`` for a
             deterministic model or when none were asked for.
+        effect_std: (N, K, 3) predictive standard deviation of each object's pushing-frame
+            effect ``(dy_p, dz_p, dtheta_p)``, for a model that gives it in closed form (zero
+            for a deterministic one), or ``None``.
+        pusher: (N, P) the state of what pushes after each push, for a task whose next push
+            starts where the last one left it (Push-T's agent: position and velocity), or
+            ``None`` where the hand is placed afresh.
     """
 
     mean: np.ndarray
     samples: np.ndarray | None = None
+    effect_std: np.ndarray | None = None
+    pusher: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -128,14 +137,24 @@ class PushBatch:
         return len(self.poses)
 
 
+Pushes = TypeVar("Pushes", contravariant=True)
+"""What a transition is asked: the tabletop's `PushBatch`, or a task's own batch of pushes."""
+
+
 @runtime_checkable
-class Transition(Protocol):
-    """A model of where pushes leave the objects."""
+class Transition(Protocol[Pushes]):
+    """A model of where pushes leave the objects.
+
+    Generic in the batch it is asked (`Transition` alone: any batch): the tabletop's
+    transitions read a `PushBatch`; a task whose pushes are not the tabletop's hands its own
+    (Push-T's `probaff.experiments.pusht.transitions.TeePushes`) and gets the same
+    `TransitionPrediction`.
+    """
 
     name: str
 
     def predict(
-        self, pushes: PushBatch, *, n_samples: int = 0, rng: np.random.Generator | None = None
+        self, pushes: Pushes, *, n_samples: int = 0, rng: np.random.Generator | None = None
     ) -> TransitionPrediction:
         """Predict N pushes in one call.
 
@@ -182,8 +201,9 @@ def check_transition(transition: Any) -> Transition:
     return check_instance(
         transition,
         Transition,  # type: ignore[type-abstract]
-        "transition must be a push transition model with a name and predict(pushes: PushBatch, "
-        "n_samples=, rng=) (LearnedTransition, SimulatorTransition or QuasiStaticTransition)",
+        "transition must be a push transition model with a name and predict(pushes, "
+        "n_samples=, rng=) (LearnedTransition, SimulatorTransition or QuasiStaticTransition "
+        "on a PushBatch; Push-T's ModelTransition or EnvTransition on its TeePushes)",
     )
 
 
@@ -262,7 +282,7 @@ def checked_prediction(
                 f"{what} of {n} push(es): its predictions are not finite; refit the model or "
                 "check its inputs (features, training data)."
             )
-    return TransitionPrediction(mean, samples)
+    return TransitionPrediction(mean, samples, pred.effect_std, pred.pusher)
 
 
 def _world(source: Any, owner: str) -> TabletopSpec:

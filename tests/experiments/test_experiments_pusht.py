@@ -124,7 +124,8 @@ def test_smoke_runs_resumes_and_repeats_bit_for_bit(tmp_path, pusht_python):
     for name in (*names, "models.png"):
         assert str(out / name) in files and (out / name).stat().st_size > 0
     text = (out / "summary.md").read_text()
-    assert "63.8 %" in text and "| beam-moe | 2 |" in text and "| random | 1 |" in text
+    assert "63.8 %" in text and "| beam-moe | state | 2 |" in text
+    assert "| random | state | 1 |" in text and "| pixels_agent_pos | 500 | 319 |" in text
     tasks = sorted((out / "tasks").glob("*.json"))
     assert len(tasks) == 2 + 3 * 1  # beam-moe's two episodes, one of each other planner
     records = {p.name: json.loads(p.read_text()) for p in tasks}

@@ -37,7 +37,7 @@ from probaff.experiments.pusht.geometry import (
     to_world,
 )
 from probaff.experiments.pusht.models import FEATURES, LearnedModel, QuasiStaticTee
-from probaff.experiments.pusht.planner import ModelTransition, Node, SearchSettings, plan_push
+from probaff.experiments.pusht.planner import Node, SearchSettings, plan_push
 from probaff.experiments.pusht.primitives import (
     PrimitiveSettings,
     primitive_actions,
@@ -45,6 +45,7 @@ from probaff.experiments.pusht.primitives import (
     sample_primitives,
 )
 from probaff.experiments.pusht.report import blame, curve_rows, planner_rows
+from probaff.experiments.pusht.transitions import ModelTransition
 from probaff.models import MixtureOfGPExperts, fit
 
 PNG = b"\x89PNG\r\n\x1a\n"

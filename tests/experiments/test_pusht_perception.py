@@ -237,17 +237,29 @@ class _Poisoned:
 
 
 class _Spy:
-    """A transition that records the nodes the planner searches from; pushes move nothing."""
+    """A transition that records the nodes the planner searches from; pushes move nothing.
+
+    With them, in gym-pusht's frame, the pose the planner planned on (`gym_poses`): the planner
+    plans in the frame of the T it was handed (from pixels, the perceived one).
+    """
+
+    name = "spy"
 
     def __init__(self) -> None:
-        self.nodes = []
+        self.nodes, self.gym_poses, self.tees = [], [], []
 
-    def expand(self, node, prims, settings):
+    def predict(self, pushes, *, n_samples=0, rng=None):
+        from probaff.experiments.pusht.geometry import cog_pose, origin_pose
         from probaff.experiments.pusht.planner import Node
+        from probaff.planning.transitions import TransitionPrediction
 
+        node = Node(pushes.poses[0].copy(), pushes.agents[0].copy(), pushes.agent_vels[0].copy())
         self.nodes.append(node)
-        kids = [Node(node.pose.copy(), node.agent.copy(), node.agent_vel.copy()) for _ in prims]
-        return kids, np.zeros(len(prims))
+        self.tees.append(pushes.tee)
+        self.gym_poses.append(cog_pose(origin_pose(node.pose, pushes.tee)))
+        pusher = np.column_stack([pushes.agents, pushes.agent_vels])
+        mean = pushes.poses[:, None].copy()
+        return TransitionPrediction(mean, effect_std=np.zeros_like(mean), pusher=pusher)
 
 
 def test_pixel_episodes_never_hand_the_state_to_the_planner(pusht_python):
@@ -272,9 +284,14 @@ def test_pixel_episodes_never_hand_the_state_to_the_planner(pusht_python):
     for a, b in zip(nodes, p_nodes, strict=True):
         assert np.all(np.isfinite(b.pose)) and np.all(np.isfinite(b.agent))
         assert np.array_equal(a.pose, b.pose) and np.array_equal(a.agent, b.agent)
+    # the planner's T is the perceived one, not gym-pusht's, and the same in both runs
+    from probaff.experiments.pusht.geometry import GYM_TEE
+
+    assert all(t is not GYM_TEE and t.cog[1] != GYM_TEE.cog[1] for t in spy.tees)
+    assert abs(spy.tees[0].perimeter - GYM_TEE.perimeter) < 8.0  # world units of 480
     # the perceived poses are close to the state's, but not the state's
     truth = np.array(record["poses"])[: len(nodes)]
-    planned = np.array([n.pose for n in nodes])
+    planned = np.array(spy.gym_poses[: len(nodes)])
     assert not np.any(np.all(planned == truth, axis=1))
     assert np.abs(planned[:, :2] - truth[:, :2]).max() * PX < 1.0
     assert record["observation"] == "pixels" and record["perception_px"] < 1.0

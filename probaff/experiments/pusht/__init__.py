@@ -6,16 +6,19 @@ creates ``.venv-pusht``), behind a worker process that probaff speaks JSON lines
 Modules:
     config: `PushTStudyConfig`, the planners, the diffusion policy's result, the smoke sizes.
     env: creating the Push-T environment, and `PushTWorker`, the process that runs it.
-    geometry: the T, its frames, distances and the vertex cost.
+    geometry: the T (gym-pusht's, or one perceived), its frames, distances and the vertex cost.
     perception: the goal, the T's outline and the block's pose read off the diffusion
         policy's 96 x 96 image, with an uncertainty and a flag for frames it cannot read.
     observe: what the planner observes, the state or only the image and the agent's position.
     primitives: push primitives (contact, direction, length) as agent targets.
     data: random pushes recorded as an observation-only probaff push dataset.
+    active: training pushes chosen by the model's predictive variance, or at random.
     models: features, the mixture and the single GP, the analytic quasi-static model.
-    planner: beam search over primitives on a model or the environment, closed-loop episodes.
+    transitions: a model or the environment as a `probaff.planning` transition of the T.
+    planner: the push search on `probaff.planning.search`, closed-loop episodes.
     run: the pushes, fits and episodes as resumable tasks, and `run`.
-    report: success rates with their intervals, model scores, blame, the summary.
+    scoring: success with its interval and the environment's own reward, as LeRobot scores.
+    report: the tables in those units, model scores, blame, the summary.
     figures: episodes over the goal, success and model scores against training pushes.
 """
 

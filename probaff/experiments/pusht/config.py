@@ -14,12 +14,10 @@ from probaff.experiments.config_cli import option_flags
 from probaff.experiments.pusht.observe import OBSERVATIONS
 from probaff.experiments.pusht.planner import SearchSettings
 from probaff.experiments.pusht.primitives import PrimitiveSettings
+from probaff.experiments.pusht.scoring import DIFFUSION_POLICY
 from probaff.models import EMOptions
 
 __all__ = ["DIFFUSION_POLICY", "PLANNERS", "SMOKE", "PlannerSpec", "PushTStudyConfig"]
-
-DIFFUSION_POLICY = {"episodes": 500, "success_rate": 0.638, "max_coverage": 0.959}
-"""LeRobot's diffusion policy on gym-pusht (500 episodes): the goal to compare with."""
 
 
 @dataclass(frozen=True)

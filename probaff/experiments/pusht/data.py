@@ -15,6 +15,7 @@ is the first N pushes of any larger one with the same seed, and chunks are resum
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import cache
 from typing import Any
 
@@ -37,7 +38,15 @@ from probaff.experiments.pusht.primitives import (
     sample_primitives,
 )
 
-__all__ = ["OBJECT_NAMES", "chunk_rng", "push_dataset", "record_chunk", "with_worker", "worker"]
+__all__ = [
+    "OBJECT_NAMES",
+    "Chooser",
+    "chunk_rng",
+    "push_dataset",
+    "record_chunk",
+    "with_worker",
+    "worker",
+]
 
 OBJECT_NAMES = ("pusht_tee",)
 """The dataset's object vocabulary: the T."""
@@ -83,8 +92,32 @@ def _near_wall(pose: np.ndarray) -> bool:
     return bool(np.any(pose[:2] < 80.0) or np.any(pose[:2] > 432.0))
 
 
-def _record(w: PushTWorker, rng: np.random.Generator, n: int, s: PrimitiveSettings) -> dict:
-    """`n` random pushes; reset whenever the next could outrun the limit or the T nears a wall."""
+Chooser = Callable[[np.random.Generator, np.ndarray, np.ndarray], np.ndarray]
+"""``choose(rng, pose, agent)``: the (3,) primitive to run from the T's (3,) centre-of-gravity
+pose and the agent's (2,) position (px)."""
+
+
+def record_pushes(
+    w: PushTWorker,
+    rng: np.random.Generator,
+    n: int,
+    s: PrimitiveSettings,
+    choose: Chooser | None = None,
+) -> dict[str, list[Any]]:
+    """`n` pushes, each new episode reset from `rng`.
+
+    A reset whenever the next push could outrun the limit or the T nears a wall.
+
+    Args:
+        w: The Push-T worker.
+        rng: The resets' seeds and the random pushes.
+        n: Pushes to record.
+        s: The primitives' settings.
+        choose: Picks each push; random ones (`sample_primitives`) when None.
+
+    Returns:
+        `record_chunk`'s lists.
+    """
     rows: dict[str, list[Any]] = {k: [] for k in ("before", "after", "origin", "yaw", "dist")}
     moved: list[float] = []
     state: dict[str, Any] = {}
@@ -94,8 +127,9 @@ def _record(w: PushTWorker, rng: np.random.Generator, n: int, s: PrimitiveSettin
             state = w.ask("reset", seed=int(rng.integers(2**31)))
             steps = 0
         pose = cog_pose(np.array(state["block"]))
-        prim = sample_primitives(rng, 1, s)[0]
-        plan = primitive_actions(pose, np.array(state["agent"]), prim, s)
+        agent = np.array(state["agent"])
+        prim = sample_primitives(rng, 1, s)[0] if choose is None else choose(rng, pose, agent)
+        plan = primitive_actions(pose, agent, prim, s)
         if not plan.feasible or steps + len(plan.actions) > _MAX_STEPS:
             steps = _MAX_STEPS if plan.feasible else steps
             continue
@@ -134,7 +168,7 @@ def record_chunk(
         start ``origin``, the push's world ``yaw``, its target travel ``dist``, and
         ``approach_moved``, how far (px) the block moved while the pusher went around it.
     """
-    return dict(with_worker(python, _record, chunk_rng(seed, role, chunk), n, settings))
+    return dict(with_worker(python, record_pushes, chunk_rng(seed, role, chunk), n, settings))
 
 
 def _outline_cloud(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -20,13 +20,13 @@ import numpy as np
 from matplotlib.patches import Polygon
 
 from probaff._io import atomic_save_figure
-from probaff.experiments.pusht.config import DIFFUSION_POLICY
 from probaff.experiments.pusht.geometry import (
     GOAL_ORIGIN_POSE,
     OUTLINE,
     cog_pose,
     to_world,
 )
+from probaff.experiments.pusht.scoring import DIFFUSION_POLICY
 
 __all__ = ["plot_episodes", "plot_models", "plot_success_curve"]
 
@@ -89,7 +89,12 @@ def plot_success_curve(rows: Sequence[dict[str, Any]], path: str | Path) -> str:
     lo = np.maximum(rate - np.array([r["success_low"] for r in rows]), 0.0)  # rounding
     hi = np.maximum(np.array([r["success_high"] for r in rows]) - rate, 0.0)
     ax.errorbar(n, rate, yerr=[lo, hi], marker="o", capsize=3, label="beam search, mixture")
-    ax.axhline(DIFFUSION_POLICY["success_rate"], color="tab:red", ls="--", label="diffusion policy")
+    ax.axhline(
+        DIFFUSION_POLICY.success_rate,
+        color="tab:red",
+        ls="--",
+        label=f"diffusion policy ({DIFFUSION_POLICY.observation})",
+    )
     ax.set_xscale("log")
     ax.set_ylim(0, 1.02)
     ax.set_xlabel("training pushes")

@@ -12,12 +12,17 @@ gym-pusht's physics under stated assumptions:
 * the block's velocity is cancelled at every physics step (gym-pusht's space damping is 0), so
   each step the contact impulse ``J`` gives the block the twist ``V = M^-1 J`` with ``M =
   diag(m, m, I)``: an ellipsoidal limit surface whose ratio is the radius of gyration,
-  ``rho^2 = I / m`` (`INERTIA`, m = 1), with the block turning about its centre of gravity;
+  ``rho^2 = I / m`` (`TeeGeometry.inertia`, m = 1), with the block turning about its centre of
+  gravity;
 * the contact is frictionless (gym-pusht gives its shapes no friction), so the impulse lies
   along the contact normal ``n``, and the block moves just enough that the pusher does not
   penetrate it: a normal push depth ``delta`` moves the block by
   ``lambda (n, (c x n) / rho^2)`` with ``lambda = delta / (1 + (c x n)^2 / rho^2)``;
 * the pusher follows its target exactly (no lag), in `QuasiStaticTee.substeps` steps.
+
+Its T is gym-pusht's by default (`GYM_TEE`: its source's outline, centre of gravity and
+inertia); from pixels it is the perceived outline's, of uniform density
+(`TeeGeometry.from_shape`).
 
 Its predictive distribution is a Normal around that prediction with the standard deviation of
 its residuals on the training pushes.
@@ -36,12 +41,20 @@ from torch.distributions import Distribution, Independent, Normal
 from probaff.data import PushDataset
 from probaff.errors import InputError
 from probaff.eval.metrics import interval_coverage, marginal_components, nlpd, rmse
-from probaff.experiments.pusht.geometry import AGENT_RADIUS, INERTIA, PX, distance_to_tee, to_block
+from probaff.experiments.pusht.geometry import (
+    AGENT_RADIUS,
+    GYM_TEE,
+    PX,
+    TeeGeometry,
+    distance_to_tee,
+    to_block,
+)
 from probaff.models import EMOptions, MixtureOfGPExperts, fit
 
 __all__ = [
     "FEATURES",
     "LearnedModel",
+    "PushModel",
     "QuasiStaticTee",
     "evaluate",
     "fit_learned",
@@ -107,26 +120,29 @@ class QuasiStaticTee:
         sigma: (3,) standard deviation of its residuals (px, px, rad), set by `calibrate`.
         substeps: Integration steps per push.
         iterations: Projection iterations per step.
+        name: A label for tables.
+        tee: The T it pushes: its outline, centre of gravity and inertia.
     """
 
     sigma: np.ndarray | None = None
     substeps: int = 40
     iterations: int = 3
     name: str = "analytic"
+    tee: TeeGeometry = GYM_TEE
 
     def effects(self, X: np.ndarray) -> np.ndarray:
         """(K, 3) predicted pushing-frame effects of (K, 5) features."""
         X = np.asarray(X, dtype=float)
         pose = np.zeros((len(X), 3))  # the block relative to its start (centre of gravity, angle)
         direction = X[:, 2:4]
-        rho2 = INERTIA
+        rho2 = self.tee.inertia
         for i in range(1, self.substeps + 1):
             pusher = X[:, :2] + direction * (X[:, 4:5] * i / self.substeps)
             for _ in range(self.iterations):
                 c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
                 rel = pusher - pose[:, :2]
                 local = np.stack([c * rel[:, 0] + s * rel[:, 1], c * rel[:, 1] - s * rel[:, 0]], -1)
-                d, near = distance_to_tee(local)
+                d, near = distance_to_tee(local, self.tee)
                 depth = AGENT_RADIUS - d
                 hit = depth > 1e-9
                 if not hit.any():
@@ -157,6 +173,10 @@ class QuasiStaticTee:
         loc = torch.as_tensor(self.effects(X))
         scale = torch.as_tensor(np.broadcast_to(self.sigma, loc.shape).copy())
         return Independent(Normal(loc, scale), 1)
+
+
+PushModel = LearnedModel | QuasiStaticTee
+"""A Push-T push model: a fitted mixture (or single GP), or the calibrated analytic model."""
 
 
 def predict_moments(model: Any, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -12,7 +12,10 @@ on: the pusher backs away from the block and the scene is observed again, up to
 `PixelObserver.retries` times; if it still cannot be read, `Observed.lost` ends the episode.
 
 Poses handed to the planner are centre-of-gravity poses (`probaff.experiments.pusht.geometry`),
-the planner's own frame.
+the planner's own frame, of the observer's T (`tee`): gym-pusht's (`GYM_TEE`) when the state is
+read; from pixels, the perceived outline's, of uniform density (`TeeGeometry.from_shape`), so
+that nothing of the T's geometry is taken from the environment's source. The perception errors
+are scored against the state in gym-pusht's own frame, whatever the planner's T.
 """
 
 from __future__ import annotations
@@ -25,7 +28,13 @@ import numpy as np
 
 from probaff.errors import InputError
 from probaff.experiments.pusht.env import PushTWorker, pixel_observations
-from probaff.experiments.pusht.geometry import ARENA, GOAL_ORIGIN_POSE, cog_pose
+from probaff.experiments.pusht.geometry import (
+    ARENA,
+    GOAL_ORIGIN_POSE,
+    GYM_TEE,
+    TeeGeometry,
+    cog_pose,
+)
 from probaff.experiments.pusht.perception import (
     CLASSES,
     WORLD_SIZE,
@@ -87,6 +96,8 @@ class StateObserver:
     """The planner reads the environment's state (``obs_type="state"``)."""
 
     name = "state"
+    tee: TeeGeometry = GYM_TEE
+    """The T the planner plans with: gym-pusht's."""
 
     def __init__(self, worker: PushTWorker) -> None:
         self.worker = worker
@@ -152,6 +163,7 @@ class PixelObserver:
         self.options = options or PerceptionOptions()
         self.retries, self.retreat, self.retreat_steps = retries, retreat, retreat_steps
         self.scene: Scene | None = None
+        self.tee = GYM_TEE  # until the scene is perceived; never planned with
         self.goal = np.full(3, np.nan)
         self._last: np.ndarray | None = None  # last accepted origin pose
         self._log = _Log()
@@ -187,7 +199,8 @@ class PixelObserver:
                 lost=True,
                 **_flags(answer, coverage),
             )
-        self.goal = cog_pose(self.scene.goal)
+        self.tee = TeeGeometry.from_shape(self.scene.shape)
+        self.goal = cog_pose(self.scene.goal, self.tee)
         return self._observe(answer, frames, coverage)
 
     def step(self, actions: np.ndarray) -> Observed:
@@ -231,10 +244,11 @@ class PixelObserver:
         if est.ok:
             self._last = est.pose
         truth = cog_pose(np.array(answer["block"]))  # scoring only, never planned on
-        pose = cog_pose(est.pose) if est.ok else np.full(3, np.nan)
+        pose = cog_pose(est.pose, self.tee) if est.ok else np.full(3, np.nan)
         if est.ok:
             self._log.estimates.append(est)
-            self._log.errors_px.append(float(np.hypot(*(pose[:2] - truth[:2]))) * size / WORLD_SIZE)
+            seen = cog_pose(est.pose)  # scored where the state is: gym-pusht's frame
+            self._log.errors_px.append(float(np.hypot(*(seen[:2] - truth[:2]))) * size / WORLD_SIZE)
             d = pose[2] - truth[2]
             self._log.errors_deg.append(abs(math.degrees(math.atan2(math.sin(d), math.cos(d)))))
         before = frames[-2]["agent_pos"] if len(frames) > 1 else agent

@@ -25,7 +25,8 @@ from probaff.errors import InputError
 from probaff.experiments.pusht.geometry import (
     AGENT_RADIUS,
     ARENA,
-    RECTS,
+    GYM_TEE,
+    TeeGeometry,
     contact_points,
     distance_to_tee,
     to_block,
@@ -35,6 +36,7 @@ from probaff.experiments.pusht.geometry import (
 __all__ = [
     "PrimitiveSettings",
     "PushPlan",
+    "feasible_starts",
     "primitive_actions",
     "push_frames",
     "sample_primitives",
@@ -99,31 +101,35 @@ class PushPlan:
     feasible: bool
 
 
-def sample_primitives(rng: np.random.Generator, n: int, settings: PrimitiveSettings) -> np.ndarray:
+def sample_primitives(
+    rng: np.random.Generator, n: int, settings: PrimitiveSettings, tee: TeeGeometry = GYM_TEE
+) -> np.ndarray:
     """`n` primitives drawn uniformly: contact along the outline, angle, log-uniform length.
 
     Args:
         rng: The random generator.
         n: Number of primitives.
         settings: Their ranges.
+        tee: The T (the contact is drawn along its perimeter).
 
     Returns:
         (n, 3) ``(s, phi, length)``.
     """
-    from probaff.experiments.pusht.geometry import PERIMETER
-
-    s = rng.uniform(0.0, PERIMETER, n)
+    s = rng.uniform(0.0, tee.perimeter, n)
     phi = rng.uniform(-settings.max_angle, settings.max_angle, n)
     lo, hi = math.log(settings.min_length), math.log(settings.max_length)
     return np.stack([s, phi, np.exp(rng.uniform(lo, hi, n))], axis=-1)
 
 
-def push_frames(prims: np.ndarray, settings: PrimitiveSettings) -> dict[str, np.ndarray]:
+def push_frames(
+    prims: np.ndarray, settings: PrimitiveSettings, tee: TeeGeometry = GYM_TEE
+) -> dict[str, np.ndarray]:
     """The block-frame geometry of primitives.
 
     Args:
         prims: (K, 3) ``(s, phi, length)``.
         settings: Where a push starts (`PrimitiveSettings.gap`).
+        tee: The T.
 
     Returns:
         ``contact`` (K, 2) and ``normal`` (K, 2) on the outline, ``direction`` (K, 2) unit
@@ -131,7 +137,7 @@ def push_frames(prims: np.ndarray, settings: PrimitiveSettings) -> dict[str, np.
         block frame, and ``yaw`` (K,) the push direction's block-frame angle.
     """
     prims = np.asarray(prims, dtype=float)
-    contact, normal = contact_points(prims[:, 0])
+    contact, normal = contact_points(prims[:, 0], tee)
     yaw = np.arctan2(-normal[:, 1], -normal[:, 0]) + prims[:, 1]
     direction = np.stack([np.cos(yaw), np.sin(yaw)], axis=-1)
     start = contact + normal * (AGENT_RADIUS + settings.gap)
@@ -144,10 +150,28 @@ def push_frames(prims: np.ndarray, settings: PrimitiveSettings) -> dict[str, np.
     }
 
 
-def _segment_hits(a: np.ndarray, b: np.ndarray, grow: float) -> bool:
-    """Whether segment a-b (block frame) passes through a box of the T grown by `grow`."""
+def feasible_starts(
+    pose: np.ndarray, prims: np.ndarray, settings: PrimitiveSettings, tee: TeeGeometry = GYM_TEE
+) -> np.ndarray:
+    """(K,) whether each of (K, 3) primitives starts clear of the T and inside the arena.
+
+    Args:
+        pose: (3,) the T's centre-of-gravity pose (px, px, rad).
+        prims: (K, 3) ``(s, phi, length)``.
+        settings: Where a push starts (`PrimitiveSettings.gap`).
+        tee: The T.
+    """
+    start = push_frames(prims, settings, tee)["start"]
+    d, _ = distance_to_tee(start, tee)
+    world = to_world(pose, start)
+    inside = np.all((world >= ARENA[0]) & (world <= ARENA[1]), axis=-1)
+    return (d >= AGENT_RADIUS + settings.gap - 1e-6) & inside
+
+
+def _segment_hits(a: np.ndarray, b: np.ndarray, grow: float, rects: np.ndarray) -> bool:
+    """Whether segment a-b (block frame) passes through a box `rects` (2, 4) grown by `grow`."""
     d = b - a
-    for x0, y0, x1, y1 in RECTS:
+    for x0, y0, x1, y1 in rects:
         lo, hi = 0.0, 1.0
         ok = True
         for k, (mn, mx) in enumerate(((x0 - grow, x1 + grow), (y0 - grow, y1 + grow))):
@@ -166,9 +190,9 @@ def _segment_hits(a: np.ndarray, b: np.ndarray, grow: float) -> bool:
     return False
 
 
-def _corners(grow: float) -> np.ndarray:
-    """The convex corners of the T grown by `grow` (block frame)."""
-    (bx0, by0, bx1, by1), (sx0, _, sx1, sy1) = RECTS
+def _corners(grow: float, rects: np.ndarray) -> np.ndarray:
+    """The convex corners of the T's boxes `rects` (2, 4) grown by `grow` (block frame)."""
+    (bx0, by0, bx1, by1), (sx0, _, sx1, sy1) = rects
     return np.array(
         [
             [bx0 - grow, by0 - grow],
@@ -181,9 +205,11 @@ def _corners(grow: float) -> np.ndarray:
     )
 
 
-def _shortest_path(start: np.ndarray, goal: np.ndarray, grow: float, free: float) -> np.ndarray:
+def _shortest_path(
+    start: np.ndarray, goal: np.ndarray, grow: float, free: float, rects: np.ndarray
+) -> np.ndarray:
     """Shortest block-frame path start -> goal that keeps `free` from the T (visibility graph)."""
-    nodes = np.vstack([start, goal, _corners(grow)])
+    nodes = np.vstack([start, goal, _corners(grow, rects)])
     n = len(nodes)
     dist = np.full(n, np.inf)
     prev = np.full(n, -1)
@@ -198,7 +224,7 @@ def _shortest_path(start: np.ndarray, goal: np.ndarray, grow: float, free: float
         if i == 1:
             break
         for j in range(n):
-            if done[j] or _segment_hits(nodes[i], nodes[j], free):
+            if done[j] or _segment_hits(nodes[i], nodes[j], free, rects):
                 continue
             nd = d + float(np.linalg.norm(nodes[j] - nodes[i]))
             if nd < dist[j]:
@@ -227,7 +253,11 @@ def _inside_arena(points: np.ndarray) -> bool:
 
 
 def primitive_actions(
-    pose: np.ndarray, agent: np.ndarray, prim: np.ndarray, settings: PrimitiveSettings
+    pose: np.ndarray,
+    agent: np.ndarray,
+    prim: np.ndarray,
+    settings: PrimitiveSettings,
+    tee: TeeGeometry = GYM_TEE,
 ) -> PushPlan:
     """The agent targets of one primitive from the block's pose and the agent's position.
 
@@ -236,25 +266,27 @@ def primitive_actions(
         agent: (2,) the agent's world position (px).
         prim: (3,) ``(s, phi, length)``.
         settings: Speeds, clearance, gap and waits.
+        tee: The T.
 
     Returns:
         The targets, clamped to the arena, and whether the push is feasible.
     """
-    geo = {k: v[0] for k, v in push_frames(np.asarray(prim, dtype=float)[None], settings).items()}
+    frames = push_frames(np.asarray(prim, dtype=float)[None], settings, tee)
+    geo = {k: v[0] for k, v in frames.items()}
     grow = AGENT_RADIUS + settings.clearance
     free = AGENT_RADIUS + 1.0
-    start_d, _ = distance_to_tee(geo["start"][None])
+    start_d, _ = distance_to_tee(geo["start"][None], tee)
     feasible = bool(start_d[0] >= AGENT_RADIUS + settings.gap - 1e-6)
     entry = geo["start"] + geo["normal"] * (settings.clearance - settings.gap + 1.0)
     here = to_block(pose, np.asarray(agent, dtype=float)[None])[0]
-    d, near = distance_to_tee(here[None])
+    d, near = distance_to_tee(here[None], tee)
     points = [here]
     if d[0] < grow:  # leave along the outward normal of the nearest point first
         away = here - near[0]
         norm = float(np.linalg.norm(away))
         away = away / norm if norm > 1e-9 else -geo["direction"]
         points.append(near[0] + away * (grow + 1.0))
-    route = _shortest_path(points[-1], entry, grow + 1.0, free)
+    route = _shortest_path(points[-1], entry, grow + 1.0, free, tee.rects)
     path_block = np.vstack([points[0], *points[1:], route[1:]])
     around = _resample(path_block, settings.approach_speed)
     come_in = _resample(np.vstack([entry, geo["start"]]), settings.push_speed)

@@ -1,13 +1,15 @@
 """Tables and summary of the Push-T study: models against data, planners against the target.
 
-`model_rows` orders the held-out scores, `planner_rows` gives one row per planner (success
-rate with its 95 % Wilson interval, mean maximum coverage, pushes, control steps and
-prediction error), `timing_rows` the planning time per push of each planner (a measurement,
-which differs run to run, kept apart from the results), `curve_rows` the learned-model
-planner's success at every training size, and `summary_lines` the Markdown summary: the goal
-(the diffusion policy's 63.8 % and 0.959), where the learned-model planner stands, and whether
-a shortfall is its model's or its search's (the planner over the environment itself, on the
-same episodes).
+`model_rows` orders the held-out scores, `planner_rows` gives one row per planner scored as
+LeRobot scores (`probaff.experiments.pusht.scoring.score`: the observation it planned from,
+success rate with its 95 % Wilson interval, mean maximum reward in the environment's own reward
+and the raw mean maximum coverage beside it) with pushes, control steps and prediction error,
+`timing_rows` the planning time per push of each planner (a measurement, which differs run to
+run, kept apart from the results), `curve_rows` the learned-model planner's success and reward
+at every training size, and `summary_lines` the Markdown summary: the goal (LeRobot's diffusion
+policy, 63.8 % success and 0.959 mean maximum reward from ``pixels_agent_pos``) as a row of
+the same table, where the learned-model planner stands in those units, and whether a shortfall
+is its model's or its search's (the planner over the environment itself, on the same episodes).
 """
 
 from __future__ import annotations
@@ -18,9 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from probaff.eval.metrics import wilson_interval
 from probaff.eval.tables import markdown_table
-from probaff.experiments.pusht.config import DIFFUSION_POLICY, PushTStudyConfig
+from probaff.experiments.pusht.config import PushTStudyConfig
+from probaff.experiments.pusht.scoring import DIFFUSION_POLICY, reference_row, score
 
 __all__ = ["blame", "curve_rows", "model_rows", "planner_rows", "summary_lines", "timing_rows"]
 
@@ -33,37 +35,30 @@ _MODEL_COLUMNS = [
     "nlpd",
     "coverage90",
 ]
-_PLANNER_COLUMNS = [
-    "planner",
+_SCORE_COLUMNS = [
     "episodes",
     "successes",
     "success_rate",
     "success_low",
     "success_high",
+    "max_reward",
     "max_coverage",
+]
+_PLANNER_COLUMNS = [
+    "planner",
+    "observation",
+    *_SCORE_COLUMNS,
     "pushes",
     "steps",
     "error_px",
 ]
-_CURVE_COLUMNS = ["train_pushes", "episodes", "success_rate", "success_low", "success_high"]
+_CURVE_COLUMNS = ["train_pushes", "observation", *_SCORE_COLUMNS]
 
 
 def model_rows(scored: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """The held-out scores, by model then training size."""
     order = {"moe": 0, "gp": 1, "analytic": 2}
     return sorted(scored, key=lambda r: (order.get(r["model"], 9), r["train_pushes"]))
-
-
-def _rate(rs: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    k = sum(bool(r["success"]) for r in rs)
-    lo, hi = wilson_interval(k, len(rs))
-    return {
-        "episodes": len(rs),
-        "successes": k,
-        "success_rate": k / len(rs),
-        "success_low": lo,
-        "success_high": hi,
-    }
 
 
 def _by_planner(records: Sequence[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
@@ -82,10 +77,12 @@ def planner_rows(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
             ``planner``).
 
     Returns:
-        Rows with `_PLANNER_COLUMNS`: success with its 95 % Wilson interval, and the means of
-        the maximum coverage, pushes, control steps and the distance (px) between predicted
-        and executed vertices. The means are over the episodes in the order of `records`, so
-        the same records give the same rows to the last bit.
+        Rows with `_PLANNER_COLUMNS`: the observation planned from (gym-pusht's ``obs_type``),
+        success with its 95 % Wilson interval, the mean maximum reward (the environment's own,
+        LeRobot's ``avg_max_reward``) and coverage, and the means of pushes, control steps and
+        the distance (px) between predicted and executed vertices. The means are over the
+        episodes in the order of `records`, so the same records give the same rows to the
+        last bit.
     """
     rows = []
     for planner, rs in _by_planner(records).items():
@@ -93,8 +90,7 @@ def planner_rows(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
         rows.append(
             {
                 "planner": planner,
-                **_rate(rs),
-                "max_coverage": float(np.mean([r["max_coverage"] for r in rs])),
+                **score(rs),
                 "pushes": float(np.mean([r["pushes"] for r in rs])),
                 "steps": float(np.mean([r["steps"] for r in rs])),
                 "error_px": float(np.mean(errors)) if errors else float("nan"),
@@ -129,11 +125,11 @@ def timing_rows(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def curve_rows(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The learned-model planner's success at each training size (95 % Wilson intervals)."""
+    """The learned-model planner's success (95 % Wilson intervals) and reward at each size."""
     by: dict[int, list[dict[str, Any]]] = {}
     for r in records:
         by.setdefault(int(r["train_pushes"]), []).append(r)
-    return [{"train_pushes": n, **_rate(rs)} for n, rs in sorted(by.items())]
+    return [{"train_pushes": n, **score(rs)} for n, rs in sorted(by.items())]
 
 
 def blame(records: Sequence[dict[str, Any]], planner: str = "beam-moe") -> dict[str, int]:
@@ -160,15 +156,17 @@ def _verdict(rows: Sequence[dict[str, Any]]) -> list[str]:
     mine = next((r for r in rows if r["planner"] == "beam-moe"), None)
     if mine is None:
         return []
-    rate, cov = DIFFUSION_POLICY["success_rate"], DIFFUSION_POLICY["max_coverage"]
-    above = mine["success_low"] > rate
+    ref = DIFFUSION_POLICY
+    above = mine["success_low"] > ref.success_rate
+    reward = mine["max_reward"] > ref.avg_max_reward
     return [
-        f"The learned-model planner (beam-moe) succeeds in {mine['successes']}/{mine['episodes']} "
-        f"episodes ({100 * mine['success_rate']:.1f} %, 95 % interval "
-        f"{100 * mine['success_low']:.1f}-{100 * mine['success_high']:.1f} %), mean maximum "
-        f"coverage {mine['max_coverage']:.3f}. Goal: interval above {100 * rate:.1f} % "
-        f"({'met' if above else 'not met'}), coverage above {cov} "
-        f"({'met' if mine['max_coverage'] > cov else 'not met'}).",
+        f"The learned-model planner (beam-moe, from {mine['observation']}) succeeds in "
+        f"{mine['successes']}/{mine['episodes']} episodes ({100 * mine['success_rate']:.1f} %, "
+        f"95 % interval {100 * mine['success_low']:.1f}-{100 * mine['success_high']:.1f} %), "
+        f"mean maximum reward {mine['max_reward']:.3f} (raw coverage "
+        f"{mine['max_coverage']:.3f}). Goal, in the same units: interval above "
+        f"{100 * ref.success_rate:.1f} % ({'met' if above else 'not met'}), mean maximum reward "
+        f"above {ref.avg_max_reward} ({'met' if reward else 'not met'}).",
     ]
 
 
@@ -182,20 +180,28 @@ def summary_lines(
 ) -> list[str]:
     """The study's Markdown summary."""
     b = blame(records)
+    table = [*planners, dict.fromkeys(_PLANNER_COLUMNS, math.nan) | reference_row()]
     lines = [
         "# Push-T: learned push models and a planner in gym-pusht 0.1.8",
         "",
-        f"Goal (LeRobot's diffusion policy, {DIFFUSION_POLICY['episodes']} episodes): success "
-        f"{100 * DIFFUSION_POLICY['success_rate']:.1f} %, mean maximum coverage "
-        f"{DIFFUSION_POLICY['max_coverage']}. Episodes reset with seeds {config.seed}.. "
-        f"(the same for every planner); the environment's own rule (coverage > 95 %) and limit "
-        "(300 control steps).",
+        f"Goal ({DIFFUSION_POLICY.name}, {DIFFUSION_POLICY.episodes} episodes from "
+        f"{DIFFUSION_POLICY.observation}): success {100 * DIFFUSION_POLICY.success_rate:.1f} %, "
+        f"mean maximum reward {DIFFUSION_POLICY.avg_max_reward}. Scored in the same units: the "
+        "environment's own reward, min(coverage / 0.95, 1), its maximum in each episode "
+        f"averaged (`max_reward`), the raw coverage beside it. Episodes reset with seeds "
+        f"{config.seed}.. (the same for every planner); the environment's own rule (coverage "
+        "> 95 %) and limit (300 control steps).",
         "",
         *_verdict(planners),
         "",
         "## Planners",
         "",
-        markdown_table(planners, _PLANNER_COLUMNS, digits=3),
+        markdown_table(table, _PLANNER_COLUMNS, digits=3),
+        "`observation`: what each planner observed, in gym-pusht's `obs_type` names (`state`: "
+        "the block's exact pose; `pixels_agent_pos`: the 96 x 96 image and the agent's "
+        "position). The last row is the published goal (its interval: Wilson's for its rate; "
+        "its coverage is not published). `max_reward`: mean maximum reward (LeRobot's "
+        "`avg_max_reward`); `max_coverage`: mean maximum raw coverage. "
         "`error_px`: mean distance (px) of the T's executed from its predicted vertices. "
         "Planning time per push, a measurement of this machine that differs from run to run, "
         "is in timings.csv.",

@@ -45,13 +45,7 @@ from probaff.experiments.pusht.models import (
     push_effects,
     push_features,
 )
-from probaff.experiments.pusht.planner import (
-    EnvTransition,
-    ModelTransition,
-    SearchSettings,
-    Transition,
-    run_episode,
-)
+from probaff.experiments.pusht.planner import SearchSettings, run_episode
 from probaff.experiments.pusht.primitives import PrimitiveSettings
 from probaff.experiments.pusht.report import (
     curve_rows,
@@ -60,8 +54,10 @@ from probaff.experiments.pusht.report import (
     summary_lines,
     timing_rows,
 )
+from probaff.experiments.pusht.transitions import EnvTransition, ModelTransition, TeePushes
 from probaff.models import load as load_model
 from probaff.models import save as save_model
+from probaff.planning.transitions import Transition
 
 __all__ = ["episode_task", "run"]
 
@@ -106,7 +102,7 @@ def episode_task(
     spec = PLANNERS[planner]
 
     def one(worker: Any) -> dict[str, Any]:
-        transition: Transition | None = None
+        transition: Transition[TeePushes] | None = None
         settings = dataclasses.replace(search, depth=spec.depth, risk=spec.risk)
         if spec.model == "env":
             transition = EnvTransition(worker)

@@ -1,0 +1,193 @@
+"""Training pushes chosen by information gain: the push the model is least sure of, next.
+
+The thesis chooses the action that most reduces uncertainty; here it is applied to the push
+model's own training data. After `ActiveOptions.start` random pushes, the mixture of GP experts
+is fitted (EM, `fit_learned`) and every next push is chosen from `ActiveOptions.pool` feasible
+primitives sampled at the T's current pose: the one whose predicted effect has the largest
+predictive variance (`predictive_spread`: the law of total variance over the experts, so both
+the experts' own uncertainty and their disagreement count). The model is refitted every
+`ActiveOptions.refit_every` pushes. ``strategy="random"`` runs the same loop with random pushes
+(`probaff.experiments.pusht.data`'s), the baseline.
+
+Pushes are recorded as `probaff.experiments.pusht.data` records them (the same fields, resets
+and limits), so `push_dataset` reads them; a collection of N pushes is the first N of any
+longer one with the same seed and options (the refits happen at the same counts).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from probaff._checks import check_count
+from probaff._threads import torch_threads
+from probaff.errors import InputError
+from probaff.experiments.pusht.data import Chooser, push_dataset, record_pushes, with_worker
+from probaff.experiments.pusht.env import PushTWorker
+from probaff.experiments.pusht.geometry import GYM_TEE
+from probaff.experiments.pusht.models import (
+    PushModel,
+    fit_learned,
+    predict_moments,
+    push_effects,
+    push_features,
+)
+from probaff.experiments.pusht.primitives import (
+    PrimitiveSettings,
+    feasible_starts,
+    push_frames,
+    sample_primitives,
+)
+from probaff.models import EMOptions
+
+__all__ = [
+    "STRATEGIES",
+    "ActiveOptions",
+    "collect_pushes",
+    "predictive_spread",
+    "primitive_features",
+    "record_chosen",
+    "variance_chooser",
+]
+
+STRATEGIES = ("variance", "random")
+"""How training pushes are chosen: by the model's predictive variance, or at random."""
+
+
+@dataclass(frozen=True)
+class ActiveOptions:
+    """How training pushes are collected.
+
+    Attributes:
+        budget: Pushes recorded in all (a positive integer).
+        strategy: ``"variance"`` (information gain) or ``"random"``.
+        start: Random pushes before the first fit (at least 5, at most `budget`).
+        refit_every: Pushes between two refits, k.
+        pool: Candidate primitives scored per chosen push.
+        experts: Experts M of the mixture fitted to choose.
+        em: The EM fits made to choose (their seed is the collection's).
+
+    Raises:
+        InputError: For a budget, start, refit interval, pool or expert count that is not a
+            positive integer, a start outside [5, budget], or an unknown strategy.
+    """
+
+    budget: int
+    strategy: str = "variance"
+    start: int = 10
+    refit_every: int = 10
+    pool: int = 64
+    experts: int = 2
+    em: EMOptions = field(default=EMOptions(max_iter=5, n_restarts=1, split_merge=0))
+
+    def __post_init__(self) -> None:
+        if isinstance(self.budget, bool) or not isinstance(self.budget, int) or self.budget < 1:
+            raise InputError(
+                f"the active-learning budget must be a positive integer (pushes to record), got "
+                f"{self.budget!r}; pass e.g. ActiveOptions(budget=60)."
+            )
+        for name in ("start", "refit_every", "pool", "experts"):
+            check_count(f"ActiveOptions.{name}", getattr(self, name))
+        if not 5 <= self.start <= self.budget:
+            raise InputError(
+                f"ActiveOptions.start must be between 5 and the budget ({self.budget}) random "
+                f"pushes before the first fit, got {self.start}."
+            )
+        if self.strategy not in STRATEGIES:
+            raise InputError(
+                f"ActiveOptions.strategy must be one of {list(STRATEGIES)}, got {self.strategy!r}."
+            )
+
+
+def primitive_features(prims: np.ndarray, settings: PrimitiveSettings) -> np.ndarray:
+    """(K, 5) model features (`probaff.experiments.pusht.models.FEATURES`) of (K, 3) primitives.
+
+    The block-frame start (px), the push's block-frame direction (cos, sin) and the target's
+    travel (px), as the planner asks its model.
+    """
+    geo = push_frames(prims, settings)
+    return np.column_stack([geo["start"], geo["direction"], settings.gap + prims[:, 2]])
+
+
+def predictive_spread(
+    model: PushModel, X: np.ndarray, radius: float = GYM_TEE.radius
+) -> np.ndarray:
+    """(K,) predictive variance (px^2) of the effects of (K, 5) features.
+
+    ``var(dy_p) + var(dz_p) + (radius * sd(dtheta))^2``: the turn counted as the arc it moves
+    the T's corners through, at their RMS `radius` (px).
+    """
+    _, std = predict_moments(model, X)
+    return np.asarray(std[:, 0] ** 2 + std[:, 1] ** 2 + (radius * std[:, 2]) ** 2)
+
+
+def variance_chooser(model: PushModel, pool: int, settings: PrimitiveSettings) -> Chooser:
+    """A chooser (`probaff.experiments.pusht.data.Chooser`) of the push of largest variance.
+
+    Args:
+        model: The current push model.
+        pool: Primitives sampled per choice; the feasible ones are scored.
+        settings: The primitives' settings.
+    """
+
+    def choose(rng: np.random.Generator, pose: np.ndarray, agent: np.ndarray) -> np.ndarray:
+        prims = sample_primitives(rng, pool, settings)
+        ok = prims[feasible_starts(pose, prims, settings)]
+        if len(ok) == 0:
+            return np.asarray(prims[0])
+        spread = predictive_spread(model, primitive_features(ok, settings))
+        return np.asarray(ok[int(np.argmax(spread))])
+
+    return choose
+
+
+def _fit(rows: dict[str, list[Any]], options: ActiveOptions, seed: int) -> PushModel:
+    ds = push_dataset([rows], seed)
+    em = dataclasses.replace(options.em, seed=seed)
+    with torch_threads(1):
+        model, _ = fit_learned(
+            "moe", push_features(ds), push_effects(ds), experts=options.experts, em=em
+        )
+    return model
+
+
+def record_chosen(
+    w: PushTWorker,
+    seed: int,
+    options: ActiveOptions,
+    settings: PrimitiveSettings,
+) -> dict[str, Any]:
+    """Record `options.budget` pushes chosen by `options.strategy` (see the module doc).
+
+    Args:
+        w: The Push-T worker.
+        seed: Seeds the resets, the candidates and the fits.
+        options: Budget, strategy and refits.
+        settings: The primitives' settings.
+
+    Returns:
+        `probaff.experiments.pusht.data.record_chunk`'s lists, and ``refits``: the pushes
+        recorded at each refit.
+    """
+    rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(2,)))
+    rows = dict(record_pushes(w, rng, options.start, settings))
+    refits: list[int] = []
+    while len(rows["before"]) < options.budget:
+        n = min(options.refit_every, options.budget - len(rows["before"]))
+        choose: Chooser | None = None
+        if options.strategy == "variance":
+            refits.append(len(rows["before"]))
+            choose = variance_chooser(_fit(rows, options, seed), options.pool, settings)
+        more = record_pushes(w, rng, n, settings, choose)
+        rows = {k: rows[k] + more[k] for k in rows}
+    return {**rows, "refits": refits}
+
+
+def collect_pushes(
+    seed: int, options: ActiveOptions, settings: PrimitiveSettings, python: str | None
+) -> dict[str, Any]:
+    """`record_chosen` on this process's worker (restarted once if it dies)."""
+    return dict(with_worker(python, record_chosen, seed, options, settings))
