@@ -6,7 +6,10 @@ Modules:
     normals: k-nearest-neighbour PCA normals and curvature of a point cloud.
     region_growing: PCL-style region-growing segmentation.
     segment_features: the 25 geometric features of each segment.
+    segment_context: support, load, free space and contact-group descriptors of segments.
     labels: six per-label logistic regressions, cross-validated by scene.
+    label_boosting: calibrated gradient-boosted trees per label.
+    open3d_backend: Open3D's normals, neighbours, DBSCAN and ray casting, for comparison.
     refinement: Algorithm 1, iterative 2-means entropy minimisation of label vectors.
     merge: merging the segments of several views.
 """

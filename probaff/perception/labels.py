@@ -29,9 +29,10 @@ hundred segments, waking a thread pool costs more than the solver.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 from sklearn.linear_model import LogisticRegression
@@ -59,6 +60,7 @@ __all__ = [
     "LabelClassifier",
     "PerColumnLogistic",
     "Reliability",
+    "SegmentClassifier",
     "cross_validate_labels",
     "label_index",
     "reliability",
@@ -77,6 +79,16 @@ THESIS_PR = MappingProxyType(
     }
 )
 """Thesis Table 2.2: ``label -> (precision, recall)`` in percent, plus ``"average"``."""
+
+
+class SegmentClassifier(Protocol):
+    """What `cross_validate_labels` trains: ``fit(X, Y)`` then ``predict_proba(X)`` (S, 6)."""
+
+    def fit(self, X: np.ndarray, Y: np.ndarray) -> Any:
+        """Train on (S, D) features and (S, 6) bool labels."""
+
+    def predict_proba(self, X: np.ndarray) -> np.ndarray:
+        """(S, 6) label probabilities of (S, D) features."""
 
 
 def _check_features(name: str, x: Any, width: int | None = None) -> np.ndarray:
@@ -329,8 +341,9 @@ def cross_validate_labels(
     seed: int = 0,
     C: float = 1.0,
     n_bins: int = 10,
+    classifier: Callable[[], SegmentClassifier] | None = None,
 ) -> LabelCVResult:
-    """K-fold cross-validation of `LabelClassifier`, grouped by scene.
+    """K-fold cross-validation of `LabelClassifier` (or another classifier), grouped by scene.
 
     Scenes are shuffled with `seed` and dealt into `n_splits` folds of near-equal segment
     counts (scikit-learn's `GroupKFold`), so no scene is in both the training and the test
@@ -344,13 +357,16 @@ def cross_validate_labels(
         seed: Seed of the scene shuffle.
         C: Inverse regularisation strength of each regression.
         n_bins: Bins of each reliability diagram.
+        classifier: Builds a fresh untrained classifier for each fold (e.g.
+            `probaff.perception.label_boosting.BoostedLabelClassifier`); None trains
+            ``LabelClassifier(C=C)``, the thesis's logistic regressions.
 
     Returns:
         A `LabelCVResult`.
 
     Raises:
         InputError: For bad shapes, no segments, non-finite features, labels that are not 0/1,
-            or `n_splits` outside [2, number of scenes].
+            `n_splits` outside [2, number of scenes], or a `classifier` that is not callable.
     """
     x = _check_features("X", X)
     y = _check_labels("Y", Y, x.shape[0])
@@ -364,6 +380,15 @@ def cross_validate_labels(
         raise InputError("groups must hold scene ids of one sortable type.") from None
     splits = check_count("n_splits", n_splits, minimum=2)
     bins = check_count("n_bins", n_bins)
+    if classifier is not None and not callable(classifier):
+        raise InputError(
+            f"classifier must build an untrained classifier when called, got "
+            f"{type(classifier).__name__}; pass e.g. BoostedLabelClassifier, not an instance."
+        )
+    check_positive("C", C)
+    make: Callable[[], SegmentClassifier] = (
+        classifier if classifier is not None else lambda: LabelClassifier(C=C)
+    )
     seed = check_count("seed", seed, minimum=0)
     if splits > n_scenes:
         raise InputError(
@@ -375,7 +400,8 @@ def cross_validate_labels(
     fold_auc = np.full((splits, len(LABELS)), np.nan)
     kfold = GroupKFold(n_splits=splits, shuffle=True, random_state=seed)
     for fold, (train, test) in enumerate(kfold.split(x, groups=scene)):
-        model = LabelClassifier(C=C).fit(x[train], y[train])
+        model = make()
+        model.fit(x[train], y[train])
         probabilities[test] = model.predict_proba(x[test])
         folds[test] = fold
         for k in range(len(LABELS)):

@@ -92,6 +92,12 @@ def _validate(
             "points, normals and curvature have no row without NaN; give finite points and "
             "their normals from estimate_normals."
         )
+    flat = np.flatnonzero(valid & (np.linalg.norm(np.nan_to_num(nrm), axis=1) < 1e-9))
+    if flat.size:
+        raise InputError(
+            f"normals has {flat.size} row(s) of zero length (the first is row {flat[0]}); give "
+            "unit normals, e.g. from estimate_normals, or NaN for a point without one."
+        )
     return pts, nrm, cur, valid
 
 

@@ -9,7 +9,8 @@ described on its own, as the thesis classifies each view before merging:
 2. the points are brought into the robot frame and get k-NN PCA normals and curvature
    (`estimate_normals`, oriented towards the camera);
 3. region growing (`region_growing`) cuts them into smooth segments;
-4. each segment gets its 25 features (`segment_features`, normals towards the camera);
+4. each segment gets its 25 features (`segment_features`, normals towards the camera) and
+   its 23 context descriptors (`context_features`: support, load, free space around);
 5. each segment's ground-truth object is the majority of its points' object ids, and the
    share of that majority is its purity; the segment takes that object's labels
    (`OfficeScene.label_of`). Floor and wall segments are kept with all-false labels (the
@@ -82,6 +83,7 @@ from probaff.errors import InputError
 from probaff.perception.labels import LABELS, label_index
 from probaff.perception.normals import Normals, estimate_normals
 from probaff.perception.region_growing import Segmentation, region_growing
+from probaff.perception.segment_context import CONTEXT_NAMES, context_features
 from probaff.perception.segment_features import FEATURE_NAMES, segment_features
 from probaff.sim.camera import (
     CameraSpec,
@@ -245,6 +247,7 @@ class ViewSegments:
 
     Attributes:
         features: (S, 25) segment features, columns `FEATURE_NAMES` (robot frame).
+        context: (S, 23) context descriptors, columns `CONTEXT_NAMES` (robot frame).
         labels: (S, 6) bool ground-truth labels of each segment's majority object, `LABELS`.
         object_ids: (S,) int64 majority object id of each segment.
         purity: (S,) share of each segment's points on its majority object, in (0, 1].
@@ -262,6 +265,7 @@ class ViewSegments:
     """
 
     features: np.ndarray
+    context: np.ndarray
     labels: np.ndarray
     object_ids: np.ndarray
     purity: np.ndarray
@@ -303,6 +307,7 @@ class ScanSegments:
     camera_poses: np.ndarray
 
     features = _stacked("features", "(S, 25) features of all views' segments, view by view.")
+    context = _stacked("context", "(S, 23) context descriptors of all views' segments.")
     labels = _stacked("labels", "(S, 6) bool labels of all views' segments.")
     object_ids = _stacked("object_ids", "(S,) int64 majority object ids of all views' segments.")
     purity = _stacked("purity", "(S,) purity of all views' segments.")
@@ -518,8 +523,11 @@ def _view_segments(
         renumber = np.full(len(kept), -1, dtype=np.int64)
         renumber[keep] = np.arange(int(keep.sum()))
         point_row = np.where(on, renumber[np.maximum(point_row, 0)], -1)
+    n_kept = int(keep.sum())
+    context = context_features(pts, point_row, n_kept).reshape(n_kept, len(CONTEXT_NAMES))
     return ViewSegments(
         features=feats.features[keep],
+        context=context,
         labels=labels[keep],
         object_ids=oids[keep],
         purity=purity[keep],

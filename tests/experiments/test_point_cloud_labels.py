@@ -3,6 +3,9 @@ and rejects bad configs and bad figure input; its demo scans, segments and label
 office scene and draws it.
 
 Covers probaff.experiments.point_cloud_labels.config,
+probaff.experiments.point_cloud_labels.comparison,
+probaff.experiments.point_cloud_labels.model_report,
+probaff.experiments.point_cloud_labels.oracle,
 probaff.experiments.point_cloud_labels.demo, probaff.experiments.point_cloud_labels.figures,
 probaff.experiments.point_cloud_labels.report, probaff.experiments.point_cloud_labels.run,
 probaff.experiments.point_cloud_labels.scans.
@@ -21,6 +24,7 @@ from study_helpers import ROOT, assert_resumes, assert_wrote
 
 from probaff.errors import DatasetError, InputError
 from probaff.experiments.point_cloud_labels import SMOKE, PointCloudStudyConfig, run
+from probaff.experiments.point_cloud_labels.causes import CAUSES
 from probaff.experiments.point_cloud_labels.demo import demo
 from probaff.experiments.point_cloud_labels.figures import (
     plot_entropy_tree,
@@ -34,13 +38,14 @@ from probaff.experiments.point_cloud_labels.report import summarise_merge
 from probaff.experiments.point_cloud_labels.scans import scan_task
 from probaff.perception.labels import LABELS, THESIS_PR
 
-_TABLES = ("labels.csv", "refinement.csv", "merge.csv", "summary.md")
+_TABLES = ("labels.csv", "refinement.csv", "merge.csv", "models.csv", "causes.csv", "summary.md")
 _FIGURES = (
     "segments.png",
     "label_probabilities.png",
     "entropy_tree.png",
     "reliability.png",
     "merge_views.png",
+    "labels_vs_truth.png",
 )
 
 
@@ -106,8 +111,32 @@ def test_script_smoke_and_resume(tmp_path, monkeypatch, capsys):
             rows = np.bincount(merged_points["point_segments"][on], minlength=1)
             assert rows.tolist() == view["point_counts"]
             assert merged_points["points"][on].shape == (int(on.sum()), 3)
+    assert np.asarray(first["context"]).shape == (n_seg, 23)
+    assert np.asarray(first["mixed"]).shape == (n_seg, 6) and len(first["fragment"]) == n_seg
+    oracle = first["oracle"]
+    assert min(first["oracle_rows"]) >= -1 and max(first["oracle_rows"]) < len(oracle["labels"])
+    pairs = set(zip(oracle["views"], oracle["object_ids"], strict=True))
+    assert len(pairs) == len(oracle["labels"])
+    models = _rows(out / "models.csv")
+    names = ["thesis", "capacity", "new", "whole_object"]
+    assert [(r["min_points"], r["model"], r["label"]) for r in models] == [
+        (m, name, label) for m in ("0", "300") for name in names for label in [*LABELS, "average"]
+    ]
+    for r in models:
+        for key in ("precision", "recall"):
+            value, lo, hi = (r[f"{key}{s}"] for s in ("_pct", "_lo", "_hi"))
+            if value not in ("", "nan"):
+                assert float(lo) <= float(value) <= float(hi)
+    causes = _rows(out / "causes.csv")
+    assert [r["label"] for r in causes] == [*LABELS, "all"] * 2
+    every = causes[6]
+    shares = [float(every[f"{c}_pct"]) for c in CAUSES]
+    assert int(every["errors"]) == int(every["fp"]) + int(every["fn"]) > 0
+    assert sum(shares) == pytest.approx(100.0)
+    assert int(every["tp"]) + int(every["fp"]) + int(every["fn"]) + int(every["tn"]) == 6 * total
     text = (out / "summary.md").read_text()
     assert "195 segments from 10 office scenes" in text and "81.8 / 81.7" in text
+    assert "Where the baseline's errors come from" in text
 
     merges += [p.with_suffix(".npz") for p in merges]
     # resumes: no rescans

@@ -333,3 +333,13 @@ def _strings(n: int, width: int) -> list[list[str]]:
 def test_a_cloud_of_strings_is_a_clear_error(call, name):
     with pytest.raises(InputError, match=rf"^{name} (must be a numeric array|is a ragged)"):
         call()
+
+
+def test_zero_length_normals_are_named():
+    points = np.random.default_rng(0).uniform(size=(40, 3))
+    normals = np.tile([0.0, 0.0, 1.0], (40, 1))
+    normals[7] = 0.0
+    with pytest.raises(InputError, match=r"normals has 1 row\(s\) of zero length .* row 7"):
+        region_growing(points, normals, np.zeros(40), k=5)
+    normals[7] = np.nan  # a point without a normal is unassigned, not an error
+    assert region_growing(points, normals, np.zeros(40), k=5).labels[7] == -1

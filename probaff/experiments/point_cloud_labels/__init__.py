@@ -3,6 +3,12 @@
 Modules:
     config: `PointCloudStudyConfig`, the thesis's data set, the smoke sizes.
     scans: one scene scan and one merge scan (the study's tasks), and their arrays.
+    oracle: the oracle object segments of a view and the segments' under/over-segmentation.
+    comparison: the thesis's logistic regressions against the new model, by CV.
+    causes: the baseline's labelling errors attributed to causes.
+    intervals: precision and recall with 95 % scene-bootstrap intervals.
+    model_report: the model table and the error breakdown.
+    truth_figure: one scene's labels against the ground truth.
     run: the scans as resumable tasks, the cross-validations, and `run`.
     report: the label, refinement and merge tables, and the summary.
     figures: clouds by segment and by label, the entropy tree, reliability, the merge.

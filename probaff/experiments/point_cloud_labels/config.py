@@ -29,6 +29,7 @@ SMOKE: Mapping[str, Any] = MappingProxyType(
         "view_counts": (1, 2),
         "merge_pans_deg": (-10.0, 10.0),
         "merge_scenes": 1,
+        "boosting_rounds": 10,
         "progress": False,
     }
 )
@@ -60,6 +61,8 @@ class PointCloudStudyConfig(StudyConfig):
         merge_proximities: How the merge reads "segments lie close", each of `PROXIMITIES`
             (``"points"``: nearest points; ``"centroid"``: centroids); the first one is drawn
             in the figure.
+        boosting_rounds: Boosting rounds of each label's trees in the model comparison
+            (`BoostingOptions.max_iter`).
     """
 
     out: str = "results/point_cloud_labels"
@@ -73,6 +76,7 @@ class PointCloudStudyConfig(StudyConfig):
     merge_pans_deg: tuple[float, ...] = (-10.0, 10.0, -30.0, 30.0)
     merge_scenes: int = 10
     merge_proximities: tuple[str, ...] = PROXIMITIES
+    boosting_rounds: int = 200
 
     SMOKE: ClassVar[Mapping[str, Any]] = SMOKE
 
@@ -121,6 +125,7 @@ class PointCloudStudyConfig(StudyConfig):
                 f"merge_scenes={merged} exceeds n_scenes={self.n_scenes}; the merge scenes "
                 "are among the first n_scenes."
             )
+        check_count("boosting_rounds", self.boosting_rounds)
         proximities = self.merge_proximities
         if (
             not proximities

@@ -30,6 +30,13 @@ Then, in the main process:
   ``p >= 0.5`` matches the labels of the merged segment's point-weighted majority object
   (each merged segment counts once; ``weighted_accuracy`` weights it by its points). Means
   over scenes with 95 % intervals;
+* ``models.csv`` and ``causes.csv``: on every scanned scene, `compare_models` (the thesis's
+  logistic regressions, calibrated gradient-boosted trees on the same features, the new model
+  with the context descriptors, and the baseline on the oracle object segments; all segments,
+  then those of at least each of ``label_min_points`` points), per label precision and
+  recall with 95 % scene-bootstrap intervals, and the baseline's errors by cause
+  (`attribute_errors`); ``labels_vs_truth.png``: the first scene's labels, ground truth
+  against the baseline's and the new model's decisions;
 * ``summary.md`` with the tables and the thesis's numbers (195 segments from 10 scenes,
   average precision / recall 81.8 / 81.7), and the figures of
   `probaff.experiments.point_cloud_labels.figures`.
@@ -51,8 +58,18 @@ from typing import Any
 import numpy as np
 
 from probaff.experiments.base import StudyRun
+from probaff.experiments.point_cloud_labels.comparison import (
+    ModelComparison,
+    compare_models,
+    stack_records,
+)
 from probaff.experiments.point_cloud_labels.config import PointCloudStudyConfig
 from probaff.experiments.point_cloud_labels.figures import study_figures
+from probaff.experiments.point_cloud_labels.model_report import (
+    cause_rows,
+    model_rows,
+    model_section,
+)
 from probaff.experiments.point_cloud_labels.report import (
     report,
     stack,
@@ -61,11 +78,13 @@ from probaff.experiments.point_cloud_labels.report import (
     summarise_refinement,
 )
 from probaff.experiments.point_cloud_labels.scans import merge_task, read_arrays, scan_task
+from probaff.experiments.point_cloud_labels.truth_figure import plot_labels_against_truth
+from probaff.perception.label_boosting import BoostingOptions
 from probaff.perception.labels import LabelCVResult, cross_validate_labels
 
 __all__ = ["run"]
 
-_VERSION = 1
+_VERSION = 4  # 4: records keep the context descriptors and the error diagnostics
 _MERGE_VERSION = 2  # 2: merge records keep their segments' points (an .npz beside each JSON)
 _WORLD = ("office.yaml", "camera.yaml")
 _SCAN_FIELDS = ("seed", "perception")  # the fields that shape a scene scan
@@ -134,6 +153,25 @@ def _scan_all(
     return scans, npz, merges, points
 
 
+def _truth_figure(
+    config: PointCloudStudyConfig, out: Path, npz: Path, head: ModelComparison
+) -> str:
+    """The first scene's labels against the truth (``labels_vs_truth.png``)."""
+    if not npz.is_file():  # the record survived but its arrays did not: rescan them
+        scan_task(config.seed, 0, config.perception, str(npz))
+    arrays = read_arrays(npz, ("points", "point_segments"))
+    first = head.groups == head.groups.min()
+    return plot_labels_against_truth(
+        arrays["points"],
+        arrays["point_segments"],
+        head.labels[first],
+        {name: head.probabilities[name][first] for name in ("thesis", "new")},
+        out / "labels_vs_truth.png",
+        title="first scene, all views: ground truth, thesis baseline and new model (top "
+        "view, x right, y up; dark positive, light negative, red wrong)",
+    )
+
+
 def run(config: PointCloudStudyConfig) -> dict[str, Any]:
     """Run (or resume) the study and write its tables and figures.
 
@@ -141,7 +179,8 @@ def run(config: PointCloudStudyConfig) -> dict[str, Any]:
         config: Study settings.
 
     Returns:
-        ``{"labels", "refinement", "merge": summary rows, "files": paths}``.
+        ``{"labels", "refinement", "merge", "models", "causes": summary rows, "files":
+        paths}``.
 
     Raises:
         InputError: For an invalid config.
@@ -168,6 +207,20 @@ def run(config: PointCloudStudyConfig) -> dict[str, Any]:
     merge = summarise_merge(
         merge_records, head_scans, config.view_counts, config.merge_proximities, merge_points
     )
+    stacked = stack_records(scans)
+    comparisons = [
+        compare_models(
+            stacked,
+            n_splits=config.n_splits,
+            seed=config.seed,
+            min_points=m,
+            options=BoostingOptions(max_iter=config.boosting_rounds, seed=config.seed),
+        )
+        for m in (0, *config.label_min_points)
+    ]
+    study.table("models.csv", model_rows(comparisons))
+    study.table("causes.csv", cause_rows(comparisons))
+    study.figure(_truth_figure(config, study.out, npz, comparisons[0]))
     study.table("labels.csv", label_rows)
     study.table("refinement.csv", refinement)
     study.table("merge.csv", merge)
@@ -188,5 +241,16 @@ def run(config: PointCloudStudyConfig) -> dict[str, Any]:
             )
         },
     }
-    study.summary(report(config, label_rows, refinement, merge, counts))
-    return {"labels": label_rows, "refinement": refinement, "merge": merge, "files": study.files}
+    study.summary(
+        report(config, label_rows, refinement, merge, counts)
+        + "\n"
+        + model_section(comparisons, len(scans))
+    )
+    return {
+        "labels": label_rows,
+        "refinement": refinement,
+        "merge": merge,
+        "models": model_rows(comparisons),
+        "causes": cause_rows(comparisons),
+        "files": study.files,
+    }

@@ -20,6 +20,7 @@ import numpy as np
 from probaff._checks import check_count
 from probaff._io import atomic_write_bytes
 from probaff.errors import DatasetError
+from probaff.experiments.point_cloud_labels.oracle import object_segments, segment_diagnostics
 from probaff.perception.scan_labels import PerceptionConfig, head_pose, scan_segments
 from probaff.sim import DepthCamera, load_camera, load_office, sample_office_scenes
 
@@ -51,13 +52,23 @@ def scan_task(
             stacked; None writes none.
 
     Returns:
-        ``features`` (S, 25), ``labels`` (S, 6) 0/1, ``object_ids``, ``purity``,
-        ``centroids`` (S, 3), ``point_counts``, ``views`` (S,) and the counts ``n_nan``,
-        ``n_points``, ``n_unassigned``, ``n_skipped``; robot frame, metres.
+        ``features`` (S, 25), ``context`` (S, 23), ``labels`` (S, 6) 0/1, ``object_ids``,
+        ``purity``, ``centroids`` (S, 3), ``point_counts``, ``views`` (S,), the counts
+        ``n_nan``, ``n_points``, ``n_unassigned``, ``n_skipped``; the error diagnostics
+        ``mixed`` (S, 6) 0/1, ``fragment`` (S,) 0/1 and ``oracle_rows`` (S,) (each segment's
+        object's row in ``oracle``, -1 if absent; `segment_diagnostics`), and ``oracle``: the
+        views' object segments (`object_segments`) stacked, with ``features``, ``context``,
+        ``labels``, ``object_ids``, ``point_counts`` and ``views``; robot frame, metres.
     """
     seed = check_count("seed", seed, minimum=0)
     index = check_count("index", index, minimum=0)
-    _, scan = _scan(seed, index, perception, (seed, index))
+    scene, scan = _scan(seed, index, perception, (seed, index))
+    oracles = [object_segments(v, scene, perception) for v in scan.views]
+    diags = [segment_diagnostics(v, scene, o) for v, o in zip(scan.views, oracles, strict=True)]
+    starts = np.cumsum([0] + [len(o.object_ids) for o in oracles])
+    oracle_rows = np.concatenate(
+        [np.where(d.oracle_rows >= 0, d.oracle_rows + starts[i], -1) for i, d in enumerate(diags)]
+    )
     if npz_path is not None:
         offsets = np.cumsum([0] + [v.n_segments for v in scan.views])
         rows = [
@@ -75,6 +86,7 @@ def scan_task(
     return {
         "index": index,
         "features": scan.features.tolist(),
+        "context": scan.context.tolist(),
         "labels": scan.labels.astype(int).tolist(),
         "object_ids": scan.object_ids.tolist(),
         "purity": scan.purity.tolist(),
@@ -85,6 +97,17 @@ def scan_task(
         "n_points": int(sum(len(v.points) for v in scan.views)),
         "n_unassigned": int(sum(v.n_unassigned for v in scan.views)),
         "n_skipped": int(sum(v.n_skipped for v in scan.views)),
+        "mixed": np.concatenate([d.mixed for d in diags]).astype(int).tolist(),
+        "fragment": np.concatenate([d.fragment for d in diags]).astype(int).tolist(),
+        "oracle_rows": oracle_rows.tolist(),
+        "oracle": {
+            "features": np.concatenate([o.features for o in oracles]).tolist(),
+            "context": np.concatenate([o.context for o in oracles]).tolist(),
+            "labels": np.concatenate([o.labels for o in oracles]).astype(int).tolist(),
+            "object_ids": np.concatenate([o.object_ids for o in oracles]).tolist(),
+            "point_counts": np.concatenate([o.point_counts for o in oracles]).tolist(),
+            "views": np.repeat(np.arange(len(oracles)), np.diff(starts)).tolist(),
+        },
     }
 
 
