@@ -34,6 +34,7 @@ def test_a_bad_flag_prints_one_line_and_exits_2(tmp_path):
         (["--step-length", "-0.025"], "step_length must be a positive finite length"),
         (["--train", "200", "--test", "80"], "exceed the --n 240 pushes"),
         (["--chain-samples", "1"], "--chain-samples must be at least 2"),
+        (["--scene", "chain_3"], "--scene chain_3 places 3 objects"),
     ],
 )
 def test_bad_flags_are_refused_before_any_work(tmp_path, benchmark_script, flags, message):
