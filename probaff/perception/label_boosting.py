@@ -26,9 +26,9 @@ from sklearn.calibration import CalibratedClassifierCV
 from sklearn.ensemble import HistGradientBoostingClassifier
 from threadpoolctl import threadpool_limits
 
-from probaff._checks import as_float_array, check_count, check_finite, check_number, check_shape
-from probaff.affordance_labels import LABELS
+from probaff._checks import check_count, check_number
 from probaff.errors import InputError, NotFittedError
+from probaff.perception.labels import check_segment_features, check_segment_labels
 
 __all__ = ["BoostedLabelClassifier", "BoostingOptions"]
 
@@ -86,15 +86,6 @@ class BoostingOptions:
             )
 
 
-def _features(name: str, x: Any, width: int | None = None) -> np.ndarray:
-    arr = as_float_array(name, x)
-    check_shape(name, arr, (None, width))
-    if arr.shape[0] == 0 or arr.shape[1] == 0:
-        raise InputError(f"{name} is empty (shape {arr.shape}); give at least one segment.")
-    check_finite(name, arr)
-    return arr
-
-
 class BoostedLabelClassifier:
     """Calibrated gradient-boosted trees, one per label in `LABELS`.
 
@@ -144,12 +135,8 @@ class BoostedLabelClassifier:
             InputError: For no segments, non-finite features, or labels of the wrong shape or
                 values.
         """
-        x = _features("X", X)
-        check_shape("Y", Y, (x.shape[0], len(LABELS)))
-        y_raw = np.asarray(Y)
-        if y_raw.dtype != bool and not np.all((y_raw == 0) | (y_raw == 1)):
-            raise InputError("Y must be bool or 0/1, one column per label in LABELS.")
-        y = y_raw.astype(bool)
+        x = check_segment_features("X", X)
+        y = check_segment_labels("Y", Y, x.shape[0])
         folds = self.options.calibration_folds
         models: list[Any] = []
         with threadpool_limits(limits=1):
@@ -184,7 +171,7 @@ class BoostedLabelClassifier:
         """
         if self._models is None:
             raise NotFittedError("the classifier is not trained; call fit(X, Y) first.")
-        x = _features("X", X, self._width)
+        x = check_segment_features("X", X, self._width)
         out = np.empty((x.shape[0], len(self._models)))
         with threadpool_limits(limits=1):
             for k, model in enumerate(self._models):

@@ -61,6 +61,8 @@ __all__ = [
     "PerColumnLogistic",
     "Reliability",
     "SegmentClassifier",
+    "check_segment_features",
+    "check_segment_labels",
     "cross_validate_labels",
     "label_index",
     "reliability",
@@ -91,7 +93,12 @@ class SegmentClassifier(Protocol):
         """(S, 6) label probabilities of (S, D) features."""
 
 
-def _check_features(name: str, x: Any, width: int | None = None) -> np.ndarray:
+def check_segment_features(name: str, x: Any, width: int | None = None) -> np.ndarray:
+    """Segment features `(S, D)` as floats, `D` = `width` when given.
+
+    Raises:
+        InputError: Naming `name`, when empty, of the wrong shape or non-finite.
+    """
     arr = as_float_array(name, x)
     check_shape(name, arr, (None, width))
     if arr.shape[0] == 0 or arr.shape[1] == 0:
@@ -100,7 +107,12 @@ def _check_features(name: str, x: Any, width: int | None = None) -> np.ndarray:
     return arr
 
 
-def _check_labels(name: str, y: Any, n: int) -> np.ndarray:
+def check_segment_labels(name: str, y: Any, n: int) -> np.ndarray:
+    """Labels `(n, len(LABELS))` as bools.
+
+    Raises:
+        InputError: Naming `name`, for another shape or values other than 0 and 1.
+    """
     check_shape(name, y, (n, len(LABELS)))
     arr = np.asarray(y)
     if arr.dtype != bool:
@@ -195,8 +207,8 @@ class LabelClassifier(PerColumnLogistic):
             InputError: For no segments, non-finite features, or labels of the wrong shape or
                 values.
         """
-        x = _check_features("X", X)
-        y = _check_labels("Y", Y, x.shape[0])
+        x = check_segment_features("X", X)
+        y = check_segment_labels("Y", Y, x.shape[0])
         with threadpool_limits(limits=1):
             self._fit_columns(x, y)
         return self
@@ -216,7 +228,7 @@ class LabelClassifier(PerColumnLogistic):
         """
         if self._models is None:
             raise NotFittedError("the classifier is not trained; call fit(X, Y) first.")
-        return self._predict_columns(_check_features("X", X, self._width))
+        return self._predict_columns(check_segment_features("X", X, self._width))
 
 
 class Reliability(NamedTuple):
@@ -368,8 +380,8 @@ def cross_validate_labels(
         InputError: For bad shapes, no segments, non-finite features, labels that are not 0/1,
             `n_splits` outside [2, number of scenes], or a `classifier` that is not callable.
     """
-    x = _check_features("X", X)
-    y = _check_labels("Y", Y, x.shape[0])
+    x = check_segment_features("X", X)
+    y = check_segment_labels("Y", Y, x.shape[0])
     check_shape("groups", groups, (x.shape[0],))
     scene = np.asarray(groups)
     if scene.dtype.kind == "f":
