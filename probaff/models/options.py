@@ -111,7 +111,7 @@ def check_lengthscale_prior(value: Any) -> bool | float:
     Args:
         value: False, True (the prior at `probaff.models.kernels.LENGTHSCALE_PRIOR_SCALE`)
             or the prior's width, the standard deviation of the log length scales (a finite
-            number > 0).
+            number > 0). The integers 0 and 1 are False and True.
 
     Returns:
         A builtin bool, or the width as a float.
@@ -121,6 +121,8 @@ def check_lengthscale_prior(value: Any) -> bool | float:
     """
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
+    if isinstance(value, (int, np.integer)) and value in (0, 1):
+        return bool(value)  # 0 and 1 as switches (1 is also the default width)
     width = None
     if isinstance(value, (int, float, np.integer, np.floating)):
         width = float(value)

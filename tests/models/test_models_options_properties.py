@@ -116,7 +116,16 @@ SVI_FIELDS = {
 _FLOOR = st.floats(0.0, 1e3)
 GP_FIELDS = {
     "max_iter": (_count(), _bad_count()),
-    "lengthscale_prior": (_BOOL, _BAD_BOOL),
+    "lengthscale_prior": (  # a switch, or the prior's width
+        st.one_of(_BOOL, st.floats(0.01, 10.0)),
+        st.one_of(
+            st.floats(max_value=0.0, allow_nan=False),
+            st.integers(max_value=-1),
+            st.just(math.nan),
+            st.just(math.inf),
+            st.text(min_size=1, max_size=4),
+        ),
+    ),
     "noise_floor": (
         st.one_of(st.none(), _FLOOR, st.lists(_FLOOR, min_size=1, max_size=4)),
         st.one_of(
