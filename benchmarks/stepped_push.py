@@ -57,7 +57,7 @@ from probaff.features.ch6_push import PLANAR_EFFECT_COLUMNS, push_interactions
 from probaff.features.ch6_scenes import push_scenes
 from probaff.features.ch6_stepped import fit_stepped, link_training_rows
 from probaff.features.ch6_steps import StepOptions, StepTrajectories, hand_steps, step_trajectories
-from probaff.models import ChainScene, ModularTransitionModel, SkillTransitionModel, fit_transition
+from probaff.models import ModularTransitionModel, SkillTransitionModel, fit_transition
 from probaff.models.stepped_transition import SteppedModelOptions, SteppedPushModel, rollout
 from probaff.sim.tabletop_config import load_scene
 
@@ -189,14 +189,7 @@ def _whole_push(ds: PushDataset, train: np.ndarray, test: np.ndarray, args: Any)
         chain = ModularTransitionModel({"push": model}, geo)
         final = []
         for j, i in enumerate(tqdm(test, desc=f"whole push (backward={backward})")):
-            scene = ChainScene(
-                scenes.sizes[i],
-                scenes.T_world_obj[i],
-                scenes.hand_points[i],
-                scenes.hand_normals[i],
-                scenes.T_world_hand_start[i],
-                scenes.T_world_hand_end[i],
-            )
+            scene = scenes.chain_scene(i)
             pred = chain.predict_chain(scene, n_samples=args.chain_samples, seed=args.seed + j)
             final.append(pred.planar.mean(0))
         out["backward" if backward else "forward"] = np.array(final)

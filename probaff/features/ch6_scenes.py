@@ -32,6 +32,7 @@ from probaff.features.action_frame import action_frame, tabletop_transform
 from probaff.features.ch6_push import box_sizes, hand_poses
 from probaff.features.chain_geometry import Ch6Geometry, resolve_geometry
 from probaff.features.requirements import FEATURE_REQUIREMENTS
+from probaff.models.chain import ChainScene
 
 __all__ = [
     "REQUIRES",
@@ -85,6 +86,17 @@ class PushScenes:
     def n_objects(self) -> int:
         """Objects per scene K."""
         return int(self.sizes.shape[1])
+
+    def chain_scene(self, i: int) -> ChainScene:
+        """Scene `i` as `probaff.models.ChainScene`, the input of a chained prediction."""
+        return ChainScene(
+            self.sizes[i],
+            self.T_world_obj[i],
+            self.hand_points[i],
+            self.hand_normals[i],
+            self.T_world_hand_start[i],
+            self.T_world_hand_end[i],
+        )
 
 
 def _check_dataset(ds: PushDataset) -> None:

@@ -48,7 +48,6 @@ from probaff.features.ch6_push import (
 from probaff.features.ch6_scenes import push_scenes, scene_effects, scene_features
 from probaff.features.chain_geometry import Ch6Geometry
 from probaff.models import (
-    ChainScene,
     EMOptions,
     ModularTransitionModel,
     MonolithicTransitionModel,
@@ -285,14 +284,7 @@ def _chain_records(
     """
     mean, lo, hi, touched, shown, seconds = [], [], [], [], [], []
     for j, i in enumerate(rows):
-        scene = ChainScene(
-            scenes.sizes[i],
-            scenes.T_world_obj[i],
-            scenes.hand_points[i],
-            scenes.hand_normals[i],
-            scenes.T_world_hand_start[i],
-            scenes.T_world_hand_end[i],
-        )
+        scene = scenes.chain_scene(i)
         t0 = time.perf_counter()
         pred = chain.predict_chain(scene, n_samples=samples, seed=seed + j)
         seconds.append(time.perf_counter() - t0)
