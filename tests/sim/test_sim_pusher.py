@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pymunk
 import pytest
+from push_helpers import push_box
 
 from probaff.data import GenerateConfig
 from probaff.errors import ConfigError, InputError, ProbaffError
@@ -22,19 +23,7 @@ _PUSH = 0.25  # m
 
 def _free_push(mode, obj="phone_box", mass_scale=1.0, wall_gap=None):
     """Push `obj` 25 cm along +x from just behind it; a wall `wall_gap` m ahead of its front."""
-    world = load_tabletop().with_hand(mode)
-    o = _CAT[obj]
-    half = 0.5 * o.size[0]
-    start = np.array([-0.2 - half - world.gripper.finger_radius - 0.005, 0.0])
-    walls = None
-    if wall_gap is not None:
-        x = -0.2 + half + wall_gap
-        walls = np.array([[x, -0.3, x, 0.3]])
-    scene = SceneInstance.nominal(
-        [o], [[-0.2, 0.0, 0.0]], start, 0.0, _PUSH, world.physics.friction_grid, walls
-    )
-    scene.mass[:] *= mass_scale
-    return simulate_push(world, scene, straight_path(world, start, 0.0, _PUSH))
+    return push_box(mode, obj, _PUSH, mass_scale, wall_gap)
 
 
 def _blocked_push(limit):

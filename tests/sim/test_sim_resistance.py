@@ -8,9 +8,10 @@ and a box against a wall stalls it far behind.
 
 import numpy as np
 import pytest
+from push_helpers import push_box
 
-from probaff.sim import SceneInstance, load_catalogue, load_scene, load_tabletop, simulate_push
-from probaff.sim.runner import PushSimulator, straight_path
+from probaff.sim import load_catalogue, load_scene, load_tabletop
+from probaff.sim.runner import PushSimulator
 
 _CAT = load_catalogue()
 _PUSH = 0.2  # m
@@ -19,18 +20,7 @@ _G = 9.81  # m/s^2, as worlds/tabletop.yaml
 
 def _push(mode, obj, wall_gap=None):
     """Push `obj` 20 cm along +x from just behind it; a wall `wall_gap` m ahead of its front."""
-    world = load_tabletop().with_hand(mode)
-    o = _CAT[obj]
-    half = 0.5 * o.size[0]
-    start = np.array([-0.2 - half - world.gripper.finger_radius - 0.005, 0.0])
-    walls = None
-    if wall_gap is not None:
-        x = -0.2 + half + wall_gap
-        walls = np.array([[x, -0.3, x, 0.3]])
-    scene = SceneInstance.nominal(
-        [o], [[-0.2, 0.0, 0.0]], start, 0.0, _PUSH, world.physics.friction_grid, walls
-    )
-    return simulate_push(world, scene, straight_path(world, start, 0.0, _PUSH))
+    return push_box(mode, obj, _PUSH, wall_gap=wall_gap)
 
 
 def _peak(out):
