@@ -117,3 +117,23 @@ def test_truth_figure_is_written_and_rejects_bad_input(tmp_path):
         plot_labels_against_truth(points, rows + 5, truth, models, tmp_path / "u.png")
     with pytest.raises(InputError, match="points"):
         plot_labels_against_truth(points * np.nan, rows, truth, models, tmp_path / "u.png")
+
+
+def test_scene_intervals_take_per_segment_thresholds():
+    rng = np.random.default_rng(1)
+    groups = np.repeat(np.arange(5), 20)
+    truth = rng.random((100, 6)) < 0.5
+    prob = rng.random((100, 6))
+    cut = rng.uniform(0.2, 0.8, size=(100, 6))
+    rows = scene_intervals(truth, prob, groups, n_boot=50, thresholds=cut)
+    same = scene_intervals(truth, (prob >= cut).astype(float), groups, n_boot=50)
+    assert rows == same  # p >= its own threshold, as the 0/1 decisions at 0.5
+    high = scene_intervals(truth, prob, groups, n_boot=50, thresholds=0.9)
+    decided = prob >= 0.9
+    assert high[0]["recall_pct"] == pytest.approx(
+        100 * (truth & decided)[:, 0].sum() / truth[:, 0].sum()
+    )
+    with pytest.raises(InputError, match="thresholds"):
+        scene_intervals(truth, prob, groups, thresholds=cut[:, :5])
+    with pytest.raises(InputError, match="thresholds must be finite"):
+        scene_intervals(truth, prob, groups, thresholds=np.nan)

@@ -167,6 +167,8 @@ def test_summarise_merge_needs_points_for_the_points_proximity():
         ({"merge_proximities": ("centroids",)}, "merge_proximities must hold distinct names"),
         ({"merge_proximities": ("points", "points")}, "merge_proximities must hold distinct"),
         ({"merge_proximities": ()}, "merge_proximities must hold distinct names among points"),
+        ({"boosting_threshold": "best"}, "boosting_threshold must be one of 'fixed', 'f1'"),
+        ({"boosting_threshold": "1.5"}, r"boosting_threshold must be .* a number in \(0, 1\)"),
     ],
 )
 def test_bad_config(tmp_path, overrides, message):
@@ -241,12 +243,13 @@ def test_demo_draws_the_held_out_scene(tmp_path, capsys):
     assert summary["scenes"] == 4
     assert summary["segments"] > 5 and summary["train_segments"] > 3 * 5
     assert 0 <= summary["unassigned"] < summary["points"]
-    for key in ("precision_pct", "recall_pct"):
+    for key in ("precision_pct", "recall_pct", "new_precision_pct", "new_recall_pct"):
         assert math.isfinite(summary[key]) and 0.0 <= summary[key] <= 100.0
     out = capsys.readouterr().out.splitlines()
     assert len(out) == 2
     assert f"{summary['segments']} segments" in out[0]
     assert f"{summary['precision_pct']:.1f} / {summary['recall_pct']:.1f} %" in out[1]
+    assert f"{summary['new_precision_pct']:.1f} / {summary['new_recall_pct']:.1f} %" in out[1]
     # The held-out scene is the study's scene 0 scanned with the smoke perception (same stream).
     record = scan_task(0, 0, SMOKE["perception"], None)
     assert len(record["object_ids"]) == summary["segments"]

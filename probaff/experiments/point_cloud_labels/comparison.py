@@ -12,7 +12,10 @@
   object and view, `object_segments`), its decision carried to every segment of that object.
 
 The first three run on the segments of at least ``min_points`` points (0: all), with the same
-folds (`cross_validate_labels`, ``n_splits`` folds grouped by scene, seed ``seed``);
+folds (``n_splits`` folds grouped by scene, seed ``seed``, as `cross_validate_labels` deals
+them); each tree model is fitted with its training folds' scenes, so that it chooses its
+decision thresholds (`BoostingOptions.threshold`) on its training scenes only, and a test
+segment's decision is its fold model's ``p >= threshold`` (the logistic regressions keep 0.5);
 ``whole_object`` runs on the oracle segments of the same scenes. The result gives
 `scene_intervals` rows per model and the error breakdown (`attribute_errors`,
 `cause_table`) of the baseline.
@@ -24,6 +27,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from sklearn.model_selection import GroupKFold
 
 from probaff.affordance_labels import LABELS
 from probaff.errors import InputError
@@ -104,6 +108,8 @@ class ModelComparison:
         labels: (S, 6) bool ground truth of the segments compared.
         groups: (S,) their scenes.
         probabilities: Model name of `MODELS` -> (S, 6) out-of-fold probabilities.
+        thresholds: Model name of `MODELS` -> (S, 6) decision threshold of each segment and
+            label (its fold model's; 0.5 for the logistic regressions).
         whole_object: (S, 6) out-of-fold probabilities of each segment's whole object
             (baseline features and classifier on the oracle segments; the baseline's where
             the object has no oracle segment).
@@ -116,10 +122,34 @@ class ModelComparison:
     labels: np.ndarray
     groups: np.ndarray
     probabilities: dict[str, np.ndarray]
+    thresholds: dict[str, np.ndarray]
     whole_object: np.ndarray
     scores: dict[str, list[dict[str, Any]]]
     causes: np.ndarray
     breakdown: list[dict[str, Any]]
+
+    def decisions(self, model: str) -> np.ndarray:
+        """(S, 6) bool out-of-fold decisions of `model` (a name of `MODELS`)."""
+        return self.probabilities[model] >= self.thresholds[model]
+
+
+def _cross_validate_trees(
+    x: np.ndarray, y: np.ndarray, groups: np.ndarray, n_splits: int, seed: int, opt: BoostingOptions
+) -> tuple[np.ndarray, np.ndarray]:
+    """Out-of-fold probabilities and thresholds (each (S, 6)) of `BoostedLabelClassifier`.
+
+    The folds are `cross_validate_labels`'s (whose run on the baseline checks the inputs
+    first); each fold's model gets its training scenes, so it chooses its thresholds without
+    the test fold.
+    """
+    probabilities = np.empty(y.shape)
+    thresholds = np.empty(y.shape)
+    kfold = GroupKFold(n_splits=n_splits, shuffle=True, random_state=seed)
+    for train, test in kfold.split(x, groups=groups):
+        model = BoostedLabelClassifier(opt).fit(x[train], y[train], groups[train])
+        probabilities[test] = model.predict_proba(x[test])
+        thresholds[test] = model.thresholds
+    return probabilities, thresholds
 
 
 def compare_models(
@@ -155,19 +185,15 @@ def compare_models(
     base = data["features"][keep]
     rich = np.hstack([base, data["context"][keep]])
 
-    def boosted() -> BoostedLabelClassifier:
-        return BoostedLabelClassifier(opt)
+    def cv(x: np.ndarray, labels: np.ndarray, scenes: np.ndarray) -> np.ndarray:
+        return cross_validate_labels(x, labels, scenes, n_splits=n_splits, seed=seed).probabilities
 
-    def cv(x: np.ndarray, labels: np.ndarray, scenes: np.ndarray, model: Any = None) -> np.ndarray:
-        return cross_validate_labels(
-            x, labels, scenes, n_splits=n_splits, seed=seed, classifier=model
-        ).probabilities
-
-    probabilities = {
-        "thesis": cv(base, y, groups),
-        "capacity": cv(base, y, groups, boosted),
-        "new": cv(rich, y, groups, boosted),
-    }
+    probabilities = {"thesis": cv(base, y, groups)}  # first: its CV checks the inputs
+    thresholds = {"thesis": np.full(y.shape, 0.5)}
+    for name, x in (("capacity", base), ("new", rich)):
+        probabilities[name], thresholds[name] = _cross_validate_trees(
+            x, y, groups, n_splits, seed, opt
+        )
     oracle = cv(data["oracle_features"], data["oracle_labels"], data["oracle_groups"])
     rows = data["oracle_rows"][keep]
     whole = np.where((rows >= 0)[:, None], oracle[np.maximum(rows, 0)], probabilities["thesis"])
@@ -178,11 +204,11 @@ def compare_models(
         mixed=data["mixed"][keep],
         fragment=data["fragment"][keep],
         whole_object=whole >= 0.5,
-        capacity=probabilities["capacity"] >= 0.5,
-        features=probabilities["new"] >= 0.5,
+        capacity=probabilities["capacity"] >= thresholds["capacity"],
+        features=probabilities["new"] >= thresholds["new"],
     )
     scores = {
-        name: scene_intervals(y, p, groups, n_boot=n_boot, seed=seed)
+        name: scene_intervals(y, p, groups, n_boot=n_boot, seed=seed, thresholds=thresholds[name])
         for name, p in probabilities.items()
     }
     scores["whole_object"] = scene_intervals(
@@ -193,6 +219,7 @@ def compare_models(
         labels=y,
         groups=groups,
         probabilities=probabilities,
+        thresholds=thresholds,
         whole_object=whole,
         scores=scores,
         causes=causes,

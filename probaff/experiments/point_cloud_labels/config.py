@@ -11,6 +11,7 @@ from typing import Any, ClassVar
 from probaff._checks import check_count
 from probaff.errors import InputError
 from probaff.experiments.base import StudyConfig
+from probaff.perception.label_boosting import THRESHOLD_RULES, BoostingOptions
 from probaff.perception.merge import PROXIMITIES
 from probaff.perception.scan_labels import PerceptionConfig
 
@@ -63,6 +64,11 @@ class PointCloudStudyConfig(StudyConfig):
             in the figure.
         boosting_rounds: Boosting rounds of each label's trees in the model comparison
             (`BoostingOptions.max_iter`).
+        boosting_threshold: How the trees of the model comparison choose each label's
+            decision threshold (`BoostingOptions.threshold`): ``"balanced"`` (the smaller of
+            precision and recall of an inner CV by scene on the training scenes, largest),
+            ``"f1"``, ``"fixed"`` (0.5, the study's numbers before the thresholds) or a
+            number in (0, 1) written as text (``"0.6"``).
     """
 
     out: str = "results/point_cloud_labels"
@@ -77,6 +83,7 @@ class PointCloudStudyConfig(StudyConfig):
     merge_scenes: int = 10
     merge_proximities: tuple[str, ...] = PROXIMITIES
     boosting_rounds: int = 200
+    boosting_threshold: str = "balanced"
 
     SMOKE: ClassVar[Mapping[str, Any]] = SMOKE
 
@@ -126,6 +133,7 @@ class PointCloudStudyConfig(StudyConfig):
                 "are among the first n_scenes."
             )
         check_count("boosting_rounds", self.boosting_rounds)
+        self.threshold  # noqa: B018 -- raises for a bad boosting_threshold
         proximities = self.merge_proximities
         if (
             not proximities
@@ -137,6 +145,26 @@ class PointCloudStudyConfig(StudyConfig):
                 f"got {proximities!r}."
             )
         return {}
+
+    @property
+    def threshold(self) -> str | float:
+        """`boosting_threshold` as `BoostingOptions.threshold` takes it (a rule or a number).
+
+        Raises:
+            InputError: Naming ``boosting_threshold``, unless it is a rule of
+                `THRESHOLD_RULES` or a number in (0, 1).
+        """
+        text = self.boosting_threshold
+        value: str | float = text
+        if isinstance(text, str) and text not in THRESHOLD_RULES:
+            try:
+                value = float(text)
+            except ValueError:
+                value = text
+        try:
+            return BoostingOptions(threshold=value).threshold
+        except InputError as err:
+            raise InputError(str(err).replace("threshold", "boosting_threshold")) from None
 
     @property
     def scanned(self) -> int:

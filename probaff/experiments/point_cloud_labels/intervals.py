@@ -1,6 +1,7 @@
 """Precision and recall of label decisions with 95 % intervals over scenes (scene bootstrap).
 
-`scene_intervals` pools the decisions ``p >= 0.5`` of all segments, as the study's CVs do, and
+`scene_intervals` pools the decisions ``p >= t`` of all segments (``t`` = 0.5 unless a model
+chose its own thresholds), as the study's CVs do, and
 gives each label's precision and recall (percent) and their mean over the labels, with a 95 %
 percentile interval from resampling the scenes with replacement (``n_boot`` draws; our
 choice of 2000, which settles the interval's ends to about 0.2 points). Resampling scenes,
@@ -59,8 +60,9 @@ def scene_intervals(
     *,
     n_boot: int = 2000,
     seed: int = 0,
+    thresholds: np.ndarray | float = 0.5,
 ) -> list[dict[str, Any]]:
-    """Pooled precision and recall of ``p >= 0.5`` per label, with 95 % scene intervals.
+    """Pooled precision and recall of ``p >= thresholds`` per label, with 95 % scene intervals.
 
     Args:
         truth: (S, 6) bool ground-truth labels, `LABELS` order.
@@ -68,13 +70,15 @@ def scene_intervals(
         groups: (S,) the scene of each segment.
         n_boot: Bootstrap draws of the scenes (a positive integer).
         seed: Seed of the draws (an integer >= 0).
+        thresholds: Decision thresholds: a number, or (S, 6) one per segment and label (a
+            CV's thresholds, each chosen by the model of the segment's fold).
 
     Returns:
         One row per label and one ``"average"`` row with ``label``, ``precision_pct``,
         ``precision_lo``, ``precision_hi``, ``recall_pct``, ``recall_lo``, ``recall_hi``.
 
     Raises:
-        InputError: For mismatched shapes, no segments, or bad counts.
+        InputError: For mismatched shapes, no segments, bad counts or non-finite thresholds.
     """
     check_shape("truth", truth, (None, len(LABELS)))
     t = np.asarray(truth).astype(bool)
@@ -84,7 +88,12 @@ def scene_intervals(
     check_shape("groups", groups, (len(t),))
     draws = check_count("n_boot", n_boot)
     rng = np.random.default_rng(check_count("seed", seed, minimum=0))
-    decided = np.asarray(probabilities, dtype=np.float64) >= 0.5
+    cut = np.asarray(thresholds, dtype=np.float64)
+    if cut.ndim:
+        check_shape("thresholds", cut, t.shape)
+    if not np.all(np.isfinite(cut)):
+        raise InputError("thresholds must be finite numbers, one or one per segment and label.")
+    decided = np.asarray(probabilities, dtype=np.float64) >= cut
     _, scene = np.unique(np.asarray(groups), return_inverse=True)
     n_scenes = int(scene.max()) + 1
     per = np.zeros((3, n_scenes, len(LABELS)))

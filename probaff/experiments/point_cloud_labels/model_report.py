@@ -3,9 +3,10 @@
 `model_rows` gives the rows of ``models.csv``: per segment set (all segments, and those of at
 least ``min_points`` points), per model (the thesis's logistic regressions, the trees on the
 same features, the new model, and the baseline on the oracle object segments) and per label,
-the pooled precision and recall of ``p >= 0.5`` with their 95 % scene-bootstrap intervals,
-beside the thesis's Table 2.2. `cause_rows` gives those of ``causes.csv`` and `model_section`
-the summary's Markdown.
+the pooled precision and recall of the decisions (``p >= 0.5`` for the logistic regressions,
+``p >=`` each fold model's own threshold for the trees, `BoostingOptions.threshold`) with
+their 95 % scene-bootstrap intervals, beside the thesis's Table 2.2. `cause_rows` gives those
+of ``causes.csv`` and `model_section` the summary's Markdown.
 """
 
 from __future__ import annotations
@@ -93,11 +94,13 @@ def model_section(comparisons: list[ModelComparison], n_scenes: int) -> str:
         percent), the models' descriptions and the cause breakdown.
     """
     md = [
-        "## Models past the thesis (out-of-fold, p >= 0.5)",
+        "## Models past the thesis (out-of-fold decisions)",
         "",
         f"{n_scenes} scenes, CV by scene; cells: precision [95 % interval] / recall [95 % "
         "interval], percent, pooled over segments, intervals from 2000 scene bootstrap draws. "
-        "Models:",
+        "Decisions: p >= 0.5 for the logistic regressions; the trees' thresholds are chosen "
+        "per label and fold on the training scenes only (inner CV by scene, "
+        "`BoostingOptions.threshold`). Models:",
         "",
         *(f"- `{name}`: {text}" for name, text in _DESCRIPTIONS.items()),
         "",

@@ -34,9 +34,10 @@ Then, in the main process:
   logistic regressions, calibrated gradient-boosted trees on the same features, the new model
   with the context descriptors, and the baseline on the oracle object segments; all segments,
   then those of at least each of ``label_min_points`` points), per label precision and
-  recall with 95 % scene-bootstrap intervals, and the baseline's errors by cause
-  (`attribute_errors`); ``labels_vs_truth.png``: the first scene's labels, ground truth
-  against the baseline's and the new model's decisions;
+  recall with 95 % scene-bootstrap intervals (the trees decide with the per-label thresholds
+  each fold model chooses on its training scenes, ``boosting_threshold``), and the baseline's
+  errors by cause (`attribute_errors`); ``labels_vs_truth.png``: the first scene's labels,
+  ground truth against the baseline's and the new model's decisions;
 * ``summary.md`` with the tables and the thesis's numbers (195 segments from 10 scenes,
   average precision / recall 81.8 / 81.7), and the figures of
   `probaff.experiments.point_cloud_labels.figures`.
@@ -165,7 +166,7 @@ def _truth_figure(
         arrays["points"],
         arrays["point_segments"],
         head.labels[first],
-        {name: head.probabilities[name][first] for name in ("thesis", "new")},
+        {name: head.decisions(name)[first].astype(np.float64) for name in ("thesis", "new")},
         out / "labels_vs_truth.png",
         title="first scene, all views: ground truth, thesis baseline and new model (top "
         "view, x right, y up; dark positive, light negative, red wrong)",
@@ -214,7 +215,9 @@ def run(config: PointCloudStudyConfig) -> dict[str, Any]:
             n_splits=config.n_splits,
             seed=config.seed,
             min_points=m,
-            options=BoostingOptions(max_iter=config.boosting_rounds, seed=config.seed),
+            options=BoostingOptions(
+                max_iter=config.boosting_rounds, seed=config.seed, threshold=config.threshold
+            ),
         )
         for m in (0, *config.label_min_points)
     ]
