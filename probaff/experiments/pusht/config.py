@@ -99,10 +99,13 @@ class PushTStudyConfig(StudyConfig):
         env_search: The search over the environment itself, a smaller budget since every
             candidate is simulated (flags ``--env-search-candidates``, ...).
         keep_trajectories: Episodes per planner whose poses are kept for the figures.
-        observation: What the planners observe in the episodes: ``"state"`` (the
-            environment's state) or ``"pixels"`` (only the diffusion policy's observation,
-            the 96 x 96 image and the agent's position; the goal and the block's pose are
-            perceived, and the state is kept for scoring only).
+        observation: What the planners observe in the episodes, and what the training and
+            held-out pushes are recorded from: ``"state"`` (the environment's state) or
+            ``"pixels"`` (only the diffusion policy's observation, the 96 x 96 image and the
+            agent's position; the goal and the block's pose are perceived, the pushes'
+            features and effects are computed from perceived poses, and the state is kept
+            for scoring only). Pixel runs key their pushes, datasets, models and episodes
+            apart from state runs.
     """
 
     out: str = "results/pusht"

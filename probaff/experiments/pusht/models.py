@@ -26,6 +26,13 @@ inertia); from pixels it is the perceived outline's, of uniform density
 
 Its predictive distribution is a Normal around that prediction with the standard deviation of
 its residuals on the training pushes.
+
+Where the training poses came from. A model remembers it (`LearnedModel.observation`,
+`QuasiStaticTee.observation`: ``"state"`` or ``"pixels"``, `probaff.experiments.pusht.data
+.dataset_observation`): pushes recorded from the simulator's state are exact and in gym-pusht's
+T frame; pushes recorded from pixels carry the perception's noise and are in the perceived T's
+frame. `check_model_observation` refuses (`ObservationMismatchError`) to plan from one with a
+model fitted on the other, unless allowed.
 """
 
 from __future__ import annotations
@@ -54,8 +61,10 @@ from probaff.models import EMOptions, MixtureOfGPExperts, fit
 __all__ = [
     "FEATURES",
     "LearnedModel",
+    "ObservationMismatchError",
     "PushModel",
     "QuasiStaticTee",
+    "check_model_observation",
     "evaluate",
     "fit_learned",
     "predict_moments",
@@ -90,11 +99,14 @@ class LearnedModel:
         name: ``"moe"`` or ``"gp"``.
         model: The fitted `MixtureOfGPExperts`.
         features: The feature columns it was fitted on (`FEATURES`).
+        observation: Where the poses of its training pushes came from: ``"state"`` (the
+            simulator's) or ``"pixels"`` (perceived); see `check_model_observation`.
     """
 
     name: str
     model: Any
     features: tuple[str, ...] = FEATURES
+    observation: str = "state"
 
     def predict(self, X: np.ndarray) -> Distribution:
         """The predictive distribution of the effects of (K, 5) features.
@@ -122,6 +134,9 @@ class QuasiStaticTee:
         iterations: Projection iterations per step.
         name: A label for tables.
         tee: The T it pushes: its outline, centre of gravity and inertia.
+        observation: Where the poses of the pushes `sigma` was calibrated on came from
+            (``"state"`` or ``"pixels"``); None when it was not calibrated on recorded
+            pushes (a hand-set `sigma`), which plans from either.
     """
 
     sigma: np.ndarray | None = None
@@ -129,6 +144,7 @@ class QuasiStaticTee:
     iterations: int = 3
     name: str = "analytic"
     tee: TeeGeometry = GYM_TEE
+    observation: str | None = None
 
     def effects(self, X: np.ndarray) -> np.ndarray:
         """(K, 3) predicted pushing-frame effects of (K, 5) features."""
@@ -178,6 +194,46 @@ class QuasiStaticTee:
 PushModel = LearnedModel | QuasiStaticTee
 """A Push-T push model: a fitted mixture (or single GP), or the calibrated analytic model."""
 
+_POSES = {"state": "the simulator's state", "pixels": "poses perceived from pixels"}
+
+
+class ObservationMismatchError(InputError):
+    """A push model fitted on pushes recorded from one observation plans from the other."""
+
+
+def check_model_observation(
+    model: Any, observation: str, *, allow: bool = False, name: str = "observation"
+) -> None:
+    """Refuse to plan from `observation` with a model fitted on pushes recorded otherwise.
+
+    A model fitted on state-recorded pushes has learned exact effects in gym-pusht's T frame;
+    planning from perceived poses it meets the perception's noise and the perceived T's frame
+    (and the reverse for a model fitted on perceived pushes), which it was never shown.
+
+    Args:
+        model: A push model; its ``observation`` attribute (``"state"``, ``"pixels"``, or
+            None/absent: not fitted on recorded pushes, which plans from either) is read.
+        observation: What the planner observes: ``"state"`` or ``"pixels"``.
+        allow: Plan with it anyway (an explicit choice, e.g. to measure what the mismatch
+            costs).
+        name: The argument's name in the message.
+
+    Raises:
+        ObservationMismatchError: If the two differ and not `allow`.
+    """
+    fitted = getattr(model, "observation", None)
+    if fitted is None or fitted == observation or allow:
+        return
+    label = getattr(model, "name", type(model).__name__)
+    raise ObservationMismatchError(
+        f"{name}={observation!r} plans from {_POSES.get(observation, repr(observation))}, but "
+        f"model {label!r} was fitted on pushes recorded from {_POSES.get(fitted, repr(fitted))} "
+        f"(its observation={fitted!r}); record its training pushes with "
+        f"observation={observation!r} (record_chunk(..., observation={observation!r}); the "
+        f"study's --observation {observation} does) and refit it, or pass "
+        "allow_observation_mismatch=True to plan with it anyway."
+    )
+
 
 def predict_moments(model: Any, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The predictive mean and standard deviation of each effect, (K, 3) each."""
@@ -193,7 +249,13 @@ def predict_moments(model: Any, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def fit_learned(
-    name: str, X: np.ndarray, Y: np.ndarray, *, experts: int, em: EMOptions
+    name: str,
+    X: np.ndarray,
+    Y: np.ndarray,
+    *,
+    experts: int,
+    em: EMOptions,
+    observation: str = "state",
 ) -> tuple[LearnedModel, float]:
     """Fit a mixture of `experts` GP experts by EM (1: the single GP); it and its EM objective.
 
@@ -203,8 +265,10 @@ def fit_learned(
         Y: (N, 3) effects.
         experts: Number of experts M.
         em: EM settings (their seed is the study's).
+        observation: Where the pushes' poses came from (``"state"`` or ``"pixels"``:
+            `probaff.experiments.pusht.data.dataset_observation`), kept on the model.
     """
-    model = MixtureOfGPExperts(experts, lengthscale_prior=True)
+    model = MixtureOfGPExperts(experts)  # gp=MIXTURE_GP: the length-scale prior on
     history = fit(
         model,
         torch.as_tensor(X, dtype=torch.float64),
@@ -213,7 +277,7 @@ def fit_learned(
     )
     score = getattr(history, "objective", getattr(history, "log_likelihood", math.nan))
     value = float(score[-1]) if isinstance(score, list | tuple) and score else math.nan
-    return LearnedModel(name, model), value
+    return LearnedModel(name, model, observation=observation), value
 
 
 def evaluate(model: Any, X: np.ndarray, Y: np.ndarray) -> dict[str, float]:

@@ -209,6 +209,20 @@ class PixelObserver:
         frames = pixel_observations(answer)
         return self._observe(answer, frames, [float(c) for c in answer["coverage"]])
 
+    def look(self, actions: np.ndarray) -> Observed:
+        """Run the agent targets `actions` (T, 2) and perceive the last frame where it is.
+
+        Unlike `step`, the pusher never backs away: a frame that cannot be read is returned
+        as `Observed.lost` (a NaN pose), for the caller to drop. For frames that must be read
+        where they are taken, such as a recorded push's start, where backing away would undo
+        the approach.
+        """
+        answer = self.worker.ask("step", actions=np.asarray(actions).tolist())
+        frames = pixel_observations(answer)
+        seen = self._observe(answer, frames, [float(c) for c in answer["coverage"]], retries=0)
+        self._log.flagged += int(seen.lost)
+        return seen
+
     def _back_away(
         self, frame: dict[str, np.ndarray], block: np.ndarray | None
     ) -> tuple[dict[str, Any], list[dict[str, np.ndarray]], list[float]]:
@@ -226,15 +240,22 @@ class PixelObserver:
         return answer, pixel_observations(answer), [float(c) for c in answer["coverage"]]
 
     def _observe(
-        self, answer: dict[str, Any], frames: list[dict[str, np.ndarray]], coverage: list[float]
+        self,
+        answer: dict[str, Any],
+        frames: list[dict[str, np.ndarray]],
+        coverage: list[float],
+        retries: int | None = None,
     ) -> Observed:
-        """Perceive the block in the last frame; back away and look again while unreadable."""
+        """Perceive the block in the last frame; back away and look again while unreadable.
+
+        `retries` bounds the times it backs away (`PixelObserver.retries` when None).
+        """
         assert self.scene is not None
         size = self.scene.frame_size
         pixels, agent = check_observation(frames[-1], size)
         est = perceive_block(pixels, self.scene, self.options, guess=self._last)
-        tries = 0
-        while not est.ok and tries < self.retries and not _ended(answer):
+        tries, limit = 0, self.retries if retries is None else retries
+        while not est.ok and tries < limit and not _ended(answer):
             self._log.flagged += 1
             tries += 1
             answer, frames, more = self._back_away(frames[-1], self._last)

@@ -39,6 +39,7 @@ from probaff.experiments.pusht.geometry import (
     origin_pose,
     to_world,
 )
+from probaff.experiments.pusht.models import check_model_observation
 from probaff.experiments.pusht.observe import observer
 from probaff.experiments.pusht.primitives import (
     PrimitiveSettings,
@@ -316,6 +317,7 @@ def run_episode(
     *,
     trajectory: bool = False,
     observation: str = "state",
+    allow_observation_mismatch: bool = False,
 ) -> dict[str, Any]:
     """One closed-loop episode in the environment, from its reset with `seed`.
 
@@ -330,6 +332,8 @@ def run_episode(
             ``"state"``, the environment's state; or ``"pixels"``, only the diffusion
             policy's observation (the 96 x 96 image and the agent's position), from which the
             goal and the block's pose are perceived. The state is then used for scoring only.
+        allow_observation_mismatch: Plan with a model fitted on pushes recorded from the other
+            observation (`probaff.experiments.pusht.models.check_model_observation`).
 
     Returns:
         ``success`` (the environment terminated: coverage > 95 %), ``max_coverage``,
@@ -343,8 +347,11 @@ def run_episode(
 
     Raises:
         InputError: For an unknown `observation`.
+        ObservationMismatchError: If `transition`'s model was fitted on pushes recorded from
+            another observation than `observation` and not `allow_observation_mismatch`.
     """
     eye = observer(observation, worker)
+    check_model_observation(transition, observation, allow=allow_observation_mismatch)
     seen = eye.reset(int(seed))
     goal, tee = eye.goal, eye.tee
     rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(7,)))

@@ -177,8 +177,14 @@ def summary_lines(
     curve: Sequence[dict[str, Any]],
     records: Sequence[dict[str, Any]],
     moved: np.ndarray,
+    perception: dict[str, int] | None = None,
 ) -> list[str]:
-    """The study's Markdown summary."""
+    """The study's Markdown summary.
+
+    `perception`: for pushes recorded from pixels, the counts of resets lost, pushes dropped
+    and frames flagged while recording them (`probaff.experiments.pusht.data.push_dataset`'s
+    ``meta["perception"]``).
+    """
     b = blame(records)
     table = [*planners, dict.fromkeys(_PLANNER_COLUMNS, math.nan) | reference_row()]
     lines = [
@@ -223,5 +229,12 @@ def summary_lines(
         lines.append(
             f"The block moved more than 1 px while the pusher went around it in "
             f"{100 * float((moved > 1).mean()):.1f} % of {moved.size} recorded pushes."
+        )
+    if config.observation == "pixels":
+        counts = ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in (perception or {}).items())
+        lines.append(
+            "The training and held-out pushes were recorded from pixels: every pose perceived "
+            "from the 96 x 96 image, the state logged beside it for scoring only"
+            + (f" ({counts})." if counts else ".")
         )
     return lines

@@ -11,6 +11,13 @@ and a fingerprint of every setting that shapes it, so a killed run redoes only t
 episodes. A worker process that dies mid-episode is restarted and the episode run again from
 its reset (it is deterministic), so no finished episode is lost or run twice.
 
+With `PushTStudyConfig.observation` ``"pixels"`` the planners observe only the policy's image,
+and the pushes the models learn from are recorded from it too
+(`probaff.experiments.pusht.data`: perceived poses, the state logged beside them for scoring
+only); every key and file name of those pushes, datasets, models and episodes then
+fingerprints the observation as well, so that nothing recorded or fitted from the state is
+reused for a pixel run (state runs keep the keys they had).
+
 Outputs in ``out/``: ``models.csv`` (held-out scores against training pushes),
 ``planners.csv`` (success rate with its 95 % Wilson interval, mean maximum coverage, pushes,
 control steps and prediction error), ``curve.csv`` (success against training pushes),
@@ -35,7 +42,12 @@ from probaff.data import save_dataset
 from probaff.errors import DatasetError
 from probaff.experiments.base import StudyRun
 from probaff.experiments.pusht.config import PLANNERS, PushTStudyConfig
-from probaff.experiments.pusht.data import push_dataset, record_chunk, with_worker
+from probaff.experiments.pusht.data import (
+    dataset_observation,
+    push_dataset,
+    record_chunk,
+    with_worker,
+)
 from probaff.experiments.pusht.figures import plot_episodes, plot_models, plot_success_curve
 from probaff.experiments.pusht.models import (
     LearnedModel,
@@ -67,6 +79,15 @@ _EPISODE_VERSION = 6
 _DATA_FIELDS = ("seed", "primitives", "chunk")
 _MODEL_FIELDS = (*_DATA_FIELDS, "experts", "em")
 _MEASURED = ("plan_seconds",)  # wall-clock: kept in out/timings/, apart from the results
+
+
+def _observed(c: PushTStudyConfig, fields: tuple[str, ...]) -> tuple[str, ...]:
+    """`fields` and, when the poses are perceived, ``observation``: a key of its own.
+
+    State runs keep the keys they had; pixel runs (pushes recorded, models fitted and
+    episodes planned from perceived poses) never share one with them.
+    """
+    return fields if c.observation == "state" else (*fields, "observation")
 
 
 def episode_task(
@@ -127,19 +148,19 @@ def episode_task(
 def _chunks(study: StudyRun[PushTStudyConfig], role: str, n: int) -> list[dict[str, Any]]:
     """Record (or resume) the chunks holding the first `n` pushes of `role`."""
     c = study.config
-    tag = c.tag(only=_DATA_FIELDS, version=_VERSION)
+    tag = c.tag(only=_observed(c, _DATA_FIELDS), version=_VERSION)
     count = math.ceil(n / c.chunk)
     tasks = [(f"{role}.chunk{i:04d}.{tag}", (role, i, c.seed, c.chunk)) for i in range(count)]
-    shared = {"settings": c.primitives, "python": c.python}
+    shared = {"settings": c.primitives, "python": c.python, "observation": c.observation}
     return study.tasks(record_chunk, tasks, desc=f"{role} pushes", shared=shared, folder="chunks")
 
 
 def _first(records: list[dict[str, Any]], n: int) -> list[dict[str, Any]]:
-    """The chunk records cut to their first `n` pushes."""
+    """The chunk records cut to their first `n` pushes (their per-chunk counts kept)."""
     out, left = [], n
     for r in records:
         take = min(left, len(r["before"]))
-        out.append({k: v[:take] for k, v in r.items()})
+        out.append({k: v[:take] if isinstance(v, list) else v for k, v in r.items()})
         left -= take
         if not left:
             break
@@ -153,7 +174,7 @@ def _datasets(study: StudyRun[PushTStudyConfig]) -> tuple[dict[int, Any], Any, l
     train = _chunks(study, "train", sizes[-1])
     test = push_dataset(_chunks(study, "test", c.test_pushes), c.seed)
     sets = {n: push_dataset(_first(train, n), c.seed) for n in sizes}
-    tag = c.tag(only=_DATA_FIELDS, version=_VERSION, length=8)
+    tag = c.tag(only=_observed(c, _DATA_FIELDS), version=_VERSION, length=8)
     for name, ds in ((f"train_n{sizes[-1]}", sets[sizes[-1]]), (f"test_n{c.test_pushes}", test)):
         path = study.out / "data" / f"pusht_{name}.{tag}"
         if not path.exists():
@@ -166,14 +187,16 @@ def _datasets(study: StudyRun[PushTStudyConfig]) -> tuple[dict[int, Any], Any, l
 def _learned(study: StudyRun[PushTStudyConfig], name: str, ds: Any, n: int) -> LearnedModel:
     """The mixture (``moe``) or single GP (``gp``) fitted on `ds`, saved or loaded."""
     c = study.config
-    tag = c.tag(only=_MODEL_FIELDS, version=_VERSION, length=8)
+    tag = c.tag(only=_observed(c, _MODEL_FIELDS), version=_VERSION, length=8)
     path = study.out / "models" / f"{name}.n{n}.{tag}.pt"
+    observation = dataset_observation(ds)  # the file's key fingerprints it too
     if path.is_file():
-        return LearnedModel(name, load_model(path))
+        return LearnedModel(name, load_model(path), observation=observation)
     em = dataclasses.replace(c.em, seed=c.seed)
     experts = c.experts if name == "moe" else 1
+    X, Y = push_features(ds), push_effects(ds)
     with torch_threads(1):
-        fitted, _ = fit_learned(name, push_features(ds), push_effects(ds), experts=experts, em=em)
+        fitted, _ = fit_learned(name, X, Y, experts=experts, em=em, observation=observation)
     path.parent.mkdir(parents=True, exist_ok=True)
     save_model(fitted.model, path)
     return fitted
@@ -184,7 +207,8 @@ def _models(study: StudyRun[PushTStudyConfig], ds: Any, n: int, names: set[str])
     out: dict[str, Any] = {}
     for name in sorted(names):
         if name == "analytic":
-            out[name] = QuasiStaticTee().calibrate(push_features(ds), push_effects(ds))
+            analytic = QuasiStaticTee(observation=dataset_observation(ds))
+            out[name] = analytic.calibrate(push_features(ds), push_effects(ds))
         else:
             out[name] = _learned(study, name, ds, n)
     return out
@@ -241,7 +265,8 @@ def _curve(
             records += [{**r, "train_pushes": n} for r in mine[: c.curve_episodes]]
             continue
         models = _models(study, sets[n], n, {"moe"})
-        tag = c.tag(version=_EPISODE_VERSION, only=(*_MODEL_FIELDS, "search")) + f"n{n}"
+        only = _observed(c, (*_MODEL_FIELDS, "search"))
+        tag = c.tag(version=_EPISODE_VERSION, only=only) + f"n{n}"
         jobs = [("beam-moe", i) for i in range(c.curve_episodes)]
         done = _episodes(study, jobs, models, f"curve.{tag}")
         records += [{**r, "train_pushes": n} for r in done]
@@ -277,7 +302,7 @@ def run(config: PushTStudyConfig) -> dict[str, Any]:
     study.table("models.csv", mrows)
     names = {PLANNERS[p].model for p in c.planners} - {"", "env"}
     plan_models = _models(study, sets[c.plan_pushes], c.plan_pushes, names)
-    fields = (*_MODEL_FIELDS, "plan_pushes", "search", "env_search")
+    fields = _observed(c, (*_MODEL_FIELDS, "plan_pushes", "search", "env_search"))
     tag = c.tag(version=_EPISODE_VERSION, only=fields)
     head, tail = _planner_jobs(c)
     records = _episodes(study, head, plan_models, tag)
@@ -292,5 +317,6 @@ def run(config: PushTStudyConfig) -> dict[str, Any]:
         study.figure(plot_success_curve(crows, study.out / "success_vs_pushes.png"))
     study.figure(plot_models(mrows, study.out / "models.png"))
     study.figure(plot_episodes(records, study.out / "episodes.png"))
-    study.summary(summary_lines(c, mrows, prows, crows, records, np.asarray(moved)))
+    perception = sets[c.plan_pushes].meta.get("perception")
+    study.summary(summary_lines(c, mrows, prows, crows, records, np.asarray(moved), perception))
     return {"models": mrows, "planners": prows, "curve": crows, "files": study.files}

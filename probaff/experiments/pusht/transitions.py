@@ -87,6 +87,11 @@ class ModelTransition:
         self.model = model
         self.name = name or str(getattr(model, "name", type(model).__name__))
 
+    @property
+    def observation(self) -> str | None:
+        """Where the model's training poses came from (``"state"``, ``"pixels"`` or None)."""
+        return self.model.observation
+
     def predict(
         self, pushes: TeePushes, *, n_samples: int = 0, rng: np.random.Generator | None = None
     ) -> TransitionPrediction:
