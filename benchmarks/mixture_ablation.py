@@ -100,7 +100,7 @@ from probaff._threads import torch_threads
 from probaff.errors import InputError
 from probaff.eval.metrics import mean_halfwidth, nlpd, rmse
 from probaff.eval.tasks import ResultStore, run_tasks
-from probaff.models import GPExpert, MixtureOfGPExperts, fit_em
+from probaff.models import GPExpert, GPOptions, MixtureOfGPExperts, fit_em
 from probaff.models.gate import make_gate
 from probaff.models.gated import mixture_distribution
 
@@ -234,12 +234,12 @@ def _em(task: dict[str, Any], m: int) -> tuple[MixtureOfGPExperts, torch.Tensor]
     """
     x, y = task["X"][task["train"]], task["Y"][task["train"]]
     floor = task["noise_floor"]
-    model = MixtureOfGPExperts(
-        m,
-        gp_max_iter=task["gp_iter"],
+    gp = GPOptions(
+        max_iter=task["gp_iter"],
         lengthscale_prior=True,
         noise_floor="auto" if floor is None else floor,
     )
+    model = MixtureOfGPExperts(m, gp=gp)
     history = fit_em(model, x, y, seed=task["seed"], max_iter=task["em_iter"])
     return model, history.responsibilities
 

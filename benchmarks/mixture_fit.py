@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import math
 import sys
 import time
@@ -50,7 +51,7 @@ from threadpoolctl import threadpool_limits
 from probaff._cli_errors import run_cli
 from probaff._threads import torch_threads
 from probaff.errors import InputError
-from probaff.models import MixtureOfGPExperts, fit_em
+from probaff.models import MIXTURE_GP, GPOptions, MixtureOfGPExperts, fit_em
 from probaff.models.expert_batch import per_expert_fits
 from probaff.models.synthetic import regime_features
 
@@ -58,6 +59,11 @@ from probaff.models.synthetic import regime_features
 def purity(assign: np.ndarray, labels: np.ndarray) -> float:
     """Fraction of samples whose cluster's majority label is their own label."""
     return sum(np.bincount(labels[assign == j]).max() for j in np.unique(assign)) / len(labels)
+
+
+def _experts(args: argparse.Namespace) -> GPOptions:
+    """The experts' settings: the mixture's default, the length-scale prior as asked."""
+    return dataclasses.replace(MIXTURE_GP, lengthscale_prior=args.lengthscale_prior)
 
 
 def time_em(
@@ -68,7 +74,7 @@ def time_em(
         groups={"f_x": slice(0, 3)},
         gate_features=("f_x",),
         expert_features=None,
-        lengthscale_prior=args.lengthscale_prior,
+        gp=_experts(args),
     )
     fit_em(model, x[:40], y[:40], max_iter=1)  # warm-up: one-time imports and allocations
     start = time.perf_counter()
@@ -91,7 +97,7 @@ def _fit_once(
         args.experts,
         groups={"f_x": slice(0, 3)},
         gate_features=("f_x",),
-        lengthscale_prior=args.lengthscale_prior,
+        gp=_experts(args),
     )
     start, cpu = time.perf_counter(), time.process_time()
     with per_expert_fits() if reference else contextlib.nullcontext():
@@ -134,7 +140,7 @@ def _mixture(args: argparse.Namespace, device: torch.device) -> MixtureOfGPExper
         groups={"f_x": slice(0, 3)},
         gate_features=("f_x",),
         expert_features=None,
-        lengthscale_prior=args.lengthscale_prior,
+        gp=_experts(args),
     ).to(device)
 
 

@@ -143,6 +143,7 @@ from probaff.eval.tasks import ResultStore, run_tasks
 from probaff.models import (
     ClusteredGPModel,
     GPExpert,
+    GPOptions,
     MixtureOfGPExperts,
     VariationalMixtureOfGPExperts,
     fit_em,
@@ -307,23 +308,22 @@ def clustered(fold: Fold) -> Distribution:
         cluster_dims=dims,
         seed=fold.seed,
         soft_gate=True,
-        expert_kwargs={
-            "lengthscale_prior": True,
-            "max_iter": fold.budget.gp_iter,
-            "noise_floor": fold.noise_floor,
-        },
+        gp=GPOptions(
+            max_iter=fold.budget.gp_iter, lengthscale_prior=True, noise_floor=fold.noise_floor
+        ),
     )
     return model.fit(fold.X_train, fold.Y_train).predict(fold.X_test)
 
 
 def _em(fold: Fold, fit: Callable[..., Any] = fit_em, point: str = "mean") -> Prediction:
     """probaff's mixture of GP experts fitted by EM (`fit` is `fit_em` or a partial of it)."""
-    model = MixtureOfGPExperts(
-        fold.n_experts,
-        gp_max_iter=fold.budget.gp_iter,
+    gp = GPOptions(
+        max_iter=fold.budget.gp_iter,
         lengthscale_prior=True,
         noise_floor="auto" if fold.noise_floor is None else fold.noise_floor,
-        **({} if point == "mean" else {"point": point}),
+    )
+    model = MixtureOfGPExperts(
+        fold.n_experts, gp=gp, **({} if point == "mean" else {"point": point})
     )
     fit(model, fold.X_train, fold.Y_train, seed=fold.seed, max_iter=fold.budget.em_iter)
     return model.predict(fold.X_test), point_prediction(model, fold.X_test)

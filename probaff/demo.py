@@ -54,7 +54,7 @@ from probaff.experiments.planning.demo import demo as planning_demo
 from probaff.experiments.point_cloud_labels.demo import demo as point_cloud_demo
 from probaff.experiments.push_models.figures import plot_predictive_density, plot_pushes
 from probaff.features import chapter5_features
-from probaff.models import MixtureOfGPExperts, fit_em
+from probaff.models import GPOptions, MixtureOfGPExperts, fit_em
 from probaff.sim import load_arm, load_tabletop
 
 __all__ = ["DemoConfig", "run"]
@@ -398,8 +398,7 @@ def _compare_models(
                 groups=features.groups,
                 gate_features=("f_x",),
                 expert_features=("f_o", "f_c"),
-                lengthscale_prior=True,
-                noise_floor=floor,
+                gp=GPOptions(lengthscale_prior=True, noise_floor=floor),
                 point="stacked",
             )
             with _fit_warnings(f"the {name} fit", notes):

@@ -21,6 +21,7 @@ from probaff._threads import torch_threads
 ENTRY_POINTS = (
     "probaff.data.observation_dataset",
     "probaff.data.import_hdf5",
+    "probaff.data.PushDataset",
     "probaff.models.MixtureOfGPExperts",
     "probaff.models.fit_em",
     "probaff.models.MixtureOfGPExpertsRegressor",

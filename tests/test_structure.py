@@ -43,6 +43,7 @@ LAYERS: dict[str, int] = {
     "_threads": 0,
     "_dask": 0,
     "_cli_errors": 0,
+    "_registry": 0,
     "models": 1,
     "maps": 1,
     "sim": 2,

@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from probaff._registry import Registry
 from probaff.data.config import GenerateConfig, base_plan
 from probaff.data.dataset import ArrayDataset
 from probaff.data.push_generation import (
@@ -44,7 +45,7 @@ from probaff.data.skill_generation import skill_manifest, skill_plan, skill_shar
 from probaff.data.skill_schema import SKILL_SCHEMA_VERSION, SkillDataset
 from probaff.data.summary import summarize_pushes, summarize_skills
 from probaff.errors import InputError
-from probaff.sim.registry import Registry, SceneRows, WorldKind, world_kind, world_kinds
+from probaff.sim.registry import SceneRows, WorldKind, world_kind, world_kinds
 
 __all__ = [
     "DEFAULT_KIND",
@@ -213,7 +214,7 @@ def register_dataset_kind(kind: DatasetKind) -> DatasetKind:
 
 
 unregister_dataset_kind = _KINDS.remove
-"""Remove a registered dataset kind by name and return it (see `probaff.sim.registry.Registry`)."""
+"""Remove a registered dataset kind by name and return it (see `probaff._registry.Registry`)."""
 
 
 def dataset_kind(name: str) -> DatasetKind:

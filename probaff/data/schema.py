@@ -268,6 +268,25 @@ class PushDataset(ArrayDataset):
         arrays: Named arrays (see the module docstring for the schema).
         object_names: Vocabulary of ``arrays["object_ids"]``.
         meta: Scene name, seed, world settings and generation options.
+
+    Example:
+        Eight simulated pushes of the ``two_objects`` scene (`probaff.data.generate` writes
+        the folder and loads it back), then the arrays a push model reads:
+
+        >>> import tempfile
+        >>> from probaff.data import GenerateConfig, generate
+        >>> config = GenerateConfig("two_objects", n=8, trajectories=False, cloud_points=64)
+        >>> ds = generate(config, f"{tempfile.mkdtemp()}/pushes", progress=False)
+        >>> len(ds), ds.n_objects, ds.objects_of(0)  # N pushes, K objects, row 0's objects
+        (8, 2, ['cracker_box', 'nut_container'])
+        >>> ds["state_before"].shape  # (N, K, 3): world (x, y, theta) before each push
+        (8, 2, 3)
+        >>> ds["effect"].shape  # (N, K, 3): (dy_p, dz_p, dtheta_p) in the pushing frame
+        (8, 2, 3)
+        >>> ds["cloud_points"].shape  # (N, K, P, 3): each object's cloud before the push
+        (8, 2, 64, 3)
+        >>> ds.meta["scene"], ds.observation_only  # simulated, so nothing is missing
+        ('two_objects', False)
     """
 
     KIND = "push"

@@ -40,7 +40,7 @@ class ExpertSelection:
 
 
 def _default_model(m: int) -> MixtureOfGPExperts:
-    return MixtureOfGPExperts(m, lengthscale_prior=True)
+    return MixtureOfGPExperts(m)  # the experts' default settings, MIXTURE_GP (prior on)
 
 
 def _default_fit(model: Any, X: torch.Tensor, Y: torch.Tensor, seed: int) -> None:

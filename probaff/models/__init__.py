@@ -10,7 +10,8 @@ fitted by `fit_transition` and chained by `ModularTransitionModel`. Every push m
 `PushModel` (``predict(X)`` gives a distribution over effects).
 
 Fits take typed options (`EMOptions`, `SVIOptions`, `GPOptions`), with single fields as
-keyword overrides. Every kind of model is a `ModelKind` in one registry (`model_kind`,
+keyword overrides; a mixture takes its experts' settings as one `GPOptions` (``gp=``, by
+default `MIXTURE_GP`). Every kind of model is a `ModelKind` in one registry (`model_kind`,
 `model_kinds`, `register_model_kind`): its class, fitter, options, save format and builder
 (`ModelSettings`); `fit` fits any registered model, and `save` and `load` store any
 registered model in one file.
@@ -34,7 +35,7 @@ from probaff.models.modular import (
     InteractionGeometry,
     ModularTransitionModel,
 )
-from probaff.models.options import EMOptions, GPOptions, SparseGPOptions, SVIOptions
+from probaff.models.options import MIXTURE_GP, EMOptions, GPOptions, SparseGPOptions, SVIOptions
 from probaff.models.persistence import load, save
 from probaff.models.registry import (
     Codec,
@@ -58,6 +59,7 @@ from probaff.models.transition import (
 from probaff.models.vi import VariationalMixtureOfGPExperts
 
 __all__ = [
+    "MIXTURE_GP",
     "ChainPrediction",
     "ChainScene",
     "ClusteredGPModel",

@@ -9,6 +9,7 @@ SVM's calibrated probabilities weight all experts instead.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
@@ -25,6 +26,7 @@ from probaff._threads import threads_by_rows
 from probaff.errors import InputError, NotFittedError
 from probaff.models.gated import gated_probs, mixture_distribution
 from probaff.models.gp_expert import GPExpert
+from probaff.models.options import GPOptions
 from probaff.models.registry import Codec, ModelKind, ModelSettings, register_model_kind
 from probaff.models.tensors import as_matrix
 
@@ -41,7 +43,11 @@ class ClusteredGPModel:
         n_init: GMM restarts.
         svm_c: SVM regularisation C (RBF kernel, standardised features).
         soft_gate: Weight experts by the SVM's probabilities instead of picking one.
-        expert_kwargs: Passed to each `GPExpert`.
+        gp: The settings of every expert, whole (`GPOptions`); None for `GPOptions()`, a
+            single `GPExpert`'s defaults.
+
+    Raises:
+        InputError: For a bad count or seed, or a `gp` that is not a `GPOptions`.
     """
 
     def __init__(
@@ -53,7 +59,7 @@ class ClusteredGPModel:
         n_init: int = 5,
         svm_c: float = 1.0,
         soft_gate: bool = False,
-        expert_kwargs: dict[str, Any] | None = None,
+        gp: GPOptions | None = None,
     ) -> None:
         self.n_clusters = check_count("n_clusters", n_clusters)
         check_count("n_init", n_init)
@@ -63,7 +69,12 @@ class ClusteredGPModel:
         self.n_init = n_init
         self.svm_c = svm_c
         self.soft_gate = soft_gate
-        self.expert_kwargs = dict(expert_kwargs or {})
+        if gp is not None and type(gp) is not GPOptions:
+            raise InputError(
+                f"gp must be GPOptions (the experts' settings, e.g. GPOptions(max_iter=20)) or "
+                f"None, got {type(gp).__name__}."
+            )
+        self.gp = GPOptions() if gp is None else gp
         self.experts: list[GPExpert] = []
         self.n_features: int | None = None
         self.n_outputs: int | None = None
@@ -74,9 +85,12 @@ class ClusteredGPModel:
         self._classes: np.ndarray | None = None
 
     def config(self) -> dict[str, Any]:
-        """Constructor arguments, so that ``ClusteredGPModel(**model.config())`` rebuilds it."""
-        names = ("n_clusters", "cluster_dims", "seed", "n_init", "svm_c", "soft_gate")
-        return {**{n: getattr(self, n) for n in names}, "expert_kwargs": dict(self.expert_kwargs)}
+        """Constructor arguments, so that ``ClusteredGPModel(**model.config())`` rebuilds it.
+
+        Builtins, except ``gp``, the experts' `GPOptions` whole (`save` stores its fields).
+        """
+        names = ("n_clusters", "cluster_dims", "seed", "n_init", "svm_c", "soft_gate", "gp")
+        return {n: getattr(self, n) for n in names}
 
     @property
     def is_fitted(self) -> bool:
@@ -121,7 +135,7 @@ class ClusteredGPModel:
             )
             labels = gmm.fit_predict(yn[:, list(self.cluster_dims)])
         self.experts = [
-            GPExpert(x.shape[1], e, **self.expert_kwargs).fit(x[labels == k], y[labels == k])
+            GPExpert(x.shape[1], e, self.gp).fit(x[labels == k], y[labels == k])
             for k in np.unique(labels)
         ]
         self.fit_gate(x, y, labels)
@@ -216,7 +230,7 @@ def fit_clustered(
         given = sorted(overrides) + (["options"] if options is not None else [])
         raise InputError(
             f"a ClusteredGPModel takes no fitting options, got {given}; set its seed and "
-            "expert_kwargs in its constructor."
+            "gp=GPOptions(...) in its constructor."
         )
     return model.fit(X, Y)
 
@@ -224,7 +238,7 @@ def fit_clustered(
 def _dump(model: ClusteredGPModel) -> dict[str, Any]:
     assert model.labels_ is not None
     return {
-        "config": model.config(),
+        "config": {**model.config(), "gp": dataclasses.asdict(model.gp)},  # GPOptions' fields
         "X": model.train_X,
         "Y": model.train_Y,
         "labels": torch.as_tensor(model.labels_, dtype=torch.int64),
@@ -232,13 +246,25 @@ def _dump(model: ClusteredGPModel) -> dict[str, Any]:
     }
 
 
+def _saved_config(config: dict[str, Any]) -> dict[str, Any]:
+    """A saved model's constructor arguments, its experts' settings as one `GPOptions`.
+
+    Files written since hold `GPOptions`' fields under ``gp``; older files hold the
+    keywords each `GPExpert` was given under ``expert_kwargs`` (fields of `GPOptions` too).
+    """
+    out = dict(config)
+    saved = out.pop("expert_kwargs", None) if "gp" not in out else out["gp"]
+    out["gp"] = GPOptions(**(saved or {}))
+    return out
+
+
 def _restore(payload: dict[str, Any]) -> ClusteredGPModel:
-    model = ClusteredGPModel(**payload["config"])
+    model = ClusteredGPModel(**_saved_config(payload["config"]))
     x, y, labels = payload["X"], payload["Y"], payload["labels"]
     experts = []
     for k, state in zip(labels.unique().tolist(), payload["state_dict"], strict=True):
         rows = labels == k
-        expert = GPExpert(x.shape[1], y.shape[1], **model.expert_kwargs)
+        expert = GPExpert(x.shape[1], y.shape[1], model.gp)
         expert.condition(x[rows], y[rows])
         expert.load_state_dict(state)
         experts.append(expert)
@@ -253,10 +279,8 @@ def _build(settings: ModelSettings) -> ClusteredGPModel:
             "a ClusteredGPModel's gate is an SVM on every column it is given; leave gate unset "
             f"(got {list(settings.gate)})."
         )
-    gp: dict[str, Any] = {"lengthscale_prior": settings.lengthscale_prior}
-    if settings.gp_max_iter is not None:
-        gp["max_iter"] = settings.gp_max_iter
-    return ClusteredGPModel(settings.n_experts, seed=settings.seed, expert_kwargs=gp)
+    # settings.gp whole; None is GPOptions(), a single GPExpert's defaults
+    return ClusteredGPModel(settings.n_experts, seed=settings.seed, gp=settings.gp)
 
 
 _FORMAT = "probaff.models.ClusteredGPModel/1"

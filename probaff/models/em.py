@@ -41,8 +41,8 @@ from probaff.errors import InputError
 from probaff.models.em_run import EMHistory, EMRun
 from probaff.models.em_starts import _fresh, fit_level
 from probaff.models.gated import mixture_payload
-from probaff.models.mixture import MixtureOfGPExperts
-from probaff.models.options import EMOptions, resolve_options
+from probaff.models.mixture import FLAT_GP_KEYWORDS, MixtureOfGPExperts
+from probaff.models.options import MIXTURE_GP, EMOptions, GPOptions, resolve_options
 from probaff.models.registry import Codec, ModelKind, ModelSettings, register_model_kind
 from probaff.models.tensors import as_matrix
 
@@ -288,18 +288,40 @@ FORMAT = "probaff.models.MixtureOfGPExperts/1"
 
 
 def _dump(model: MixtureOfGPExperts) -> dict[str, Any]:
-    return mixture_payload(
+    payload = mixture_payload(
         model,
         X=model.train_X,
         Y=model.train_Y,
         weights=model.train_weights,
         built_experts=model.built_expert_kind,
     )
+    # The experts' GPOptions as its fields (builtins: noise_floor a float, tuple, "auto" or None).
+    payload["config"]["gp"] = dataclasses.asdict(model.gp)
+    return payload
+
+
+def _saved_config(config: dict[str, Any]) -> dict[str, Any]:
+    """A saved mixture's constructor arguments, its experts' settings as one `GPOptions`.
+
+    Files written since the settings were one `GPOptions` hold its fields under ``gp``;
+    older files hold the flat keys ``gp_max_iter``, ``lengthscale_prior`` and ``noise_floor``
+    (`FLAT_GP_KEYWORDS`; a missing one takes `MIXTURE_GP`'s value, today's default).
+    Files written before the gate had a lasso penalty hold a ridge-only gate (``gate_l1=0``).
+    """
+    out = {"gate_l1": 0.0, **config}
+    flat = {new: out.pop(old) for old, new in FLAT_GP_KEYWORDS.items() if old in out}
+    saved = out.get("gp")
+    if saved is None:
+        out["gp"] = dataclasses.replace(MIXTURE_GP, **flat)
+    elif isinstance(saved, dict):
+        out["gp"] = GPOptions(**saved)
+    else:
+        raise InputError(f"a saved mixture's gp must hold GPOptions' fields, got {saved!r}.")
+    return out
 
 
 def _restore(payload: dict[str, Any]) -> MixtureOfGPExperts:
-    # Files written before the gate had a lasso penalty hold a ridge-only gate.
-    model = MixtureOfGPExperts(**{"gate_l1": 0.0, **payload["config"]})
+    model = MixtureOfGPExperts(**_saved_config(payload["config"]))
     # The kind of experts the fit built ("exact" in files written before sparse experts).
     kind = payload.get("built_experts") or "exact"
     if kind not in ("exact", "sparse"):
@@ -312,12 +334,8 @@ def _restore(payload: dict[str, Any]) -> MixtureOfGPExperts:
 
 
 def _build(settings: ModelSettings) -> MixtureOfGPExperts:
-    gp: dict[str, Any] = {}
-    if settings.gp_max_iter is not None:
-        gp["gp_max_iter"] = settings.gp_max_iter
-    return MixtureOfGPExperts(
-        settings.n_experts, **settings.columns(), lengthscale_prior=settings.lengthscale_prior, **gp
-    )
+    # settings.gp whole; None is the mixture's default, MIXTURE_GP
+    return MixtureOfGPExperts(settings.n_experts, **settings.columns(), gp=settings.gp)
 
 
 _REQUIRED = ("config", "n_features", "n_outputs", "X", "Y", "weights", "state_dict")

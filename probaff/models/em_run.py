@@ -148,8 +148,8 @@ class EMRun:
     the responsibility they hold together; the other experts keep their hyperparameters
     and responsibilities. `release` turns later iterations into full ones.
 
-    `settings` are the fit's `EMOptions` whole; its `gp_max_iter` (None: the mixture's own)
-    sets the first M-step of a cold start, `warm_max_iter` every later one.
+    `settings` are the fit's `EMOptions` whole; its `gp_max_iter` (None: the mixture's
+    ``gp.max_iter``) sets the first M-step of a cold start, `warm_max_iter` every later one.
     """
 
     def __init__(
@@ -168,7 +168,7 @@ class EMRun:
         self.model, self.x, self.y, self.resp = model, x, y, resp
         self.settings, self.init, self.seed, self.warm = settings, init, seed, warm
         self.first_iters = (
-            model.gp_max_iter if settings.gp_max_iter is None else settings.gp_max_iter
+            model.gp.max_iter if settings.gp_max_iter is None else settings.gp_max_iter
         )
         self.active = None if active is None else sorted(set(active))
         self.history = EMHistory(init=init)

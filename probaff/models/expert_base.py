@@ -22,10 +22,10 @@ from probaff.errors import InputError
 from probaff.models._scaling import Standardizer
 from probaff.models.kernels import lengthscale_prior
 from probaff.models.likelihood import WeightedGaussianLikelihood
-from probaff.models.options import NOISE_BOUNDS, GPOptions
+from probaff.models.options import AUTO_NOISE_FLOOR, NOISE_BOUNDS, GPOptions
 from probaff.models.tensors import as_matrix, as_vector, check_to_device, resolve_device
 
-__all__ = ["WeightedExpert", "noise_floor_vector", "out_of_sample"]
+__all__ = ["WeightedExpert", "noise_floor_vector", "out_of_sample", "training_noise_floor"]
 
 
 def noise_floor_vector(
@@ -57,6 +57,28 @@ def noise_floor_vector(
     return floor.clone()
 
 
+def training_noise_floor(
+    noise_floor: float | Sequence[float] | str | None, targets: Tensor
+) -> Tensor:
+    """The noise floor of a `GPOptions` for training targets `(N, E)`, in their units.
+
+    Args:
+        noise_floor: ``GPOptions.noise_floor``: ``"auto"`` (`AUTO_NOISE_FLOOR` of each
+            output's standard deviation over every row of `targets`), ``None`` (no floor),
+            a scalar, or one value per output.
+        targets: The training targets, `(N, E)`.
+
+    Returns:
+        Non-negative standard deviations, `(E,)`, float64.
+
+    Raises:
+        InputError: For negative, NaN or infinite values, or the wrong number of values.
+    """
+    if isinstance(noise_floor, str):  # "auto", the one text GPOptions accepts
+        return AUTO_NOISE_FLOOR * targets.std(dim=0, correction=0)
+    return noise_floor_vector(noise_floor, targets.shape[1])
+
+
 class WeightedExpert(torch.nn.Module):
     r"""Base of the GP experts: `E` outputs of `D` features with per-sample noise weights.
 
@@ -64,8 +86,9 @@ class WeightedExpert(torch.nn.Module):
     (`WeightedGaussianLikelihood`, batched over the outputs); samples of weight 0 are
     dropped. Inputs and outputs are standardised with the weighted moments of the training
     data, and the noise standard deviation of every output is at least its `noise_floor`
-    (output units). Subclasses register their kernel after calling this constructor, then
-    move to float64 and reset their hyperparameters.
+    (output units; ``noise_floor="auto"`` is resolved from the targets of every fit or
+    conditioning, see `training_noise_floor`). Subclasses register their kernel after
+    calling this constructor, then move to float64 and reset their hyperparameters.
 
     Args:
         n_features: Number of input features `D`.
@@ -98,7 +121,10 @@ class WeightedExpert(torch.nn.Module):
         self.x_scaler = Standardizer(self.n_features)
         self.y_scaler = Standardizer(self.n_outputs)
         self.register_buffer("jitter", torch.tensor(jitter, dtype=torch.float64))
-        self.register_buffer("noise_floor", noise_floor_vector(options.noise_floor, self.n_outputs))
+        floor = options.noise_floor
+        self.auto_noise_floor = isinstance(floor, str)  # "auto": set from the data it is given
+        floor = None if isinstance(floor, str) else floor
+        self.register_buffer("noise_floor", noise_floor_vector(floor, self.n_outputs))
 
     def kernel_prior(self) -> Prior | None:
         """The log length-scale prior of the kernel (`lengthscale_prior`), or None when off."""
@@ -134,7 +160,8 @@ class WeightedExpert(torch.nn.Module):
         """Validate a weighted training set and set the scalers, noise floor and weights.
 
         Rows of weight 0 are dropped; the standardisers take the weighted moments of the
-        rest, the likelihood their weights and the noise floor (in standardised units).
+        rest, the likelihood their weights and the noise floor (in standardised units). A
+        ``noise_floor="auto"`` is resolved first, from every row of `Y`.
 
         Args:
             X: Features, `(N, D)`.
@@ -160,6 +187,8 @@ class WeightedExpert(torch.nn.Module):
         keep = w > 0
         if not bool(keep.any()):
             raise InputError("every weight is zero; at least one sample must have weight > 0.")
+        if self.auto_noise_floor:
+            self.noise_floor.copy_(training_noise_floor("auto", y))
         x, y, w = x[keep], y[keep], w[keep]
         self.x_scaler.fit(x, w)
         self.y_scaler.fit(y, w)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -11,7 +12,7 @@ from torch.distributions import Normal
 
 from probaff._checks import check_count
 from probaff.errors import InputError, NotFittedError
-from probaff.models.expert_base import noise_floor_vector, out_of_sample
+from probaff.models.expert_base import noise_floor_vector, out_of_sample, training_noise_floor
 from probaff.models.expert_batch import (
     fit_exact_experts,
     predict_exact_experts,
@@ -21,7 +22,7 @@ from probaff.models.gate import GATE_KINDS, make_gate
 from probaff.models.gate_penalty import check_strength
 from probaff.models.gated import ExpertList, GatedMixture, gated_probs, mixture_distribution
 from probaff.models.gp_expert import GPExpert
-from probaff.models.options import check_hyper_rows, check_lengthscale_prior
+from probaff.models.options import MIXTURE_GP, GPOptions, SparseGPOptions, check_hyper_rows
 from probaff.models.point import (
     MIN_STACK_ROWS,
     POINT_KINDS,
@@ -40,15 +41,13 @@ from probaff.models.tensors import as_matrix, training_rows
 __all__ = [
     "AUTO_SPARSE_ABOVE",
     "EXPERT_KINDS",
+    "FLAT_GP_KEYWORDS",
     "AnyGPExpert",
     "MixtureOfGPExperts",
     "gated_probs",
     "mixture_distribution",
     "training_data",
 ]
-
-# Noise floor of `noise_floor="auto"`, as a fraction of each effect's standard deviation.
-_AUTO_NOISE_FLOOR = 0.01
 
 _NOT_FITTED = "MixtureOfGPExperts is not fitted; call probaff.models.fit_em(model, X, Y) first."
 
@@ -62,6 +61,32 @@ Measured on `probaff.models.synthetic.regime_features` (D = 101, E = 6, one thre
 expert's fit with 256 inducing points is slower than the exact one on 500 weighted samples
 and faster on 1,000 (with the same held-out density), and an expert of a 3-expert mixture
 holds about a third to a half of the rows once EM has separated the regimes."""
+
+FLAT_GP_KEYWORDS = {
+    "gp_max_iter": "max_iter",
+    "lengthscale_prior": "lengthscale_prior",
+    "noise_floor": "noise_floor",
+}
+"""The experts' settings a `MixtureOfGPExperts` once took one by one, each to its field of
+`GPOptions`: the keywords it now refuses, and the keys of files saved before ``gp``."""
+
+
+def _check_gp(gp: Any) -> GPOptions:
+    """`gp`, or `MIXTURE_GP` for None; `InputError` for anything but a `GPOptions`.
+
+    A `SparseGPOptions` is refused too: a mixture's sparse experts take `n_inducing` and
+    `hyper_rows` from the mixture.
+    """
+    if gp is None:
+        return MIXTURE_GP
+    if type(gp) is not GPOptions:
+        raise InputError(
+            f"gp must be GPOptions (the experts' settings, e.g. GPOptions(max_iter=20, "
+            f"lengthscale_prior=True, noise_floor='auto')) or None, got {type(gp).__name__}; "
+            "give a mixture's sparse experts n_inducing and hyper_rows as its own arguments."
+        )
+    return gp
+
 
 AnyGPExpert = GPExpert | SparseGPExpert
 """An expert of a `MixtureOfGPExperts`: exact (`GPExpert`) or sparse (`SparseGPExpert`)."""
@@ -117,16 +142,18 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
             `probaff.models.synthetic.regime_features` (D = 101, two columns set the
             regime, M = 3) the lasso raised the gate's held-out accuracy from 63 % to 91 %
             at N = 250 and from 81 % to 95 % at N = 500. 0 is the ridge alone.
-        gp_max_iter: L-BFGS iterations per expert fit.
-        lengthscale_prior: Give the experts' length scales the dimension-scaled log-normal
-            prior (default; see `GPExpert`); a number > 0 sets its width (`GPOptions`).
-            Without it, a mixture of 3 experts on 250 rows of 101 features predicted
-            held-out rows with NLPD 4.7 against 1.3 with it
-            (`probaff.models.synthetic.regime_features`).
-        noise_floor: Smallest observation-noise standard deviation of every expert, in
-            effect units: ``"auto"`` (default) is 1 % of each effect's standard deviation
-            over the training set; a scalar or one value per effect sets it (for data from
-            a sensor, its measurement noise); ``None`` is no floor. See `GPExpert`.
+        gp: The experts' settings, whole (`GPOptions`: ``max_iter``, L-BFGS iterations per
+            expert fit; ``lengthscale_prior``, the dimension-scaled log-normal prior on the
+            length scales or its width; ``noise_floor``, the smallest observation-noise
+            standard deviation of every expert in effect units: ``"auto"`` is 1 % of each
+            effect's standard deviation over the mixture's training set, a scalar or one
+            value per effect sets it (for data from a sensor, its measurement noise), None
+            is no floor; ``outputscale`` and ``noise``, the initial variances). None for
+            `MIXTURE_GP`, ``GPOptions(lengthscale_prior=True, noise_floor="auto")`` (50
+            iterations), which differs from a single `GPExpert`'s `GPOptions()` (no prior, no
+            floor): to change one setting, replace it in the default, e.g.
+            ``gp=dataclasses.replace(MIXTURE_GP, max_iter=20)``. Sparse experts get these
+            settings with `n_inducing` and `hyper_rows`.
         experts: ``"exact"`` (`GPExpert`: :math:`O(N^3)` time and :math:`O(N^2)` memory per
             M-step), ``"sparse"`` (`SparseGPExpert`: the weighted collapsed bound with
             `n_inducing` inducing points, :math:`O(N m^2)` time and :math:`O(N m)` memory),
@@ -149,9 +176,11 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
 
     Raises:
         InputError: If a selection names an unknown group, `n_experts` is not positive,
-            `experts` is not a known kind, `n_inducing` or `hyper_rows` is not a
-            positive integer, `hyper_rows` is below the inducing points
-            (`probaff.models.options.check_hyper_rows`), or `point` is not a known kind.
+            `gp` is not a `GPOptions` (or one of the old keywords ``gp_max_iter``,
+            ``lengthscale_prior``, ``noise_floor`` is given), `experts` is not a known kind,
+            `n_inducing` or `hyper_rows` is not a positive integer, `hyper_rows` is below
+            the inducing points (`probaff.models.options.check_hyper_rows`), or `point` is
+            not a known kind.
 
     Example:
         Three regimes that inputs 0 and 1 decide
@@ -160,7 +189,7 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         >>> from probaff.models import MixtureOfGPExperts, fit_em
         >>> from probaff.models.synthetic import softmax_regimes
         >>> x, y, _ = softmax_regimes(60, seed=0)  # (60, 4) features, (60, 2) effects
-        >>> model = MixtureOfGPExperts(3, gate_features=[0, 1])
+        >>> model = MixtureOfGPExperts(3, gate_features=[0, 1])  # gp=MIXTURE_GP
         >>> _ = fit_em(model, x, y, init="joint", n_restarts=1, split_merge=0, max_iter=3)
         >>> pred = model.predict(x[:4])  # a torch MixtureSameFamily per row
         >>> tuple(pred.batch_shape), tuple(pred.event_shape)
@@ -178,31 +207,23 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         gate: str = "linear",
         gate_l2: float | str = "cv",
         gate_l1: float | str = "cv",
-        gp_max_iter: int = 50,
-        lengthscale_prior: bool | float = True,
-        noise_floor: float | Sequence[float] | str | None = "auto",
+        gp: GPOptions | None = None,
         experts: str = "auto",
         n_inducing: int | None = None,
         hyper_rows: int | None = 2048,
         point: str = "mean",
         **columns: Any,
     ) -> None:
+        old = sorted(set(columns) & set(FLAT_GP_KEYWORDS))
+        if old:
+            fields = ", ".join(f"{FLAT_GP_KEYWORDS[k]}=..." for k in old)
+            raise InputError(
+                f"MixtureOfGPExperts takes its experts' settings as one GPOptions: use "
+                f"gp=GPOptions({fields}) instead of {', '.join(old)}."
+            )
         super().__init__(n_experts, gate_l2=gate_l2, **columns)
         self.gate_l1: float | str = check_strength("gate_l1", gate_l1)
-        check_count("gp_max_iter", gp_max_iter)
-        if isinstance(noise_floor, str) and noise_floor != "auto":
-            raise InputError(
-                f"noise_floor must be 'auto', None, or standard deviations, got {noise_floor!r}."
-            )
-        if not isinstance(noise_floor, str):
-            noise_floor_vector(
-                noise_floor, 1 if noise_floor is None else torch.as_tensor(noise_floor).numel()
-            )
-        self.noise_floor = (
-            noise_floor
-            if noise_floor is None or isinstance(noise_floor, str)
-            else [float(v) for v in torch.as_tensor(noise_floor).flatten()]
-        )
+        self.gp = _check_gp(gp)
         if gate not in GATE_KINDS:
             raise InputError(f"gate must be one of {list(GATE_KINDS)}, got {gate!r}.")
         self.gate_kind = gate
@@ -220,20 +241,22 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
                 "squared-error point prediction, 'mean' for the mixture's predictive mean."
             )
         self.point = point
-        self._expert_settings: dict[str, Any] = {}
+        self._expert_options: GPOptions = self.gp
         self.point_expert: AnyGPExpert | None = None
         self.register_buffer("point_weights", None)
         self.point_weights: Tensor | None
         self.built_expert_kind: str | None = None
-        self.gp_max_iter = int(gp_max_iter)
-        self.lengthscale_prior = check_lengthscale_prior(lengthscale_prior)
         self.train_X: Tensor | None = None
         self.train_Y: Tensor | None = None
         self._train_weights: Tensor | None = None
 
     # ----------------------------------------------------------------- config
     def config(self) -> dict[str, Any]:
-        """Constructor arguments as builtins; groups are resolved once `n_features` is known."""
+        """Constructor arguments: ``MixtureOfGPExperts(**model.config())`` rebuilds the model.
+
+        Builtins, except ``gp``, the experts' `GPOptions` whole (`save` stores its fields);
+        groups are resolved once `n_features` is known.
+        """
         base = super().config()
         return {
             "n_experts": base["n_experts"],
@@ -243,9 +266,7 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
             "gate": self.gate_kind,
             "gate_l2": base["gate_l2"],
             "gate_l1": self.gate_l1,
-            "gp_max_iter": self.gp_max_iter,
-            "lengthscale_prior": self.lengthscale_prior,
-            "noise_floor": self.noise_floor,
+            "gp": self.gp,
             "experts": self.expert_kind,
             "n_inducing": self.n_inducing,
             "hyper_rows": self.hyper_rows,
@@ -287,8 +308,8 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         Args:
             n_features: Columns `D` of the feature matrix.
             n_outputs: Effect dimensions `E`.
-            noise_floor: The experts' noise floor in effect units, `(E,)`; defaults to the
-                constructor's value (``"auto"`` then means no floor until `check_data`
+            noise_floor: The experts' noise floor in effect units, `(E,)`; defaults to
+                ``gp.noise_floor`` (``"auto"`` then means no floor until `check_data`
                 resolves it from the training data).
             n_samples: Training rows `N`: resolves ``experts="auto"`` (see
                 `resolve_expert_kind`) and is checked against `n_inducing` and the memory
@@ -300,11 +321,8 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
                 `check_fit_memory`).
         """
         if noise_floor is None:
-            noise_floor = (
-                torch.zeros(n_outputs, dtype=torch.float64)
-                if self.noise_floor is None or isinstance(self.noise_floor, str)
-                else noise_floor_vector(self.noise_floor, n_outputs)
-            )
+            floor = self.gp.noise_floor  # "auto" is resolved by `check_data`
+            noise_floor = noise_floor_vector(None if isinstance(floor, str) else floor, n_outputs)
         kind = self.resolve_expert_kind(n_samples)
         self.resolve_columns(n_features)
         if n_samples is not None:
@@ -313,30 +331,39 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         self.gate = make_gate(
             self.gate_kind, len(self.gate_columns), self.n_experts, l2=self.gate_l2, l1=self.gate_l1
         )
-        settings: dict[str, Any] = {
-            "max_iter": self.gp_max_iter,
-            "lengthscale_prior": self.lengthscale_prior,
-            "noise_floor": noise_floor,
-        }
         self.built_expert_kind = kind
-        self._expert_settings = settings
+        self._expert_options = self.expert_options(kind, noise_floor)
         self.experts = ExpertList(self.new_expert() for _ in range(self.n_experts))
         self.point_expert = None
         self.point_weights = None
+
+    def expert_options(self, kind: str, noise_floor: Tensor) -> GPOptions:
+        """The settings every expert of a build gets: `gp` with its noise floor resolved.
+
+        Args:
+            kind: ``"exact"`` or ``"sparse"``.
+            noise_floor: The noise floor in effect units, `(E,)`.
+
+        Returns:
+            ``gp`` with `noise_floor` in place of its own; for sparse experts, as a
+            `SparseGPOptions` with the mixture's `n_inducing` and `hyper_rows`.
+        """
+        floor = tuple(float(v) for v in noise_floor.flatten())
+        options = dataclasses.replace(self.gp, noise_floor=floor)
+        if kind != "sparse":
+            return options
+        shared = {f.name: getattr(options, f.name) for f in dataclasses.fields(GPOptions)}
+        return SparseGPOptions(**shared, n_inducing=self.n_inducing, hyper_rows=self.hyper_rows)
 
     def new_expert(self) -> AnyGPExpert:
         """A fresh, unfitted expert of the kind and settings of the last `build`."""
         d_e, n_outputs = len(self.expert_columns), self.n_outputs
         assert n_outputs is not None, "build the mixture first"
+        options = self._expert_options
         if self.built_expert_kind == "sparse":
-            return SparseGPExpert(
-                d_e,
-                n_outputs,
-                n_inducing=self.n_inducing,
-                hyper_rows=self.hyper_rows,
-                **self._expert_settings,
-            )
-        return GPExpert(d_e, n_outputs, **self._expert_settings)
+            assert isinstance(options, SparseGPOptions)
+            return SparseGPExpert(d_e, n_outputs, options)
+        return GPExpert(d_e, n_outputs, options)
 
     def resolve_expert_kind(self, n_samples: int | None) -> str:
         """The kind of expert (``"exact"`` or ``"sparse"``) a fit on `n_samples` rows builds.
@@ -421,12 +448,12 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         return x, y
 
     def resolve_noise_floor(self, Y: Tensor) -> Tensor:
-        """The experts' noise floor for training effects `Y: (N, E)`, in effect units, `(E,)`."""
-        if self.noise_floor is None:
-            return torch.zeros(Y.shape[1], dtype=torch.float64)
-        if isinstance(self.noise_floor, str):
-            return _AUTO_NOISE_FLOOR * Y.std(dim=0, correction=0)
-        return noise_floor_vector(self.noise_floor, Y.shape[1])
+        """The experts' noise floor for training effects `Y: (N, E)`, in effect units, `(E,)`.
+
+        ``gp.noise_floor="auto"`` is 1 % of each effect's standard deviation over every row
+        of `Y` (`probaff.models.expert_base.training_noise_floor`).
+        """
+        return training_noise_floor(self.gp.noise_floor, Y)
 
     # --------------------------------------------------------------- fitting
     def fit_experts(
@@ -449,7 +476,7 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
             X: Features, `(N, D)`.
             Y: Effects, `(N, E)`.
             weights: Non-negative weight of each sample for each expert, `(N, M)`.
-            max_iter: L-BFGS iterations per expert; defaults to `gp_max_iter`.
+            max_iter: L-BFGS iterations per expert; defaults to ``gp.max_iter``.
             only: Refit these experts only; the others keep their hyperparameters and are
                 conditioned on their column of `weights` (a partial M-step). None: all.
         """

@@ -26,7 +26,9 @@ from probaff.errors import InputError
 from probaff.models.initialization import check_initialization
 
 __all__ = [
+    "AUTO_NOISE_FLOOR",
     "DEFAULT_N_INDUCING",
+    "MIXTURE_GP",
     "NOISE_BOUNDS",
     "OUTPUTSCALE_BOUNDS",
     "EMOptions",
@@ -54,6 +56,10 @@ output for 4.4 times the time, which would put the fit past five minutes."""
 
 NOISE_BOUNDS = (1e-6, 1e2)
 """Open interval of a GP's observation-noise variance, in standardised output units."""
+
+AUTO_NOISE_FLOOR = 0.01
+"""The noise floor of ``GPOptions(noise_floor="auto")``, as a fraction of each output's
+standard deviation over the training targets."""
 
 OptionsT = TypeVar("OptionsT")
 
@@ -175,7 +181,7 @@ class EMOptions:
             below ``1 / n_experts``, checked by the fit).
         min_size: Minimum summed responsibility of an expert before it is repaired, >= 0.
         gp_max_iter: L-BFGS iterations of the first M-step of a cold start; None for the
-            model's `gp_max_iter`.
+            model's ``gp.max_iter`` (its experts' `GPOptions`).
         warm_max_iter: L-BFGS iterations of later M-steps (and of every M-step of a grown
             start), warm-started from the previous hyperparameters.
         anneal: Temper the E-step (deterministic annealing).
@@ -311,17 +317,18 @@ def _check_inside(name: str, value: Any, bounds: tuple[float, float]) -> float:
     return v
 
 
-def _check_noise_floor(noise_floor: Any) -> float | tuple[float, ...] | None:
-    """None, or finite non-negative standard deviation(s): one float or a tuple of them."""
-    if noise_floor is None:
-        return None
+def _check_noise_floor(noise_floor: Any) -> float | tuple[float, ...] | str | None:
+    """None, ``"auto"``, or finite non-negative standard deviation(s): a float or a tuple."""
+    if noise_floor is None or (isinstance(noise_floor, str) and noise_floor == "auto"):
+        return noise_floor
     try:
         floor = torch.as_tensor(noise_floor, dtype=torch.float64)
     except (TypeError, ValueError, RuntimeError):
         floor = None
     if floor is None or isinstance(noise_floor, str):
         raise InputError(
-            f"noise_floor must be None or non-negative standard deviations, got {noise_floor!r}."
+            f"noise_floor must be 'auto', None or non-negative standard deviations, got "
+            f"{noise_floor!r}."
         )
     check_finite("noise_floor", floor)
     if bool((floor < 0).any()):
@@ -336,7 +343,11 @@ def _check_noise_floor(noise_floor: Any) -> float | tuple[float, ...] | None:
 
 @dataclass(frozen=True)
 class GPOptions:
-    """Settings of an exact `GPExpert` and its fit.
+    """Settings of an exact `GPExpert` and its fit (and of the experts of a mixture).
+
+    The defaults are a single `GPExpert`'s. A `MixtureOfGPExperts` takes its experts' settings
+    as one `GPOptions` too; its default is `MIXTURE_GP`
+    (``GPOptions(lengthscale_prior=True, noise_floor="auto")``).
 
     Attributes:
         max_iter: L-BFGS iterations per call to `GPExpert.fit`.
@@ -344,7 +355,12 @@ class GPOptions:
             False, True (at `probaff.models.kernels.LENGTHSCALE_PRIOR_SCALE`) or its width
             (the standard deviation of the log length scales).
         noise_floor: Smallest observation-noise standard deviation, in output units: None
-            (no floor), one value, or one value per output `(E,)` (stored as a tuple).
+            (no floor), one value, one value per output `(E,)` (stored as a tuple), or
+            ``"auto"``: `AUTO_NOISE_FLOOR` (1 %) of each output's standard deviation over
+            the training targets. A `GPExpert` resolves ``"auto"`` from the targets of each
+            `fit` or `condition` (every row given, whatever its weight); a
+            `MixtureOfGPExperts` resolves it once from its whole training set and gives its
+            experts the numbers.
         outputscale: Initial signal variance, inside `OUTPUTSCALE_BOUNDS`.
         noise: Initial observation-noise variance, inside `NOISE_BOUNDS`.
 
@@ -354,7 +370,7 @@ class GPOptions:
 
     max_iter: int = 50
     lengthscale_prior: bool | float = False
-    noise_floor: float | Sequence[float] | None = None
+    noise_floor: float | Sequence[float] | str | None = None
     outputscale: float = 1.0
     noise: float = 0.1
 
@@ -366,6 +382,18 @@ class GPOptions:
         outputscale = _check_inside("outputscale", self.outputscale, OUTPUTSCALE_BOUNDS)
         _set(self, "outputscale", outputscale)
         _set(self, "noise", _check_inside("noise", self.noise, NOISE_BOUNDS))
+
+
+MIXTURE_GP = GPOptions(lengthscale_prior=True, noise_floor="auto")
+"""The experts' settings of a `MixtureOfGPExperts` given no ``gp``.
+
+50 L-BFGS iterations per expert fit, the dimension-scaled log-normal length-scale prior at its
+default width, a noise floor of 1 % of each effect's standard deviation over the mixture's
+training set (``"auto"``, resolved once per fit from the whole training set, not from each
+expert's weighted share), and `GPOptions`' initial signal and noise variances. They differ
+from a single `GPExpert`'s defaults (`GPOptions()`: no prior, no floor): without the prior, a
+mixture of 3 experts on 250 rows of 101 features predicted held-out rows with NLPD 4.7
+against 1.3 with it (`probaff.models.synthetic.regime_features`)."""
 
 
 def check_hyper_rows(hyper_rows: Any, n_inducing: int | None) -> int | None:

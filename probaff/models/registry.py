@@ -29,8 +29,9 @@ from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
 from probaff._checks import check_count
+from probaff._registry import Registry
 from probaff.errors import InputError
-from probaff.models.options import check_lengthscale_prior
+from probaff.models.options import GPOptions
 
 __all__ = [
     "Codec",
@@ -73,10 +74,12 @@ class ModelSettings:
         experts: Feature groups the experts read; None for every column.
         seed: Seed of the model (where its constructor takes one) and of its fit (where its
             options have a ``seed``), an integer >= 0.
-        lengthscale_prior: Give the GP experts' length scales the dimension-scaled
-            log-normal prior; True puts it at the default width, a number > 0 at that
-            width (`GPOptions`).
-        gp_max_iter: L-BFGS iterations per GP expert fit; None for the kind's default.
+        gp: The GP experts' settings, whole (`GPOptions`: L-BFGS iterations, length-scale
+            prior, noise floor, initial variances), handed to the model's constructor as
+            they are; None for the kind's default (``"em"``:
+            `probaff.models.options.MIXTURE_GP`, the prior on and a noise floor of 1 % of
+            each effect's standard deviation; ``"clustered"``: `GPOptions()`). Kinds without
+            GP experts of these settings (``"svi"``) refuse a `GPOptions`.
         fit: The kind's fitting options, whole (an instance of its `options_type`, e.g. a
             study's `EMOptions`), or overrides of its defaults (e.g. ``{"max_iter": 10}``
             for EM); applied by `ModelKind.fit_new`.
@@ -90,8 +93,7 @@ class ModelSettings:
     gate: tuple[str, ...] | None = None
     experts: tuple[str, ...] | None = None
     seed: int = 0
-    lengthscale_prior: bool | float = False
-    gp_max_iter: int | None = None
+    gp: GPOptions | None = None
     fit: Any = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -99,11 +101,13 @@ class ModelSettings:
         set_ = object.__setattr__
         set_(self, "n_experts", check_count("n_experts", self.n_experts))
         set_(self, "seed", check_count("seed", self.seed, minimum=0))
-        if self.gp_max_iter is not None:
-            set_(self, "gp_max_iter", check_count("gp_max_iter", self.gp_max_iter))
         set_(self, "gate", _names(self.gate, "gate"))
         set_(self, "experts", _names(self.experts, "experts"))
-        set_(self, "lengthscale_prior", check_lengthscale_prior(self.lengthscale_prior))
+        if self.gp is not None and type(self.gp) is not GPOptions:
+            raise InputError(
+                f"gp must be GPOptions (e.g. GPOptions(max_iter=20, lengthscale_prior=True)) "
+                f"or None for the kind's default, got {type(self.gp).__name__}."
+            )
         if self.groups is not None and not isinstance(self.groups, Mapping):
             raise InputError(f"groups must map group names to columns, got {self.groups!r}.")
         if dataclasses.is_dataclass(self.fit) and not isinstance(self.fit, type):
@@ -258,11 +262,11 @@ class ModelKind:
         return model
 
 
-_KINDS: dict[str, ModelKind] = {}
+_KINDS: Registry[ModelKind] = Registry("model kind", ModelKind, "unregister_model_kind")
 
 
 def register_model_kind(kind: ModelKind) -> ModelKind:
-    """Register `kind` (replacing any kind of the same name).
+    """Register `kind` under its name.
 
     Args:
         kind: The kind to register.
@@ -271,23 +275,23 @@ def register_model_kind(kind: ModelKind) -> ModelKind:
         `kind`.
 
     Raises:
-        InputError: If `kind` is not a `ModelKind`, or its class or format is already
-            another registered kind's.
+        InputError: If `kind` is not a `ModelKind`, its name is taken (remove the old kind
+            with `unregister_model_kind` first), or its class or format is already another
+            registered kind's.
     """
     if not isinstance(kind, ModelKind):
         raise InputError(f"register_model_kind takes a ModelKind, got {type(kind).__name__}.")
     tag = None if kind.codec is None else kind.codec.format
     for other in _KINDS.values():
         if other.name == kind.name:
-            continue
+            continue  # the registry refuses the taken name
         if kind.model_class is not None and other.model_class is kind.model_class:
             raise InputError(
                 f"{kind.model_class.__name__} is already the class of model kind {other.name!r}."
             )
         if tag is not None and other.codec is not None and other.codec.format == tag:
             raise InputError(f"format {tag!r} is already model kind {other.name!r}'s.")
-    _KINDS[kind.name] = kind
-    return kind
+    return _KINDS.add(kind)
 
 
 def unregister_model_kind(name: str) -> ModelKind:
@@ -296,18 +300,12 @@ def unregister_model_kind(name: str) -> ModelKind:
     Raises:
         InputError: For an unknown name.
     """
-    kind = model_kind(name)
-    del _KINDS[kind.name]
-    return kind
+    return _KINDS.remove(name)
 
 
 def model_kinds() -> dict[str, ModelKind]:
     """Every registered kind, by name (a copy)."""
-    return dict(_KINDS)
-
-
-def _known() -> str:
-    return ", ".join(repr(k) for k in sorted(_KINDS))
+    return {kind.name: kind for kind in _KINDS.values()}
 
 
 def model_kind(name_or_model: Any) -> ModelKind:
@@ -326,12 +324,7 @@ def model_kind(name_or_model: Any) -> ModelKind:
         InputError: For an unknown name, or a model of no registered class.
     """
     if isinstance(name_or_model, str):
-        try:
-            return _KINDS[name_or_model]
-        except KeyError:
-            raise InputError(
-                f"unknown model kind {name_or_model!r}; known kinds: {_known()}."
-            ) from None
+        return _KINDS.get(name_or_model)
     by_class = {k.model_class: k for k in _KINDS.values() if k.model_class is not None}
     for cls in type(name_or_model).__mro__:
         if cls in by_class:

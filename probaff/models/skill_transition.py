@@ -17,7 +17,7 @@ from probaff.errors import InputError, NotFittedError
 from probaff.models.em import fit_em
 from probaff.models.gp_expert import GPExpert
 from probaff.models.mixture import MixtureOfGPExperts
-from probaff.models.options import EMOptions
+from probaff.models.options import EMOptions, GPOptions
 from probaff.models.tensors import as_matrix
 from probaff.models.transition_base import (
     COMPONENTS,
@@ -194,12 +194,13 @@ class SkillTransitionModel(TransitionBase):
                 outputscale=self.outputscale,
                 noise=self.noise,
             )
-        return MixtureOfGPExperts(
-            self.n_experts,
-            gp_max_iter=self.gp_max_iter,
+        # The mixture's experts keep GPOptions' initial variances (not the GP component's).
+        gp = GPOptions(
+            max_iter=self.gp_max_iter,
             lengthscale_prior=self.lengthscale_prior,
             noise_floor=self.noise_floor,
         )
+        return MixtureOfGPExperts(self.n_experts, gp=gp)
 
     def check_data(self, X: Any, Y: Any, R: Any = None) -> tuple[Tensor, Tensor, Tensor | None]:
         """Validate a training set and (re)build the components for its sizes.

@@ -26,13 +26,13 @@ from sklearn.pipeline import Pipeline
 from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from probaff._checks import as_float_array
+from probaff._checks import as_float_array, check_count
 from probaff._threads import threads_by_rows
 from probaff.errors import InputError, NotFittedError
 from probaff.models.em import fit_em
 from probaff.models.em_run import EMHistory
 from probaff.models.mixture import MixtureOfGPExperts
-from probaff.models.options import EMOptions
+from probaff.models.options import EMOptions, GPOptions
 
 __all__ = [
     "EstimatorNotFittedError",
@@ -51,13 +51,16 @@ _MIXTURE_ARGS = (
     "groups",
     "gate_features",
     "expert_features",
-    "gp_max_iter",
-    "lengthscale_prior",
-    "noise_floor",
     "experts",
     "n_inducing",
     "point",
 )
+# The estimator's flat arguments (scikit-learn's convention) -> the experts' `GPOptions` field.
+_GP_ARGS = {
+    "gp_max_iter": "max_iter",
+    "lengthscale_prior": "lengthscale_prior",
+    "noise_floor": "noise_floor",
+}
 _EM_ARGS = ("n_restarts", "screen_iter", "split_merge", "max_iter", "tol", "n_init", "anneal")
 
 
@@ -112,13 +115,16 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
         gate_features: Columns of `X` the gate sees: None (all), group name(s) or column
             indices.
         expert_features: Columns of `X` every expert sees, in the same forms.
-        gp_max_iter: L-BFGS iterations of an expert's first fit.
+        gp_max_iter: L-BFGS iterations of an expert's first fit (``GPOptions.max_iter``).
         lengthscale_prior: Give the experts' length scales the dimension-scaled log-normal
             prior (default, as in `MixtureOfGPExperts`); True puts it at the default width,
             a number > 0 at that width (`GPOptions`).
         noise_floor: Smallest noise standard deviation of every expert, in target units:
             ``"auto"`` (1 % of each target's standard deviation), one value, one per target,
-            or None.
+            or None. These three are flat, as scikit-learn's `get_params` / `set_params`
+            (and so `GridSearchCV`) need; the defaults are those of
+            `probaff.models.options.MIXTURE_GP`, and `fit` hands the mixture one `GPOptions`
+            of them (`gp_options`).
         experts: ``"auto"``, ``"exact"`` or ``"sparse"`` GP experts (see
             `MixtureOfGPExperts`).
         n_inducing: Inducing points of sparse experts; None for the default.
@@ -268,7 +274,19 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
             InputError: For an unknown gate or feature group, or a value out of range.
         """
         mixture = {name: getattr(self, name) for name in _MIXTURE_ARGS}
-        return MixtureOfGPExperts(self.n_experts, **mixture)
+        return MixtureOfGPExperts(self.n_experts, **mixture, gp=self.gp_options())
+
+    def gp_options(self) -> GPOptions:
+        """The experts' settings of a fit: `gp_max_iter`, `lengthscale_prior`, `noise_floor`.
+
+        Returns:
+            One `GPOptions` (its other fields `GPOptions`' defaults, as `MIXTURE_GP`'s).
+
+        Raises:
+            InputError: Naming the first argument out of range.
+        """
+        check_count("gp_max_iter", self.gp_max_iter)
+        return GPOptions(**{field: getattr(self, arg) for arg, field in _GP_ARGS.items()})
 
     # -------------------------------------------------------------------- fit
     @threads_by_rows("X")

@@ -90,8 +90,7 @@ def _start(
         groups=model.groups,
         gate_features=model.gate_features,
         expert_features=model.expert_features,
-        lengthscale_prior=True,
-    )
+    )  # the experts' default settings, MIXTURE_GP (the length-scale prior on)
     fit_em(exact, x[rows], y[rows], init=init, n_init=n_init, seed=seed)
     return torch.softmax(exact.log_joint(x, y), dim=1), exact
 
@@ -247,10 +246,10 @@ def _restore(payload: dict[str, Any]) -> VariationalMixtureOfGPExperts:
 
 
 def _build(settings: ModelSettings) -> VariationalMixtureOfGPExperts:
-    if settings.lengthscale_prior or settings.gp_max_iter is not None:
+    if settings.gp is not None:
         raise InputError(
             "a VariationalMixtureOfGPExperts has sparse experts without a length-scale prior "
-            "or L-BFGS iterations; leave lengthscale_prior and gp_max_iter unset."
+            "or L-BFGS iterations; leave gp unset."
         )
     return VariationalMixtureOfGPExperts(settings.n_experts, **settings.columns())
 

@@ -41,7 +41,7 @@ from probaff.errors import InputError
 from probaff.features.ch4 import chapter4_features
 from probaff.features.ch5 import chapter5_features
 from probaff.features.featureset import FeatureSet
-from probaff.models import EMOptions, ModelSettings, model_kind
+from probaff.models import MIXTURE_GP, EMOptions, GPOptions, ModelSettings, model_kind
 from probaff.planning.learned import FeaturePushModel
 from probaff.planning.push_to_edge.episode import EDGE_SEARCHES
 from probaff.planning.push_to_edge.task import EdgeTask
@@ -87,12 +87,15 @@ class EdgeModelSpec:
         n_experts: M (or m clusters).
         gate: Feature groups of the gate (empty for a kind whose gate reads every column).
         experts: Feature groups of the experts.
+        gp: The GP experts' settings, whole (`ModelSettings.gp`); None for the kind's
+            default.
     """
 
     kind: str
     n_experts: int
     gate: tuple[str, ...]
     experts: tuple[str, ...]
+    gp: GPOptions | None = None
 
     @property
     def groups(self) -> tuple[str, ...]:
@@ -100,12 +103,16 @@ class EdgeModelSpec:
         return tuple(g for g in ("f_o", "f_c", "f_x") if g in (*self.gate, *self.experts))
 
 
+_EDGE_MIXTURE_GP = replace(MIXTURE_GP, lengthscale_prior=EDGE_PRIOR_WIDTH)
+_EDGE_CLUSTERED_GP = GPOptions(lengthscale_prior=EDGE_PRIOR_WIDTH)
+
 EDGE_MODELS: dict[str, EdgeModelSpec] = {
-    "gp": EdgeModelSpec("em", 1, ("f_o", "f_c"), ("f_o", "f_c")),
-    "moe": EdgeModelSpec("em", 2, ("f_x",), ("f_o", "f_c")),
-    "clustered": EdgeModelSpec("clustered", 2, (), ("f_o", "f_c")),
+    "gp": EdgeModelSpec("em", 1, ("f_o", "f_c"), ("f_o", "f_c"), _EDGE_MIXTURE_GP),
+    "moe": EdgeModelSpec("em", 2, ("f_x",), ("f_o", "f_c"), _EDGE_MIXTURE_GP),
+    "clustered": EdgeModelSpec("clustered", 2, (), ("f_o", "f_c"), _EDGE_CLUSTERED_GP),
 }
-"""The planner models, by name."""
+"""The planner models, by name: each kind's default GP settings (`MIXTURE_GP`, `GPOptions()`)
+with the prior at `EDGE_PRIOR_WIDTH`."""
 
 
 @dataclass(frozen=True)
@@ -238,10 +245,10 @@ def fit_edge_model(
         gate=spec.gate,
         experts=spec.experts,
         seed=seed,
+        gp=spec.gp,
         fit=em if kind.options_type is EMOptions else {},
     )
     Y = np.asarray(ds["effect"][:, 0], dtype=float)
-    settings = replace(settings, lengthscale_prior=EDGE_PRIOR_WIDTH)
     fitted = _fit(kind.name, settings, "ch4", chapter4_features(ds), spec.groups, Y, ds)
     if cloud_points is None and cloud_noise is None:
         return fitted
@@ -258,7 +265,7 @@ def fit_tool_push_model(
     n_experts: int = 3,
     groups: tuple[str, ...] = ("f_o", "f_c"),
     em: EMOptions | None = None,
-    gp_max_iter: int = 50,
+    gp: GPOptions | None = None,
     seed: int = 0,
 ) -> FeaturePushModel:
     """Fit chapter 5's mixture of GP experts on two-object pushes, for the tool-push planner.
@@ -272,7 +279,9 @@ def fit_tool_push_model(
         groups: Chapter-5 feature groups, e.g. ``("f_o", "f_c")``.
         em: The EM options, whole (e.g. a study's ``config.em``); None for `EMOptions()`
             (10 iterations, 3 starts).
-        gp_max_iter: L-BFGS iterations per expert fit.
+        gp: The experts' settings, whole (`GPOptions`); None for `MIXTURE_GP` (50 L-BFGS
+            iterations per expert fit, the length-scale prior at its default width, a noise
+            floor of 1 % of each effect's standard deviation).
         seed: Seed of the fit (it replaces `em`'s seed).
 
     Returns:
@@ -280,7 +289,7 @@ def fit_tool_push_model(
 
     Raises:
         InputError: If `ds` holds fewer than two objects per push, for bad counts, or for
-            `em` that is not `EMOptions`.
+            `em` that is not `EMOptions` or `gp` that is not `GPOptions`.
     """
     if not isinstance(ds, PushDataset) or ds["effect"].shape[1] < _N_TOOL_OBJECTS:
         raise InputError(
@@ -288,7 +297,6 @@ def fit_tool_push_model(
         )
     n_experts = check_count("n_experts", n_experts)
     em = _check_em(em)
-    gp_max_iter = check_count("gp_max_iter", gp_max_iter)
     check_count("seed", seed, minimum=0)
     groups = (groups,) if isinstance(groups, str) else tuple(groups)
     fs = chapter5_features(ds)
@@ -301,8 +309,7 @@ def fit_tool_push_model(
     settings = ModelSettings(
         n_experts,
         seed=seed,
-        gp_max_iter=gp_max_iter,
-        lengthscale_prior=True,
+        gp=gp,  # None: the mixture's default, MIXTURE_GP
         fit=em,
     )
     return _fit("em", settings, "ch5", fs, groups, Y, ds)
@@ -331,7 +338,7 @@ def _fit(
     """A model of the registered `kind`, fitted on the columns `groups` of `fs` and on `Y`.
 
     `fs` is the feature set `features` of `ds`. The model reads the named column groups
-    (``settings.groups`` is set here) with the settings' length-scale prior, and joins the
+    (``settings.groups`` is set here) with the settings' GP options, and joins the
     features it reads (`FeaturePushModel.for_dataset`).
     """
     offsets, start = {}, 0

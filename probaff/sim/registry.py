@@ -24,13 +24,13 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Generic, Protocol, TypeVar
+from typing import Any
 
 import numpy as np
 
 from probaff._checks import check_count
+from probaff._registry import Registry
 from probaff.errors import ConfigError, InputError
-from probaff.sim.inputs import check_type
 from probaff.sim.office import sample_office_scene
 from probaff.sim.office_config import load_office
 from probaff.sim.sideview import simulate_sideview
@@ -44,7 +44,6 @@ from probaff.sim.warehouse_config import load_warehouse
 from probaff.sim.world_files import scene_names, worlds_dir
 
 __all__ = [
-    "Registry",
     "SceneRows",
     "UnknownSceneError",
     "WorldKind",
@@ -184,80 +183,15 @@ class WorldKind:
         return str(getattr(self.load_scene(scene), "description", ""))
 
 
-class _Named(Protocol):
-    @property
-    def name(self) -> str: ...
-
-
-_N = TypeVar("_N", bound=_Named)
-
-
-class Registry(Generic[_N]):
-    """Named entries in registration order: the store behind a registry's functions.
-
-    Args:
-        what: What an entry is, in messages (``"world kind"``).
-        cls: The class of every entry.
-        unregister: The public function that removes one, named in messages.
-    """
-
-    def __init__(self, what: str, cls: type[_N], unregister: str) -> None:
-        self.what, self.cls, self.unregister = what, cls, unregister
-        self.entries: dict[str, _N] = {}
-
-    def add(self, entry: _N) -> _N:
-        """Register `entry` under its name and return it.
-
-        Raises:
-            InputError: If `entry` is of another class, or its name is taken.
-        """
-        check_type("kind", entry, self.cls)
-        if entry.name in self.entries:
-            raise InputError(
-                f"{self.what} {entry.name!r} is registered already; {self.unregister} it first "
-                "or choose another name."
-            )
-        self.entries[entry.name] = entry
-        return entry
-
-    def remove(self, name: str) -> _N:
-        """Remove the entry `name` and return it.
-
-        Raises:
-            InputError: If no entry has that name.
-        """
-        if name not in self.entries:
-            raise InputError(
-                f"{self.what} {name!r} is not registered; registered: {list(self.entries)}."
-            )
-        return self.entries.pop(name)
-
-    def values(self) -> list[_N]:
-        """Every entry, in registration order."""
-        return list(self.entries.values())
-
-    def get(self, name: str) -> _N:
-        """The entry `name`.
-
-        Raises:
-            InputError: If no entry has that name (the message lists the registered ones).
-        """
-        if not isinstance(name, str) or name not in self.entries:
-            raise InputError(
-                f"unknown {self.what} {name!r}; registered kinds: {list(self.entries)}."
-            )
-        return self.entries[name]
-
-
 _WORLDS: Registry[WorldKind] = Registry("world kind", WorldKind, "unregister_world")
 
 
 register_world = _WORLDS.add
-"""Register a world kind under its name and return it (see `Registry.add`)."""
+"""Register a world kind under its name and return it (see `probaff._registry.Registry.add`)."""
 unregister_world = _WORLDS.remove
-"""Remove a registered world kind by name and return it (see `Registry.remove`)."""
+"""Remove a registered world kind by name and return it (`probaff._registry.Registry.remove`)."""
 world_kind = _WORLDS.get
-"""The registered world kind of a name (see `Registry.get`)."""
+"""The registered world kind of a name (see `probaff._registry.Registry.get`)."""
 world_kinds = _WORLDS.values
 """Every registered world kind, in registration order, the built-in ones first."""
 

@@ -1,12 +1,14 @@
 """Models fit and predict on the device of their data; unknown devices are refused."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
 from device_checks import DEVICES, assert_on_device, elsewhere, tensors_in
 
 from probaff.errors import InputError
-from probaff.models import GPExpert, MixtureOfGPExperts, fit_em
+from probaff.models import MIXTURE_GP, GPExpert, MixtureOfGPExperts, fit_em
 from probaff.models.gate import make_gate
 from probaff.models.initialization import initial_responsibilities, split_responsibilities
 from probaff.models.synthetic import regime_features
@@ -29,7 +31,7 @@ def test_cuda_on_a_machine_without_that_device_is_refused_by_name() -> None:
     if torch.cuda.device_count() > 7:
         pytest.skip("this machine has a CUDA device 7")
     x = torch.linspace(-1, 1, 20, dtype=torch.float64)[:, None]
-    model = MixtureOfGPExperts(1, gp_max_iter=5)
+    model = MixtureOfGPExperts(1, gp=replace(MIXTURE_GP, max_iter=5))
     fit_em(model, x, torch.sin(3 * x), init="effects", max_iter=1, n_restarts=1, split_merge=0)
     # without CUDA, .cuda() itself is refused; with it, an index this machine lacks
     index = 7 if torch.cuda.is_available() else None
@@ -102,7 +104,8 @@ def test_gate_and_starts_follow_the_data(device: str) -> None:
 @pytest.mark.parametrize("device", DEVICES)
 def test_mixture_fits_on_the_device_of_its_data_with_the_cpu_result(device: str) -> None:
     x, y, _ = regime_features(90, 16, 2, seed=0)
-    kwargs = {"groups": {"f_x": slice(0, 3)}, "gate_features": ("f_x",), "gp_max_iter": 8}
+    gp = replace(MIXTURE_GP, max_iter=8)
+    kwargs = {"groups": {"f_x": slice(0, 3)}, "gate_features": ("f_x",), "gp": gp}
     opts = {"max_iter": 2, "n_restarts": 1, "init": "joint", "seed": 0}
     ref = MixtureOfGPExperts(2, **kwargs)
     ref_hist = fit_em(ref, x, y, **opts)

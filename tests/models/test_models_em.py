@@ -7,6 +7,7 @@ probaff.models.em_starts (the starts of one mixture size).
 import copy
 import itertools
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -16,7 +17,7 @@ from probaff._threads import torch_threads
 from probaff.data.generation import GenerateConfig, generate
 from probaff.errors import InputError
 from probaff.features import chapter5_features
-from probaff.models import MixtureOfGPExperts, fit_em, fit_em_path
+from probaff.models import MIXTURE_GP, GPOptions, MixtureOfGPExperts, fit_em, fit_em_path
 from probaff.models.em_run import EMRun, loo_terms
 from probaff.models.em_starts import _copy_state, _objective
 from probaff.models.initialization import initial_responsibilities, split_responsibilities
@@ -56,8 +57,7 @@ def test_objective_never_falls_as_experts_are_added_on_chapter5_folds(tmp_path_f
         groups=features.groups,
         gate_features=("f_o", "f_c"),
         expert_features=("f_o", "f_c"),
-        lengthscale_prior=True,
-    )
+    )  # the experts' default settings, MIXTURE_GP: the length-scale prior on
     folds = np.array_split(np.random.default_rng(0).permutation(len(y)), 3)
     for test in folds:
         train = np.setdiff1d(np.arange(len(y)), test)
@@ -101,11 +101,11 @@ def test_default_em_finds_the_regimes_a_softmax_gate_decides():
     """Regimes overlap in effect space; only the gate's inputs tell them apart."""
     x, y, labels = softmax_regimes(400, seed=0)
     xt, yt, _ = softmax_regimes(1000, seed=1)
-    single = MixtureOfGPExperts(1, lengthscale_prior=True)
+    single = MixtureOfGPExperts(1)  # gp=MIXTURE_GP: the length-scale prior on
     fit_em(single, x, y)
-    truth = MixtureOfGPExperts(3, gate_features=[0, 1], lengthscale_prior=True)
+    truth = MixtureOfGPExperts(3, gate_features=[0, 1])
     best_true = fit_em(truth, x, y, init=torch.nn.functional.one_hot(labels, 3).double()).best
-    model = MixtureOfGPExperts(3, gate_features=[0, 1], lengthscale_prior=True)
+    model = MixtureOfGPExperts(3, gate_features=[0, 1])
     history = fit_em(model, x, y)
     assert history.best >= best_true - 0.02 * abs(best_true), (history.best, best_true)
     ratio = (model.predict(xt).mean - yt).square().mean(0).sqrt() / (
@@ -113,7 +113,7 @@ def test_default_em_finds_the_regimes_a_softmax_gate_decides():
     ).square().mean(0).sqrt()
     assert float(ratio.mean()) <= 0.7, ratio
     # the thesis's start (a GMM on the effects) cannot see these regimes
-    effects = MixtureOfGPExperts(3, gate_features=[0, 1], lengthscale_prior=True)
+    effects = MixtureOfGPExperts(3, gate_features=[0, 1])
     assert fit_em(
         effects, x, y, init="effects", n_restarts=1, split_merge=0
     ).best < history.best - 0.1 * len(x)
@@ -236,17 +236,19 @@ def test_hard_gating_uses_the_most_probable_expert():
 def test_noise_floor_keeps_exact_zero_effects_meaningful():
     x, y, _ = piecewise_1d(80, seed=6)
     y = torch.cat([y, torch.zeros(80, 1, dtype=torch.float64)], dim=1)  # an object that never moves
-    free = MixtureOfGPExperts(2, noise_floor=None)
+    free = MixtureOfGPExperts(2, gp=replace(MIXTURE_GP, noise_floor=None))
     fit_em(free, x, y, init="effects", n_restarts=1, split_merge=0, **FAST)
-    floored = MixtureOfGPExperts(2, noise_floor=[0.0, 0.0, 0.002])
+    floored = MixtureOfGPExperts(2, gp=replace(MIXTURE_GP, noise_floor=[0.0, 0.0, 0.002]))
     fit_em(floored, x, y, init="effects", n_restarts=1, split_merge=0, **FAST)
     scale = floored.expert_predictions(x).scale[..., 2]
     assert float(scale.min()) >= 0.002 * (1 - 1e-9)
     assert float(free.expert_predictions(x).scale[..., 2].min()) < 0.002
     with pytest.raises(InputError, match="noise_floor"):
-        MixtureOfGPExperts(2, noise_floor=-1.0)
+        GPOptions(noise_floor=-1.0)
     with pytest.raises(InputError, match="noise_floor"):
-        MixtureOfGPExperts(2, noise_floor="median")
+        GPOptions(noise_floor="median")
+    with pytest.raises(InputError, match=r"noise_floor must be one .* or 3 of them"):
+        fit_em(MixtureOfGPExperts(2, gp=GPOptions(noise_floor=[0.1, 0.1])), x, y, **FAST)
 
 
 def test_same_seed_same_fit_and_counts_must_be_integers():

@@ -1,6 +1,7 @@
 import copy
 import math
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -8,7 +9,7 @@ import torch
 from device_checks import DEVICES, assert_on_device, elsewhere
 
 from probaff.errors import InputError, NotFittedError
-from probaff.models import GPExpert, MixtureOfGPExperts, fit_em
+from probaff.models import MIXTURE_GP, GPExpert, MixtureOfGPExperts, fit_em
 from probaff.models.expert_batch import (
     ExpertStack,
     _Batch,
@@ -258,8 +259,8 @@ def test_em_fit_is_unchanged_by_batching(defaults: bool, tol: float) -> None:
             3,
             groups={"f_x": slice(0, 3)},
             gate_features=("f_x",),
-            gp_max_iter=20,
-            **({} if defaults else {"lengthscale_prior": False, "gate_l1": 0.0}),
+            gp=replace(MIXTURE_GP, max_iter=20, lengthscale_prior=defaults),
+            **({} if defaults else {"gate_l1": 0.0}),
         )
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)

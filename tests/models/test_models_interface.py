@@ -1,12 +1,16 @@
+from dataclasses import replace
+
 import pytest
 import torch
 from torch.distributions import Distribution
 
 from probaff.errors import InputError
 from probaff.models import (
+    MIXTURE_GP,
     ClusteredGPModel,
     EMHistory,
     GatedMixture,
+    GPOptions,
     MixtureOfGPExperts,
     PushModel,
     SVIHistory,
@@ -31,13 +35,13 @@ def data():
 
 def _fitted(name, x, y):
     if name == "em":
-        model = MixtureOfGPExperts(2, gp_max_iter=10)
+        model = MixtureOfGPExperts(2, gp=replace(MIXTURE_GP, max_iter=10))
         _fitter("em")(model, x, y, init="effects", max_iter=2, n_restarts=1, split_merge=0)
     elif name == "svi":
         model = VariationalMixtureOfGPExperts(2, n_inducing=8)
         _fitter("svi")(model, x, y, n_steps=5, batch_size=25, init="effects")
     else:
-        model = ClusteredGPModel(2, expert_kwargs={"max_iter": 10})
+        model = ClusteredGPModel(2, gp=GPOptions(max_iter=10))
         assert _fitter("clustered")(model, x, y) is model
     return model
 
@@ -98,7 +102,7 @@ def test_each_kind_fits_by_name(data):
     x, y, _, _ = data
     assert isinstance(
         _fitter("em")(
-            MixtureOfGPExperts(1, gp_max_iter=5),
+            MixtureOfGPExperts(1, gp=replace(MIXTURE_GP, max_iter=5)),
             x,
             y,
             init="effects",
@@ -116,7 +120,7 @@ def test_each_kind_fits_by_name(data):
     )
     with pytest.raises(
         InputError,
-        match=r"unknown model kind 'vb'.*'clustered', 'em', 'monolithic', 'svi', 'transition'",
+        match=r"unknown model kind 'vb'; registered: \[.*'clustered'.*'svi'.*\]",
     ):
         _fitter("vb")
     with pytest.raises(InputError, match="ClusteredGPModel"):

@@ -1,5 +1,6 @@
 import itertools
 import math
+from dataclasses import replace
 
 import pytest
 import torch
@@ -9,13 +10,15 @@ from probaff.errors import InputError
 from probaff.models import (
     EMHistory,
     GPExpert,
+    GPOptions,
     MixtureOfGPExperts,
     NotFittedError,
+    SparseGPOptions,
     fit_em,
     fit_em_path,
 )
 from probaff.models import mixture as mixture_module
-from probaff.models.mixture import AUTO_SPARSE_ABOVE
+from probaff.models.mixture import AUTO_SPARSE_ABOVE, MIXTURE_GP
 from probaff.models.sparse_expert import FitMemoryError, SparseGPExpert
 from probaff.models.synthetic import piecewise_1d
 
@@ -164,7 +167,9 @@ def test_expert_kind_is_chosen_by_training_size():
 
 def test_sparse_experts_fit_by_em_and_the_path_never_falls():
     (x, y, _), (xt, yt, _) = piecewise_1d(90, seed=0), piecewise_1d(300, seed=1)
-    template = MixtureOfGPExperts(1, experts="sparse", n_inducing=15, gp_max_iter=20)
+    template = MixtureOfGPExperts(
+        1, experts="sparse", n_inducing=15, gp=replace(MIXTURE_GP, max_iter=20)
+    )
     quick = {"max_iter": 3, "n_restarts": 2, "split_merge": 1}
     path = fit_em_path(template, x, y, (1, 2, 3), **quick)
     best = [path[m][1].best for m in (1, 2, 3)]
@@ -183,7 +188,7 @@ def test_sparse_experts_fit_by_em_and_the_path_never_falls():
         want[held] = out.log_prob(y[held]).sum(-1)
         torch.testing.assert_close(loo[:, j], want, rtol=1e-10, atol=1e-10)
     sparse_lp = float(model.predict(xt).log_prob(yt).mean())
-    exact = MixtureOfGPExperts(3, experts="exact", gp_max_iter=20)
+    exact = MixtureOfGPExperts(3, experts="exact", gp=replace(MIXTURE_GP, max_iter=20))
     fit_em(exact, x, y, **quick)
     exact_lp = float(exact.predict(xt).log_prob(yt).mean())
     # 15 inducing points per output summarise a 1-D regime almost exactly
@@ -212,13 +217,13 @@ def test_lasso_gate_is_the_default_and_chosen_by_cross_validation():
     from probaff.models.synthetic import regime_features
 
     x, y, _ = regime_features(160, 40, 2, seed=0)
-    model = MixtureOfGPExperts(3, gp_max_iter=10)
+    model = MixtureOfGPExperts(3, gp=replace(MIXTURE_GP, max_iter=10))
     assert model.config()["gate_l1"] == "cv" and model.config()["gate_l2"] == "cv"
     fit_em(model, x, y, seed=0, max_iter=3, n_restarts=1, split_merge=0)
     gate = model.built_gate()
     assert gate.l1 == "cv" and gate.l2 == "cv"
     assert len(gate.penalties_) == len(gate.l2_grid_) + len(gate.l1_grid_)
-    ridge = MixtureOfGPExperts(3, gp_max_iter=10, gate_l1=0.0)
+    ridge = MixtureOfGPExperts(3, gp=replace(MIXTURE_GP, max_iter=10), gate_l1=0.0)
     assert len(ridge.config()) == len(model.config())
     with pytest.raises(InputError, match="gate_l1"):
         MixtureOfGPExperts(3, gate_l1="lasso")
@@ -231,7 +236,7 @@ def test_files_without_a_lasso_gate_load_as_ridge_gates(tmp_path):
     from probaff.models.em import _dump, _restore
 
     x, y, _ = piecewise_1d(40, seed=2)
-    model = MixtureOfGPExperts(2, gate_l1=0.0, gp_max_iter=5)
+    model = MixtureOfGPExperts(2, gate_l1=0.0, gp=replace(MIXTURE_GP, max_iter=5))
     fit_em(model, x, y, max_iter=2, n_restarts=1, split_merge=0)
     payload = _dump(model)
     del payload["config"]["gate_l1"]  # as written before the gate had a lasso penalty
@@ -240,3 +245,58 @@ def test_files_without_a_lasso_gate_load_as_ridge_gates(tmp_path):
     torch.testing.assert_close(restored.predict(x).mean, model.predict(x).mean)
     save(model, tmp_path / "m.pt")
     assert load(tmp_path / "m.pt").config() == model.config()
+
+
+def test_the_experts_settings_travel_whole_as_one_gp_options():
+    x, y, _ = piecewise_1d(40, seed=2)
+    assert MixtureOfGPExperts(2).gp is MIXTURE_GP  # the default: prior on, floor "auto"
+    assert GPOptions(max_iter=50, lengthscale_prior=True, noise_floor="auto") == MIXTURE_GP
+    gp = GPOptions(max_iter=7, lengthscale_prior=0.5, noise_floor=[0.01, 0.02], noise=0.2)
+    model = MixtureOfGPExperts(2, gp=gp)
+    assert model.gp is gp and model.config()["gp"] is gp
+    fit_em(model, x, y, max_iter=2, n_restarts=1, split_merge=0)
+    for expert in model.experts:  # every field reaches the experts, the floor resolved
+        assert expert.options == gp and expert.max_iter == 7
+        assert expert.lengthscale_prior == 0.5 and expert.initial_noise == 0.2
+        assert expert.noise_floor.tolist() == [0.01, 0.02]
+    sparse = MixtureOfGPExperts(2, gp=gp, experts="sparse", n_inducing=10, hyper_rows=None)
+    fit_em(sparse, x, y, max_iter=1, n_restarts=1, split_merge=0)
+    for expert in sparse.experts:
+        assert isinstance(expert, SparseGPExpert)
+        options = expert.options
+        assert isinstance(options, SparseGPOptions)
+        assert (options.max_iter, options.lengthscale_prior, options.noise) == (7, 0.5, 0.2)
+        assert (options.n_inducing, options.hyper_rows) == (10, None)
+    # "auto": 1 % of each effect's std over the whole training set, for every expert
+    auto = MixtureOfGPExperts(2)
+    fit_em(auto, x, y, max_iter=1, n_restarts=1, split_merge=0)
+    want = 0.01 * y.std(dim=0, correction=0)
+    for expert in auto.experts:
+        assert torch.equal(expert.noise_floor, want)
+
+
+def test_the_old_keywords_and_other_options_are_refused_by_name():
+    for old, field in (
+        ("gp_max_iter", "max_iter"),
+        ("lengthscale_prior", "lengthscale_prior"),
+        ("noise_floor", "noise_floor"),
+    ):
+        with pytest.raises(
+            InputError, match=rf"use gp=GPOptions\({field}=\.\.\.\) instead of {old}"
+        ):
+            MixtureOfGPExperts(2, **{old: 1})
+    with pytest.raises(InputError, match="gp must be GPOptions"):
+        MixtureOfGPExperts(2, gp={"max_iter": 5})
+    with pytest.raises(InputError, match="n_inducing and hyper_rows as its own arguments"):
+        MixtureOfGPExperts(2, gp=SparseGPOptions(n_inducing=10))
+
+
+def test_a_single_expert_resolves_the_auto_noise_floor_as_a_mixture_does():
+    x, y, _ = piecewise_1d(40, seed=3)
+    weights = torch.linspace(0.0, 1.0, 40, dtype=torch.float64)  # the first row weighs 0
+    expert = GPExpert(1, 2, GPOptions(noise_floor="auto", max_iter=3)).fit(x, y, weights)
+    # every row given counts, whatever its weight: the mixture's experts get the whole set
+    assert torch.equal(expert.noise_floor, 0.01 * y.std(dim=0, correction=0))
+    expert.condition(x[:20], y[:20])
+    assert torch.equal(expert.noise_floor, 0.01 * y[:20].std(dim=0, correction=0))
+    assert GPExpert(1, 2, noise_floor="auto").noise_floor.tolist() == [0.0, 0.0]  # until data

@@ -1,4 +1,5 @@
-"""A mixture saved by a release from before the content hash still loads and predicts as then.
+"""Mixtures saved by earlier releases still load and predict as then: one from before the
+content hash, one from before the experts' settings were one `GPOptions`.
 
 The file and the predictions beside it were written by probaff at commit 4b5b220 (the last one
 before model files carried a SHA-256; see tests/data/fixtures/README.md), with that commit's
@@ -6,6 +7,7 @@ code: they are what an earlier release wrote, not today's payload unwrapped.
 """
 
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +15,8 @@ import pytest
 import torch
 
 from probaff.errors import InputError
-from probaff.models import MixtureOfGPExperts, load, save
+from probaff.models import MIXTURE_GP, GPOptions, MixtureOfGPExperts, load, save
+from probaff.models.em import _saved_config
 
 FIXTURES = Path(__file__).resolve().parents[1] / "data" / "fixtures"
 OLD = FIXTURES / "mixture_before_hash.pt"
@@ -50,3 +53,43 @@ def test_a_damaged_old_file_is_refused_by_name(tmp_path):
     bad.write_bytes(data[: len(data) // 2])
     with pytest.raises(InputError, match=r"old_truncated\.pt'"):
         load(bad)
+
+
+FLAT_GP = FIXTURES / "mixture_flat_gp.pt"
+
+
+def test_a_mixture_saved_with_flat_gp_settings_loads_them_as_one_gp_options(tmp_path):
+    """Files written before ``gp=GPOptions`` hold the experts' settings as flat keys."""
+    container = torch.load(FLAT_GP, weights_only=True)
+    assert container["format"] == "probaff.models.MixtureOfGPExperts/1"
+    model = load(FLAT_GP)
+    # the old keys, mapped to one GPOptions (the floor as the old code stored it: float32)
+    assert model.gp.max_iter == 7 and model.gp.lengthscale_prior == 0.5
+    assert model.gp.noise_floor == pytest.approx((0.01, 0.02), rel=1e-7)
+    assert {"gp_max_iter", "lengthscale_prior", "noise_floor"}.isdisjoint(model.config())
+    for expert in model.experts:
+        assert expert.max_iter == 7 and expert.lengthscale_prior == 0.5
+    want = np.load(FIXTURES / "mixture_flat_gp_expected.npz")
+    x = torch.as_tensor(want["x_test"])
+    with torch.no_grad():
+        pred = model.predict(x)
+        log_prob = pred.log_prob(torch.zeros(len(x), 2, dtype=torch.float64))
+    np.testing.assert_allclose(pred.mean.numpy(), want["mean"], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(pred.variance.numpy(), want["variance"], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(log_prob.numpy(), want["log_prob"], rtol=1e-9, atol=1e-9)
+    # saved again, the file holds GPOptions' fields under "gp" and loads to the same model
+    path = tmp_path / "again.pt"
+    save(model, path)
+    again = load(path)
+    assert again.gp == model.gp and again.config() == model.config()
+    assert torch.equal(again.predict(x).mean, model.predict(x).mean)
+
+
+def test_the_old_releases_flat_keys_map_to_gp_options_and_missing_ones_to_the_default():
+    with pytest.warns(UserWarning, match="carries no content hash"):
+        model = load(OLD)
+    # written with gp_max_iter=10 and that release's other settings, stored beside it
+    assert model.gp == GPOptions(max_iter=10, lengthscale_prior=False, noise_floor="auto")
+    # a key a file lacks takes MIXTURE_GP's value
+    config = _saved_config({"n_experts": 2, "gp_max_iter": 4})
+    assert config["gp"] == replace(MIXTURE_GP, max_iter=4) and "gp_max_iter" not in config

@@ -118,6 +118,9 @@ def test_options_are_frozen_and_normalised():
         opts.max_iter = 5  # type: ignore[misc]
     assert GPOptions(noise_floor=torch.tensor([0.1, 0.2])).noise_floor == pytest.approx((0.1, 0.2))
     assert GPOptions(noise_floor=0.5).noise_floor == 0.5
+    assert GPOptions(noise_floor="auto").noise_floor == "auto"  # 1 % of each output's std
+    with pytest.raises(InputError, match="noise_floor must be 'auto', None or"):
+        GPOptions(noise_floor="Auto")
     sparse = SparseGPOptions(n_inducing=64.0, learn_inducing=1, noise_floor=[0.1])
     assert sparse.n_inducing == 64 and type(sparse.n_inducing) is int
     assert sparse.learn_inducing is True and sparse.noise_floor == pytest.approx((0.1,))

@@ -127,7 +127,7 @@ GP_FIELDS = {
         ),
     ),
     "noise_floor": (
-        st.one_of(st.none(), _FLOOR, st.lists(_FLOOR, min_size=1, max_size=4)),
+        st.one_of(st.none(), st.just("auto"), _FLOOR, st.lists(_FLOOR, min_size=1, max_size=4)),
         st.one_of(
             st.floats(max_value=-1e-300, allow_nan=False),
             _BAD_FLOAT,

@@ -1,6 +1,8 @@
+import dataclasses
 import hashlib
 import io
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -8,7 +10,9 @@ import torch
 
 from probaff.errors import InputError
 from probaff.models import (
+    MIXTURE_GP,
     ClusteredGPModel,
+    GPOptions,
     MixtureOfGPExperts,
     MonolithicTransitionModel,
     NotFittedError,
@@ -106,7 +110,7 @@ def test_clustered_model_round_trip_is_bit_identical(tmp_path):
     xt = torch.as_tensor(rng.uniform(-1, 1, (30, 2)))
     yt = torch.zeros(30, 2, dtype=torch.float64)
     for soft in (False, True):
-        model = ClusteredGPModel(2, soft_gate=soft, expert_kwargs={"max_iter": 10}).fit(x, y)
+        model = ClusteredGPModel(2, soft_gate=soft, gp=GPOptions(max_iter=10)).fit(x, y)
         path = tmp_path / f"clustered-{soft}.pt"
         save(model, path)
         loaded = load(path)
@@ -115,11 +119,21 @@ def test_clustered_model_round_trip_is_bit_identical(tmp_path):
         _assert_same_predictions(model, loaded, xt, yt)
     with pytest.raises(NotFittedError):
         save(ClusteredGPModel(2), tmp_path / "c.pt")
+    # files written before `gp` hold the experts' keywords under "expert_kwargs"
+    from probaff.models.clustered import _dump, _restore
+
+    payload = _dump(model)
+    assert payload["config"]["gp"] == dataclasses.asdict(GPOptions(max_iter=10))  # builtins
+    del payload["config"]["gp"]
+    payload["config"]["expert_kwargs"] = {"max_iter": 10}
+    old = _restore(payload)
+    assert old.gp == GPOptions(max_iter=10) and old.config() == model.config()
+    _assert_same_predictions(model, old, xt, yt)
 
 
 def test_load_rejects_truncated_and_incomplete_files(tmp_path):
     x, y, _ = piecewise_1d(30, seed=0)
-    model = MixtureOfGPExperts(1, gp_max_iter=5)
+    model = MixtureOfGPExperts(1, gp=replace(MIXTURE_GP, max_iter=5))
     fit_em(model, x, y, init="effects", max_iter=1, n_restarts=1, split_merge=0)
     path = tmp_path / "m.pt"
     save(model, path)
@@ -152,7 +166,7 @@ def _inner_bytes(path):
 
 def _em_model():
     x, y, _ = piecewise_1d(30, seed=0)
-    model = MixtureOfGPExperts(2, gp_max_iter=5)
+    model = MixtureOfGPExperts(2, gp=replace(MIXTURE_GP, max_iter=5))
     fit_em(model, x, y, init="effects", max_iter=1, n_restarts=1, split_merge=0)
     return model, x
 
@@ -169,7 +183,7 @@ def _clustered_model():
     x = rng.uniform(-1, 1, (40, 2))
     y = np.stack([np.where(x[:, 0] > 0, 0.1, 0.0), 0.01 * x[:, 1]], -1)
     y = y + rng.normal(0, 0.003, (40, 2))
-    model = ClusteredGPModel(2, expert_kwargs={"max_iter": 5}).fit(x, y)
+    model = ClusteredGPModel(2, gp=GPOptions(max_iter=5)).fit(x, y)
     return model, torch.as_tensor(x)
 
 
@@ -289,7 +303,9 @@ def test_save_to_a_bad_path_names_it(tmp_path):
 def test_sparse_mixture_round_trip_is_bit_identical(tmp_path):
     x, y, _ = piecewise_1d(60, seed=0)
     xt, yt, _ = piecewise_1d(40, seed=1)
-    model = MixtureOfGPExperts(2, experts="sparse", n_inducing=12, gp_max_iter=10)
+    model = MixtureOfGPExperts(
+        2, experts="sparse", n_inducing=12, gp=replace(MIXTURE_GP, max_iter=10)
+    )
     fit_em(model, x, y, max_iter=2, n_restarts=1, split_merge=0)
     path = tmp_path / "sparse.pt"
     save(model, path)

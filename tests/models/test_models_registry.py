@@ -16,8 +16,10 @@ import probaff.models as models
 from probaff._checks import check_count
 from probaff.errors import InputError, NotFittedError
 from probaff.models import (
+    MIXTURE_GP,
     ClusteredGPModel,
     EMOptions,
+    GPOptions,
     MixtureOfGPExperts,
     ModelKind,
     ModelSettings,
@@ -203,7 +205,15 @@ def test_registration_refuses_clashes_and_bad_kinds():
         ModelKind("", ConstantGaussian, fit_constant)
     with pytest.raises(InputError, match="takes a ModelKind"):
         register_model_kind("em")  # type: ignore[arg-type]
-    with pytest.raises(InputError, match=r"unknown model kind 'nope'.*'clustered', 'em'"):
+    with pytest.raises(
+        InputError, match="model kind 'em' is registered already; unregister_model_kind"
+    ):
+        register_model_kind(ModelKind("em", ConstantGaussian, fit_constant))
+    with pytest.raises(InputError, match="model kind 'nope' is not registered"):
+        unregister_model_kind("nope")
+    with pytest.raises(
+        InputError, match=r"unknown model kind 'nope'; registered: .*'clustered', 'em'"
+    ):
         model_kind("nope")
     assert "em2" not in model_kinds()
 
@@ -218,16 +228,15 @@ def _grouped(n=40):
 def test_building_from_settings_matches_direct_construction():
     x, y = _grouped()
     groups = {"a": slice(0, 1), "b": slice(1, 3)}
-    settings = ModelSettings(
-        n_experts=2, groups=groups, gate=("a",), experts=("b",), seed=3, lengthscale_prior=True
-    )
+    gp = GPOptions(max_iter=20, lengthscale_prior=0.5, noise_floor="auto")
+    settings = ModelSettings(n_experts=2, groups=groups, gate=("a",), experts=("b",), seed=3, gp=gp)
     built = model_kind("em").fit_new(x, y, settings, fit={"max_iter": 2, "n_restarts": 1})
-    direct = MixtureOfGPExperts(
-        2, groups=groups, gate_features=["a"], expert_features=["b"], lengthscale_prior=True
-    )
+    direct = MixtureOfGPExperts(2, groups=groups, gate_features=["a"], expert_features=["b"], gp=gp)
     fit_em(direct, x, y, seed=3, max_iter=2, n_restarts=1)
-    assert built.config() == direct.config()
+    assert built.config() == direct.config() and built.gp is gp  # the settings, whole
     assert torch.equal(built.predict(x).mean, direct.predict(x).mean)
+    # without GP settings, the kind's default: the mixture's own
+    assert model_kind("em").build(n_experts=2).gp is MIXTURE_GP
     # the options whole (as a study's config holds them) fit the same model; the seed is
     # the settings'
     whole = model_kind("em").fit_new(x, y, settings, fit=EMOptions(max_iter=2, n_restarts=1))
@@ -241,17 +250,19 @@ def test_building_from_settings_matches_direct_construction():
     with pytest.raises(InputError, match="fit must be a kind's fitting options"):
         ModelSettings(2, fit=[("max_iter", 2)])
 
-    clustered = model_kind("clustered").build(n_experts=2, seed=4, lengthscale_prior=True)
-    assert (
-        clustered.config()
-        == ClusteredGPModel(2, seed=4, expert_kwargs={"lengthscale_prior": True}).config()
-    )
+    clustered = model_kind("clustered").build(n_experts=2, seed=4, gp=gp)
+    assert clustered.config() == ClusteredGPModel(2, seed=4, gp=gp).config() and clustered.gp is gp
+    assert model_kind("clustered").build(n_experts=2).gp == GPOptions()
     with pytest.raises(InputError, match="gate"):
         model_kind("clustered").build(n_experts=2, gate=("a",))
     with pytest.raises(InputError, match="cannot be built"):
         model_kind("transition").build()
     with pytest.raises(InputError, match="length-scale prior"):
-        model_kind("svi").build(lengthscale_prior=True)
+        model_kind("svi").build(gp=GPOptions(lengthscale_prior=True))
+    with pytest.raises(InputError, match=r"gp must be GPOptions"):
+        ModelSettings(2, gp={"max_iter": 5})  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="lengthscale_prior"):
+        ModelSettings(2, lengthscale_prior=True)  # type: ignore[call-arg]
     with pytest.raises(InputError, match="n_experts"):
         ModelSettings(n_experts=0)
     with pytest.raises(InputError, match="gate"):

@@ -1,6 +1,7 @@
 """probaff.models.sklearn: the mixture of GP experts as a scikit-learn regressor."""
 
 import pickle
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -16,7 +17,7 @@ from sklearn.utils.estimator_checks import parametrize_with_checks
 import probaff.errors
 from probaff._threads import torch_threads
 from probaff.errors import InputError
-from probaff.models import EMOptions, MixtureOfGPExperts, fit_em
+from probaff.models import MIXTURE_GP, EMOptions, MixtureOfGPExperts, fit_em
 from probaff.models.sklearn import (
     EstimatorNotFittedError,
     MixtureOfGPExpertsRegressor,
@@ -106,7 +107,7 @@ def test_random_state_fixes_the_fit_and_equals_fit_em(data, fitted):
     np.testing.assert_array_equal(again.predict(X), fitted.predict(X))
     assert fitted.seed_ == 0
 
-    model = MixtureOfGPExperts(2, gp_max_iter=20)
+    model = MixtureOfGPExperts(2, gp=replace(MIXTURE_GP, max_iter=20))
     options = EMOptions(n_restarts=1, split_merge=0, max_iter=3, seed=0)
     assert fitted.em_options(0) == options
     history = fit_em(model, X, Y[:, :1], options)

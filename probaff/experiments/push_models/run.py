@@ -175,9 +175,7 @@ def _fit_path(task: FoldTask, X: np.ndarray, Y: np.ndarray) -> dict[str, Any]:
             gate_features=list(task.gate_features),
             expert_features=list(task.expert_features),
             gate=study.gate,
-            gp_max_iter=study.gp.max_iter,
-            lengthscale_prior=study.gp.lengthscale_prior,
-            noise_floor=task.noise_floor,
+            gp=dataclasses.replace(study.gp, noise_floor=task.noise_floor),  # the task's floor
         )
         start = time.perf_counter()
         path = fit_em_path(template, X[train], Y[train], task.sizes, study.em, seed=study.seed)
@@ -208,20 +206,14 @@ def _fit_path(task: FoldTask, X: np.ndarray, Y: np.ndarray) -> dict[str, Any]:
 
 def _fit_clustered(task: FoldTask, X: np.ndarray, Y: np.ndarray) -> dict[str, Any]:
     """Fit chapter 4's clustered model with `task.M` clusters on one fold and score it."""
-    train, test, gp = task.train, task.test, task.study.gp
+    train, test = task.train, task.test
     cols = np.concatenate([np.arange(X.shape[1])[task.slices[g]] for g in task.expert_features])
     floor = task.noise_floor
+    # the study's GP settings with the task's floor (none where the mixtures' is "auto")
+    gp = dataclasses.replace(task.study.gp, noise_floor=None if isinstance(floor, str) else floor)
     start = time.perf_counter()
     with torch_threads(1):
-        model = ClusteredGPModel(
-            task.M,
-            seed=task.study.seed,
-            expert_kwargs={
-                "max_iter": gp.max_iter,
-                "lengthscale_prior": gp.lengthscale_prior,
-                "noise_floor": None if isinstance(floor, str) else floor,
-            },
-        )
+        model = ClusteredGPModel(task.M, seed=task.study.seed, gp=gp)
         model_kind("clustered").fit(model, X[train][:, cols], Y[train])
         pred = model.predict(X[test][:, cols])
     assert model.labels_ is not None

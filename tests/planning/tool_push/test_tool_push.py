@@ -17,7 +17,7 @@ from torch.distributions import Independent, Normal
 from probaff._threads import torch_threads
 from probaff.data.generation import GenerateConfig, generate
 from probaff.errors import InputError
-from probaff.models import EMOptions
+from probaff.models import MIXTURE_GP, EMOptions
 from probaff.planning.catalogue import fit_tool_push_model
 from probaff.planning.learned import FeaturePushModel
 from probaff.planning.tool_push import (
@@ -61,8 +61,9 @@ def dataset(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def model(dataset):
+    gp = dataclasses.replace(MIXTURE_GP, max_iter=10)
     return fit_tool_push_model(
-        dataset, n_experts=2, em=EMOptions(max_iter=2, n_restarts=1), gp_max_iter=10, seed=0
+        dataset, n_experts=2, em=EMOptions(max_iter=2, n_restarts=1), gp=gp, seed=0
     )
 
 
@@ -269,7 +270,7 @@ def test_bad_states_planners_and_models_are_refused(dataset, model):
         n_experts=1,
         groups=("f_o",),
         em=EMOptions(max_iter=1, n_restarts=1),
-        gp_max_iter=5,
+        gp=dataclasses.replace(MIXTURE_GP, max_iter=5),
     )
     assert list(only_o.model.groups) == ["f_o"]
     with pytest.raises(
@@ -380,7 +381,7 @@ def test_a_model_of_the_tool_alone_is_refused_naming_model_and_task(dataset, mod
     from probaff.models import MixtureOfGPExperts, fit_em
 
     fs = chapter5_features(dataset)
-    tool_only = MixtureOfGPExperts(1, gp_max_iter=5)
+    tool_only = MixtureOfGPExperts(1, gp=dataclasses.replace(MIXTURE_GP, max_iter=5))
     with torch_threads(1):
         fit_em(
             tool_only,
