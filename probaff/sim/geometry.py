@@ -11,11 +11,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pymunk
 
 from probaff._checks import check_count, check_finite, check_shape
 from probaff.sim.specs import ObjectSpec
 
 __all__ = [
+    "contact_depth",
     "convex_penetration",
     "footprint_penetration",
     "footprint_polygon",
@@ -25,6 +27,30 @@ __all__ = [
     "rect_disc_penetration",
     "to_push_frame",
 ]
+
+
+def contact_depth(space: pymunk.Space, shape: pymunk.Shape) -> float:
+    """Deepest overlap (m) of `shape` with any other shape of `space` (0 if none overlaps).
+
+    Each contact's depth is taken from its two points and normal, not from pymunk's
+    ``ContactPoint.distance``: for a pair that Chipmunk collides in the other order (a polygon
+    against a segment or a circle, a segment against a circle) ``Space.shape_query`` reports
+    that distance with its sign flipped (pymunk 7.3), so a box 3 mm into a wall read as 3 mm
+    apart from it.
+
+    Args:
+        space: The space.
+        shape: One of its shapes.
+
+    Returns:
+        The largest penetration depth, >= 0.
+    """
+    deepest = 0.0
+    for hit in space.shape_query(shape):
+        points = hit.contact_point_set
+        for p in points.points:
+            deepest = max(deepest, -float((p.point_b - p.point_a).dot(points.normal)))
+    return deepest
 
 
 def convex_penetration(a: np.ndarray, b: np.ndarray) -> float:

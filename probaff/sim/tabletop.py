@@ -21,7 +21,12 @@ import pymunk
 from probaff._checks import check_count, check_finite, check_positive, check_shape
 from probaff.errors import InputError
 from probaff.sim.friction import Part, add_sliding_body
-from probaff.sim.geometry import footprint_penetration, friction_points, push_frame_effect
+from probaff.sim.geometry import (
+    contact_depth,
+    footprint_penetration,
+    friction_points,
+    push_frame_effect,
+)
 from probaff.sim.inputs import check_objects, check_type, numeric_fields
 from probaff.sim.pusher import TrackedPusher
 from probaff.sim.specs import ObjectSpec
@@ -337,6 +342,7 @@ def _build(
     space.gravity = (0.0, 0.0)
     space.iterations = phys.iterations
     space.collision_slop = phys.collision_slop
+    space.collision_bias = phys.collision_bias
     contacts = _Contacts(len(scene.objects))
     space.on_collision(None, None, begin=contacts.begin)
 
@@ -485,11 +491,6 @@ def _reaction_samples(
 
 
 def _max_penetration(space: pymunk.Space) -> float:
-    deepest = 0.0
-    for shape in space.shapes:
-        if shape.collision_type < _OBJECT0:
-            continue
-        for hit in space.shape_query(shape):
-            for p in hit.contact_point_set.points:
-                deepest = max(deepest, -p.distance)
-    return deepest
+    """Deepest overlap (m) of an object with anything: the hand, a wall or another object."""
+    objects = [s for s in space.shapes if s.collision_type >= _OBJECT0]
+    return max((contact_depth(space, s) for s in objects), default=0.0)

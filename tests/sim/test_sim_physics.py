@@ -4,6 +4,7 @@ import dataclasses
 import math
 
 import numpy as np
+import pymunk
 import pytest
 from scipy.optimize import brentq
 
@@ -16,6 +17,7 @@ from probaff.sim import (
     load_tabletop,
     simulate_push,
 )
+from probaff.sim.geometry import contact_depth
 from probaff.sim.runner import straight_path
 
 BOX = ObjectSpec("test_box", "box", (0.20, 0.12), 0.0, 0.05, 0.5, 0.4, 1.0)
@@ -135,7 +137,8 @@ def test_push_into_wall_stalls():
     out = simulate_push(world, scene, straight_path(world, scene.push_origin, 0.0, 0.15))
     assert out.wall_contact[0]
     assert out.state_after[0, 0] + 0.1 < 0.16 - 0.01 + 3e-3  # stopped at the wall's face
-    assert out.max_penetration < 3e-3
+    # the box rests against the wall and the hand: the measure sees that contact
+    assert 0.0 < out.max_penetration < 3e-3
 
 
 def test_second_object_moves_only_when_hit():
@@ -202,3 +205,49 @@ def test_execute_given_push_and_refuse_unreachable():
     assert sample.outcome.effect[0, 1] > 0.1
     with pytest.raises(UnreachablePoseError, match=r"push 1 .* reachable workspace"):
         sim.execute([ok, far])
+
+
+def test_contact_depth_sees_overlaps_in_either_collision_order():
+    """A polygon or circle into a wall segment, a circle into a polygon: the true depths.
+
+    pymunk's ``ContactPoint.distance`` has the wrong sign for pairs Chipmunk collides in the
+    other order (a polygon queried against a segment read as 2 mm apart, not 2 mm deep).
+    """
+    space = pymunk.Space()
+    wall = pymunk.Segment(space.static_body, (0.0, -1.0), (0.0, 1.0), 0.01)
+    space.add(wall)
+    box_body = pymunk.Body(1.0, 1.0)
+    box_body.position = (0.01 + 0.05 - 0.002, 0.0)  # its face 2 mm into the wall's radius
+    box = pymunk.Poly.create_box(box_body, (0.1, 0.1))
+    disc_body = pymunk.Body(1.0, 1.0)
+    disc_body.position = (0.3, 0.5)  # clear of both
+    disc = pymunk.Circle(disc_body, 0.03)
+    space.add(box_body, box, disc_body, disc)
+    assert contact_depth(space, box) == pytest.approx(0.002, abs=1e-12)
+    assert contact_depth(space, wall) == pytest.approx(0.002, abs=1e-12)
+    assert contact_depth(space, disc) == 0.0
+    disc_body.position = (-0.01 - 0.03 + 0.0015, 0.5)  # 1.5 mm into the wall from the other side
+    space.reindex_shapes_for_body(disc_body)
+    assert contact_depth(space, disc) == pytest.approx(0.0015, abs=1e-12)
+    disc_body.position = (0.01 + 0.1 - 0.002 + 0.03 - 0.004, 0.0)  # 4 mm into the box
+    space.reindex_shapes_for_body(disc_body)
+    assert contact_depth(space, disc) == pytest.approx(0.004, abs=1e-12)
+    assert contact_depth(space, box) == pytest.approx(0.004, abs=1e-12)
+
+
+@pytest.mark.slow
+def test_objects_squeezed_against_walls_stay_within_3_mm():
+    """2,000 seeded random pushes towards a wall: the deepest overlap stays below 3 mm.
+
+    Push 1978 of this sample (a cracker box squeezed between the hand and the wall) ended
+    4.4 mm into the hand and 2.7 mm into the wall while pymunk corrected overlaps at its
+    per-second default (2.6 % per 240 Hz step); at the world's `overlap_correction` it ends
+    below 1 mm (the worst of 4,400 such pushes is 2.2 mm).
+    """
+    sim = PushSimulator("near_wall")
+    depth, walls = [], 0
+    for s in sim.run(2000, np.random.default_rng(0)):
+        depth.append(s.outcome.max_penetration)
+        walls += bool(s.outcome.wall_contact.any())
+    assert walls > 200  # the sample squeezes many objects against the wall
+    assert max(depth) < 3e-3, (int(np.argmax(depth)), max(depth))
