@@ -353,7 +353,9 @@ def _summary_lines(result: dict[str, Any]) -> list[str]:
         ),
         (
             "office labels",
-            f"precision / recall {labels['precision_pct']:.1f} / {labels['recall_pct']:.1f} %",
+            f"precision / recall {labels['precision_pct']:.1f} / {labels['recall_pct']:.1f} % "
+            f"(logistic regressions), {labels['new_precision_pct']:.1f} / "
+            f"{labels['new_recall_pct']:.1f} % (trees)",
         ),
     ]
     return [
