@@ -22,14 +22,9 @@ FIXTURES = Path(__file__).resolve().parents[1] / "data" / "fixtures"
 OLD = FIXTURES / "mixture_before_hash.pt"
 
 
-def test_a_mixture_saved_before_the_hash_predicts_as_the_old_release_did(tmp_path):
-    container = torch.load(OLD, weights_only=True)
-    assert "sha256" not in container and "payload" not in container  # the old layout
-    assert container["format"] == "probaff.models.MixtureOfGPExperts/1"
-    with pytest.warns(UserWarning, match=r"mixture_before_hash\.pt' carries no content hash"):
-        model = load(OLD)
-    assert isinstance(model, MixtureOfGPExperts)
-    want = np.load(FIXTURES / "mixture_before_hash_expected.npz")
+def _predicts_as_recorded(model, expected: str) -> torch.Tensor:
+    """Check `model`'s predictions against the fixture `expected`; return its test inputs."""
+    want = np.load(FIXTURES / expected)
     x = torch.as_tensor(want["x_test"])
     with torch.no_grad():
         pred = model.predict(x)
@@ -37,6 +32,17 @@ def test_a_mixture_saved_before_the_hash_predicts_as_the_old_release_did(tmp_pat
     np.testing.assert_allclose(pred.mean.numpy(), want["mean"], rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(pred.variance.numpy(), want["variance"], rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(log_prob.numpy(), want["log_prob"], rtol=1e-9, atol=1e-9)
+    return x
+
+
+def test_a_mixture_saved_before_the_hash_predicts_as_the_old_release_did(tmp_path):
+    container = torch.load(OLD, weights_only=True)
+    assert "sha256" not in container and "payload" not in container  # the old layout
+    assert container["format"] == "probaff.models.MixtureOfGPExperts/1"
+    with pytest.warns(UserWarning, match=r"mixture_before_hash\.pt' carries no content hash"):
+        model = load(OLD)
+    assert isinstance(model, MixtureOfGPExperts)
+    x = _predicts_as_recorded(model, "mixture_before_hash_expected.npz")
     # saved again, it gains the hash and loads without a warning, predicting the same
     path = tmp_path / "again.pt"
     save(model, path)
@@ -69,14 +75,7 @@ def test_a_mixture_saved_with_flat_gp_settings_loads_them_as_one_gp_options(tmp_
     assert {"gp_max_iter", "lengthscale_prior", "noise_floor"}.isdisjoint(model.config())
     for expert in model.experts:
         assert expert.max_iter == 7 and expert.lengthscale_prior == 0.5
-    want = np.load(FIXTURES / "mixture_flat_gp_expected.npz")
-    x = torch.as_tensor(want["x_test"])
-    with torch.no_grad():
-        pred = model.predict(x)
-        log_prob = pred.log_prob(torch.zeros(len(x), 2, dtype=torch.float64))
-    np.testing.assert_allclose(pred.mean.numpy(), want["mean"], rtol=1e-9, atol=1e-12)
-    np.testing.assert_allclose(pred.variance.numpy(), want["variance"], rtol=1e-9, atol=1e-12)
-    np.testing.assert_allclose(log_prob.numpy(), want["log_prob"], rtol=1e-9, atol=1e-9)
+    x = _predicts_as_recorded(model, "mixture_flat_gp_expected.npz")
     # saved again, the file holds GPOptions' fields under "gp" and loads to the same model
     path = tmp_path / "again.pt"
     save(model, path)
