@@ -186,8 +186,7 @@ def _record_state(
     choose: Chooser | None,
 ) -> dict[str, Any]:
     """`record_pushes` from the simulator's state."""
-    rows: dict[str, list[Any]] = {k: [] for k in ("before", "after", "origin", "yaw", "dist")}
-    moved: list[float] = []
+    rows: dict[str, list[Any]] = {k: [] for k in _PER_PUSH}
     state: dict[str, Any] = {}
     steps = _MAX_STEPS
     while len(rows["before"]) < n:
@@ -208,14 +207,37 @@ def _record_state(
             steps = _MAX_STEPS
             continue
         before = cog_pose(np.array(approach["block"]))
-        geo = push_frames(prim[None], s)
-        rows["before"].append(before.tolist())
-        rows["after"].append(cog_pose(np.array(state["block"])).tolist())
-        rows["origin"].append(to_world(before, geo["start"])[0].tolist())
-        rows["yaw"].append(float(before[2] + geo["yaw"][0]))
-        rows["dist"].append(float(s.gap + prim[2]))
-        moved.append(float(np.abs(before[:2] - pose[:2]).max()))
-    return {**rows, "approach_moved": moved}
+        _append_push(rows, prim, pose, before, cog_pose(np.array(state["block"])), s, GYM_TEE)
+    return rows
+
+
+def _append_push(
+    rows: dict[str, list[Any]],
+    prim: np.ndarray,
+    pose: np.ndarray,
+    before: np.ndarray,
+    after: np.ndarray,
+    s: PrimitiveSettings,
+    tee: TeeGeometry,
+) -> None:
+    """Append one push's `_PER_PUSH` entries to `rows`.
+
+    Args:
+        rows: The lists being recorded, keyed by `_PER_PUSH` (and more).
+        prim: (3,) the push's primitive.
+        pose: (3,) the block's pose (px, rad) when the primitive was chosen.
+        before: (3,) its pose at the push's start, after the approach.
+        after: (3,) its pose at the push's end.
+        s: The primitives' settings.
+        tee: The T the primitive was drawn on.
+    """
+    geo = push_frames(prim[None], s, tee)
+    rows["before"].append(before.tolist())
+    rows["after"].append(after.tolist())
+    rows["origin"].append(to_world(before, geo["start"])[0].tolist())
+    rows["yaw"].append(float(before[2] + geo["yaw"][0]))
+    rows["dist"].append(float(s.gap + prim[2]))
+    rows["approach_moved"].append(float(np.abs(before[:2] - pose[:2]).max()))
 
 
 def _in_frame(truth: np.ndarray, tee: TeeGeometry) -> list[float]:
@@ -282,13 +304,7 @@ def _record_pixels(
         before, after = start.pose, seen.pose.copy()
         turn = after[2] - before[2]  # perceived angles are wrapped: unwrap along the push
         after[2] = before[2] + math.atan2(math.sin(turn), math.cos(turn))
-        geo = push_frames(prim[None], s, tee)
-        rows["before"].append(before.tolist())
-        rows["after"].append(after.tolist())
-        rows["origin"].append(to_world(before, geo["start"])[0].tolist())
-        rows["yaw"].append(float(before[2] + geo["yaw"][0]))
-        rows["dist"].append(float(s.gap + prim[2]))
-        rows["approach_moved"].append(float(np.abs(before[:2] - pose[:2]).max()))
+        _append_push(rows, prim, pose, before, after, s, tee)
         rows["truth_before"].append(_in_frame(start.truth, tee))
         rows["truth_after"].append(_in_frame(seen.truth, tee))
         assert eye.scene is not None  # perceived at the reset, or the reset was lost
