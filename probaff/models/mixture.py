@@ -68,7 +68,9 @@ FLAT_GP_KEYWORDS = {
     "noise_floor": "noise_floor",
 }
 """The experts' settings a `MixtureOfGPExperts` once took one by one, each to its field of
-`GPOptions`: the keywords it now refuses, and the keys of files saved before ``gp``."""
+`GPOptions`: the keywords it now refuses, the keys of files saved before ``gp``, and the
+flat parameters of the scikit-learn estimator (`probaff.models.sklearn`), which scikit-learn's
+`get_params` needs one by one."""
 
 
 def _check_gp(gp: Any) -> GPOptions:

@@ -31,7 +31,7 @@ from probaff._threads import threads_by_rows
 from probaff.errors import InputError, NotFittedError
 from probaff.models.em import fit_em
 from probaff.models.em_run import EMHistory
-from probaff.models.mixture import MixtureOfGPExperts
+from probaff.models.mixture import FLAT_GP_KEYWORDS, MixtureOfGPExperts
 from probaff.models.options import EMOptions, GPOptions
 
 __all__ = [
@@ -55,12 +55,6 @@ _MIXTURE_ARGS = (
     "n_inducing",
     "point",
 )
-# The estimator's flat arguments (scikit-learn's convention) -> the experts' `GPOptions` field.
-_GP_ARGS = {
-    "gp_max_iter": "max_iter",
-    "lengthscale_prior": "lengthscale_prior",
-    "noise_floor": "noise_floor",
-}
 _EM_ARGS = ("n_restarts", "screen_iter", "split_merge", "max_iter", "tol", "n_init", "anneal")
 
 
@@ -286,7 +280,7 @@ class MixtureOfGPExpertsRegressor(RegressorMixin, BaseEstimator):
             InputError: Naming the first argument out of range.
         """
         check_count("gp_max_iter", self.gp_max_iter)
-        return GPOptions(**{field: getattr(self, arg) for arg, field in _GP_ARGS.items()})
+        return GPOptions(**{field: getattr(self, arg) for arg, field in FLAT_GP_KEYWORDS.items()})
 
     # -------------------------------------------------------------------- fit
     @threads_by_rows("X")
