@@ -42,7 +42,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 from tqdm import tqdm
 
 from probaff._cli_errors import run_cli
@@ -51,18 +50,16 @@ from probaff.data.generation import GenerateConfig, generate
 from probaff.data.schema import PushDataset
 from probaff.data.store import load_dataset
 from probaff.errors import InputError
-from probaff.eval.metrics import interval_coverage, nlpd
-from probaff.experiments.modular.trials import geometry_for
+from probaff.experiments.modular.trials import geometry_for, stepped_calibration
 from probaff.features.ch6_push import PLANAR_EFFECT_COLUMNS, push_interactions
 from probaff.features.ch6_scenes import push_scenes
-from probaff.features.ch6_stepped import fit_stepped, link_training_rows
-from probaff.features.ch6_steps import StepOptions, StepTrajectories, hand_steps, step_trajectories
+from probaff.features.ch6_stepped import fit_stepped
+from probaff.features.ch6_steps import StepOptions, StepTrajectories, step_trajectories
 from probaff.models import ModularTransitionModel, SkillTransitionModel, fit_transition
 from probaff.models.stepped_transition import SteppedModelOptions, SteppedPushModel, rollout
 from probaff.sim.tabletop_config import load_scene
 
 GROUPS = ("pose", "action")  # the chapter 6 study's push feature groups
-LEVEL = 0.9
 SCENE = "modular_push"
 
 
@@ -196,34 +193,6 @@ def _whole_push(ds: PushDataset, train: np.ndarray, test: np.ndarray, args: Any)
     return out
 
 
-def _calibration(model: SteppedPushModel, test: StepTrajectories) -> dict[str, Any]:
-    """Coverage and NLPD per dimension of the backward models on the held-out steps."""
-    geo = model.geometry
-    hand = hand_steps(test, geo)  # type: ignore[arg-type]
-    links = link_training_rows(model, test, hand)
-    t = hand.touches
-    rows = {
-        "hand_forward": (hand.features[t], hand.effect[t]),
-        "hand_backward": (np.concatenate([hand.features, hand.effect], 1), hand.reaction),
-        "link_forward": (links.features, links.effect),
-        "link_backward": (np.concatenate([links.features, links.effect], 1), links.reaction),
-    }
-    out: dict[str, Any] = {}
-    for name, (x, y) in rows.items():
-        if len(x) == 0:  # no held-out step makes this contact
-            out[name] = {"rows": 0, "nlpd": [], "coverage": []}
-            continue
-        with torch.no_grad():
-            dist = model.models[name].predict(torch.as_tensor(x, dtype=torch.float64))
-            target = torch.as_tensor(y, dtype=torch.float64)
-            out[name] = {
-                "rows": len(x),
-                "nlpd": nlpd(dist, target).tolist(),
-                "coverage": interval_coverage(dist, target, LEVEL).tolist(),
-            }
-    return out
-
-
 def _reaction_share(ds: PushDataset, steps: StepTrajectories) -> dict[str, float]:
     """Share of pushes whose hand reaction exceeds 1 cm: on the path, at step ends, at its end."""
     dev = np.asarray(ds["traj_hand"], np.float64) - np.asarray(ds["traj_commanded"], np.float64)
@@ -292,7 +261,7 @@ def main(argv: list[str] | None = None) -> int:
         whole = _whole_push(ds, train, test, args)
         finals["whole_push_forward"] = whole["forward"]
         finals["whole_push_backward"] = whole["backward"]
-        calibration = _calibration(model, steps.subset(test))
+        calibration = stepped_calibration(model, steps.subset(test))
     errors = {name: _errors(yaw, f, true) for name, f in finals.items()}
     result = {
         "command": " ".join(["python", "benchmarks/stepped_push.py", *(argv or sys.argv[1:])]),

@@ -24,6 +24,9 @@ from probaff.experiments.modular import ModularStudyConfig, TrialSettings, run
 from probaff.experiments.modular.report import (
     summarise_chains,
     summarise_skills,
+    summarise_stepped,
+    summarise_stepped_calibration,
+    summarise_stepped_paired,
     summarise_two_objects,
 )
 
@@ -33,6 +36,7 @@ def test_script_smoke_and_resume(tmp_path):
     out = tmp_path / "modular"
     files = run_smoke("modular", out)
     tables = ("backward.csv", "two_objects.csv", "pick_place.csv", "chains.csv", "summary.md")
+    tables += ("stepped.csv", "stepped_paired.csv", "stepped_calibration.csv")
     figures = ("tabletop_predictions.png", "sideview_predictions.png", "chain_errors.png")
     more = ("modular_vs_monolithic.png", "learning_curves.png")
     assert_wrote(files, out, tables + figures + more)
@@ -53,6 +57,16 @@ def test_script_smoke_and_resume(tmp_path):
         assert np.asarray(r["chains"]["3"]["lo"]).shape == (2, 3, 3)
         lo, hi = np.asarray(r["chains"]["3"]["lo"]), np.asarray(r["chains"]["3"]["hi"])
         assert np.all(lo <= hi)
+        # the stepped model rolled out on the same test scenes, 14 steps of 2.5 cm
+        stepped = r["stepped"]
+        assert stepped["steps"] == 14 and stepped["true"] == r["two"]["true"]
+        for name in ("stepped_forward", "stepped_planned", "stepped_backward"):
+            assert np.isfinite(np.asarray(stepped[name])).all()
+            assert np.asarray(stepped[name]).shape == (2, 2, 3)
+        assert stepped["stepped_forward"] != stepped["stepped_backward"]  # reactions moved it
+        assert stepped["calibration"]["hand_backward"]["rows"] == 2 * 14
+        assert "stepped" in r["fit_seconds"]
+    assert "## The stepped push model" in text
     assert_resumes(lambda: run_smoke("modular", out), tasks)  # resumes: no reruns
 
 
@@ -109,6 +123,36 @@ def test_two_object_and_chain_summaries_score_the_means():
     assert chains[2]["touched"] == 0.5 and chains[0]["moved"] == 1.0 and chains[1]["moved"] == 0.0
 
 
+def test_stepped_summaries_score_the_rollouts_and_pair_them():
+    true = [[[0.0, 0.10, 0.0], [0.0, 0.0, 0.0]]]  # o1 moved 10 cm along, o2 stayed put
+    recs = []
+    for trial, (fwd, bwd) in enumerate([(0.04, 0.01), (0.02, 0.01)]):
+        rec = _push_record(trial, true, [[[0.0, 0.13, 0.0], [0.0, 0.0, 0.0]]], true)
+        cal = {"rows": 14, "nlpd": [1.0, 3.0], "coverage": [0.8, 1.0]}
+        rec["stepped"] = {
+            "true": true,
+            "steps": 14,
+            "stepped_forward": [[[0.0, 0.10 - fwd, 0.0], [0.03, 0.04, 0.0]]],
+            "stepped_planned": [[[0.0, 0.10 - fwd, 0.0], [0.0, 0.0, 0.0]]],
+            "stepped_backward": [[[bwd, 0.10, 0.0], [0.0, 0.0, 0.0]]],
+            "calibration": {"hand_backward": cal, "link_backward": {**cal, "rows": 0}},
+        }
+        recs.append(rec)
+    rows = {(r["model"], r["object"]): r for r in summarise_stepped(recs)}
+    assert rows["stepped_forward", 1]["along_cm"] == pytest.approx(3.0)  # (4 + 2) / 2
+    assert rows["stepped_backward", 1]["off_cm"] == pytest.approx(1.0)
+    assert rows["stepped_forward", 2]["error_cm"] == pytest.approx(5.0)  # |(3, 4)| cm
+    assert rows["whole_push", 1]["along_cm"] == pytest.approx(3.0)  # the two-object chain
+    paired = {(r["comparison"], r["object"]): r for r in summarise_stepped_paired(recs)}
+    diff = paired["stepped_forward - stepped_backward", 1]
+    assert diff["diff_cm"] == pytest.approx(2.0) and diff["trials"] == 2  # (3 + 1) / 2
+    assert paired["stepped_planned - stepped_backward", 2]["diff_cm"] == 0.0
+    cal = summarise_stepped_calibration(recs)
+    assert [r["component"] for r in cal] == ["hand_backward"]  # no held-out link step
+    assert cal[0]["nlpd"] == 2.0 and cal[0]["coverage90"] == 0.9 and cal[0]["rows"] == 28
+    assert summarise_stepped([_push_record(0, true, true, true)]) == []  # no stepped rollouts
+
+
 def test_skill_summary_splits_by_the_simulators_verdict():
     true = [[0.2, 0.0, 0.0], [0.0, 0.0, 0.0], [0.2, 0.0, 0.0]]
     pred = [[0.18, 0.0, 0.0], [0.01, 0.0, 0.0], [0.05, 0.0, 0.0]]  # the third judged a failure
@@ -132,7 +176,7 @@ def test_skill_summary_splits_by_the_simulators_verdict():
     assert rows["forward", "slipped"]["n"] == 1 and ("forward", "not grasped") not in rows
 
 
-def test_bad_config():
+def test_bad_config(tmp_path):
     with pytest.raises(InputError, match="trials must be a positive integer"):
         run(ModularStudyConfig(trials=0))
     with pytest.raises(InputError, match="scales must be finite numbers >= 1"):
@@ -150,6 +194,17 @@ def test_bad_config():
         run(ModularStudyConfig(hand="rubber"))
     with pytest.raises(InputError, match="reaction must be one of"):
         TrialSettings(reaction="start")
+    with pytest.raises(InputError, match=r"push_scene must be one of \['modular_push', 'resis"):
+        run(ModularStudyConfig(push_scene="chain_3"))
+    for bad in (0.0, -0.025, math.nan, "2.5 cm", True):
+        with pytest.raises(InputError, match="step_length must be a positive"):
+            TrialSettings(step_length=bad)
+    with pytest.raises(InputError, match="stepped must be True or False"):
+        TrialSettings(stepped="yes")  # type: ignore[arg-type]
+    # a step that does not divide the scene's 35 cm push: refused before any dataset is made
+    with pytest.raises(InputError, match=r"step_length=0.03 m does not divide the 0.35 m push"):
+        run(ModularStudyConfig(out=str(tmp_path / "m"), settings=TrialSettings(step_length=0.03)))
+    assert not (tmp_path / "m").exists()
 
 
 # --- figures

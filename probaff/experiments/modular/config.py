@@ -14,9 +14,11 @@ from probaff._checks import check_count
 from probaff.errors import InputError
 from probaff.experiments.base import StudyConfig
 from probaff.experiments.modular.trials import TrialSettings
+from probaff.features.ch6_steps import check_step_length
 from probaff.sim.pusher import HAND_MODES
+from probaff.sim.tabletop_config import load_scene
 
-__all__ = ["DEMO", "SMOKE", "THESIS", "TRAININGS", "ModularStudyConfig"]
+__all__ = ["DEMO", "PUSH_SCENES", "SMOKE", "THESIS", "TRAININGS", "ModularStudyConfig"]
 
 THESIS = {
     "backward_along_cm": (5.8, 2.57),
@@ -55,12 +57,22 @@ DEMO: Mapping[str, Any] = MappingProxyType(
         "scales": (1.0,),
         "chain_lengths": (3,),
         "chain_train": 0,
-        "settings": {"chain_samples": 64, "em": {"max_iter": 3}, "gp_max_iter": 30},
+        "settings": {
+            "chain_samples": 64,
+            "em": {"max_iter": 3},
+            "gp_max_iter": 30,
+            "stepped": False,
+        },
     }
 )
-"""The demo's sizes: one small trial of every part, a three-object chain among them."""
+"""The demo's sizes: one small trial of every part, a three-object chain among them (the
+stepped push model is left to the study)."""
 
 _PARTS = ("push", "pick", "place")
+
+PUSH_SCENES = ("modular_push", "resistance_push")
+"""Two-object push scenes the study's push part can draw from: the thesis's two cuboids, or a
+box pushed into a second, often too heavy to move, where the hand meets resistance."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -88,6 +100,10 @@ class ModularStudyConfig(StudyConfig):
             arm did: "the desired trajectory of the manipulator would not synchronize with
             executed position due to the feedback force", section 6.5.2) or ``"stiff"``
             (the hand held to its command within about 0.5 mm).
+        push_scene: The two-object push scene of the push part's pool and test scenes
+            (`PUSH_SCENES`): ``"modular_push"`` (the thesis's cuboids) or
+            ``"resistance_push"`` (heavy boxes pushed into others: the hand meets
+            resistance). The chains stay the ``chain_3`` .. ``chain_5`` cuboid rows.
     """
 
     out: str = "results/modular"
@@ -101,6 +117,7 @@ class ModularStudyConfig(StudyConfig):
     chain_train: int = 60
     settings: TrialSettings = field(default_factory=TrialSettings)
     hand: str = "compliant"
+    push_scene: str = "modular_push"
 
     SMOKE: ClassVar[Mapping[str, Any]] = SMOKE
 
@@ -124,9 +141,17 @@ class ModularStudyConfig(StudyConfig):
                 f"hand must be one of {list(HAND_MODES)} (how the simulated hand follows its "
                 f"command), got {self.hand!r}."
             )
+        if self.push_scene not in PUSH_SCENES:
+            raise InputError(
+                f"push_scene must be one of {list(PUSH_SCENES)} (a two-object push scene), got "
+                f"{self.push_scene!r}."
+            )
         s = self.settings
         if not isinstance(s, TrialSettings):
             raise InputError(f"settings must be a TrialSettings, got {type(s).__name__}.")
+        if s.stepped:  # the step length must divide the scene's push, before any work
+            distance = load_scene(self.push_scene).push.distance
+            check_step_length(s.step_length, np.array([distance]))
         return {}
 
     def train_size(self, part: str, scale: float) -> int:

@@ -16,13 +16,22 @@ import numpy as np
 from probaff.eval.metrics import mean_halfwidth
 from probaff.eval.tables import markdown_table
 from probaff.experiments.modular.config import THESIS, TRAININGS, ModularStudyConfig
-from probaff.experiments.modular.trials import LEVEL, PUSH_MODELS, SKILL_MODELS
+from probaff.experiments.modular.trials import (
+    LEVEL,
+    PUSH_MODELS,
+    SKILL_MODELS,
+    STEPPED_COMPONENTS,
+    STEPPED_MODELS,
+)
 
 __all__ = [
     "report",
     "summarise_backward",
     "summarise_chains",
     "summarise_skills",
+    "summarise_stepped",
+    "summarise_stepped_calibration",
+    "summarise_stepped_paired",
     "summarise_two_objects",
 ]
 
@@ -86,6 +95,35 @@ _CHAIN_COLUMNS = [
     "moved",
     "seconds",
 ]
+
+
+_STEPPED_COLUMNS = [
+    "n_train",
+    "model",
+    "object",
+    "trials",
+    "along_cm",
+    "along_ci",
+    "off_cm",
+    "off_ci",
+    "error_cm",
+    "error_ci",
+]
+
+_PAIRED_COLUMNS = ["n_train", "comparison", "object", "trials", "diff_cm", "diff_ci"]
+
+_CALIBRATION_COLUMNS = [
+    "n_train",
+    "component",
+    "trials",
+    "rows",
+    "nlpd",
+    "nlpd_ci",
+    "coverage90",
+    "coverage_ci",
+]
+
+_STEPPED_BASELINES = ("stepped_forward", "stepped_planned")
 
 
 def _stat(values: list[float]) -> tuple[float, float]:
@@ -329,6 +367,125 @@ def _chain_rows(records: list[dict[str, Any]], part: str, training: str) -> list
     return rows
 
 
+def _stepped_errors(r: dict[str, Any], model: str) -> np.ndarray:
+    """(n, K, 3) per test scene: |off|, |along| and Euclidean final-position errors (m).
+
+    `model` is one of `STEPPED_MODELS`, or ``"whole_push"`` (the modular chain of the
+    whole-push model, from the record's two-object predictions).
+    """
+    true = np.array(r["stepped"]["true"])
+    pred = np.array(r["two"]["modular"]["mean"] if model == "whole_push" else r["stepped"][model])
+    d = pred[..., :2] - true[..., :2]
+    return np.concatenate([np.abs(d), np.linalg.norm(d, axis=-1, keepdims=True)], axis=-1)
+
+
+def summarise_stepped(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per (training size, model, object) of the stepped rollouts of the test scenes.
+
+    Models: `STEPPED_MODELS` and ``"whole_push"`` (the whole-push model chained, the
+    baseline). Empty for records without stepped rollouts.
+
+    Returns:
+        Rows with ``n_train``, ``model``, ``object`` (1-based), ``trials``, and the mean
+        absolute final-position errors (cm) ``along_cm``, ``off_cm`` and the Euclidean
+        ``error_cm``, each with its ``*_ci`` half-width over trials.
+    """
+    rows = []
+    for n, rs in _by(records, "push").items():
+        rs = [r for r in rs if "stepped" in r]
+        if not rs:
+            continue
+        for model in (*STEPPED_MODELS, "whole_push"):
+            errs = [_stepped_errors(r, model).mean(0) for r in rs]  # (K, 3) per trial
+            for k in range(errs[0].shape[0]):
+                along, along_ci = _stat([100 * e[k, 1] for e in errs])
+                off, off_ci = _stat([100 * e[k, 0] for e in errs])
+                euclid, euclid_ci = _stat([100 * e[k, 2] for e in errs])
+                rows.append(
+                    {
+                        "n_train": n,
+                        "model": model,
+                        "object": k + 1,
+                        "trials": len(rs),
+                        "along_cm": along,
+                        "along_ci": along_ci,
+                        "off_cm": off,
+                        "off_ci": off_ci,
+                        "error_cm": euclid,
+                        "error_ci": euclid_ci,
+                    }
+                )
+    return rows
+
+
+def summarise_stepped_paired(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Paired differences of the stepped rollouts' Euclidean errors, per object.
+
+    Each comparison is ``A - stepped_backward`` for A among ``stepped_forward``,
+    ``stepped_planned`` and ``whole_push``: positive means the stepped model with its
+    backward components is the better. Each trial gives the mean difference over its test
+    scenes; the interval is over trials.
+
+    Returns:
+        Rows with ``n_train``, ``comparison``, ``object``, ``trials``, ``diff_cm`` and its
+        ``diff_ci`` half-width.
+    """
+    rows = []
+    for n, rs in _by(records, "push").items():
+        rs = [r for r in rs if "stepped" in r]
+        for model in (*_STEPPED_BASELINES, "whole_push"):
+            diffs = [
+                (_stepped_errors(r, model) - _stepped_errors(r, "stepped_backward"))[..., 2].mean(0)
+                for r in rs
+            ]
+            for k in range(diffs[0].shape[0] if diffs else 0):
+                d, ci = _stat([100 * float(v[k]) for v in diffs])
+                rows.append(
+                    {
+                        "n_train": n,
+                        "comparison": f"{model} - stepped_backward",
+                        "object": k + 1,
+                        "trials": len(rs),
+                        "diff_cm": d,
+                        "diff_ci": ci,
+                    }
+                )
+    return rows
+
+
+def summarise_stepped_calibration(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per (training size, component): the stepped model's held-out calibration.
+
+    Returns:
+        Rows with ``n_train``, ``component`` (`STEPPED_COMPONENTS`), ``trials``, ``rows``
+        (held-out steps over all trials), ``nlpd`` (mean per output dimension) and
+        ``coverage90`` (of the central 90 % intervals, mean over dimensions), each with its
+        half-width over trials.
+    """
+    rows = []
+    for n, rs in _by(records, "push").items():
+        cals = [r["stepped"]["calibration"] for r in rs if "stepped" in r]
+        for name in STEPPED_COMPONENTS:
+            got = [c[name] for c in cals if name in c and c[name]["rows"]]
+            if not got:
+                continue
+            nl, nl_ci = _stat([float(np.mean(c["nlpd"])) for c in got])
+            cov, cov_ci = _stat([float(np.mean(c["coverage"])) for c in got])
+            rows.append(
+                {
+                    "n_train": n,
+                    "component": name,
+                    "trials": len(got),
+                    "rows": int(sum(c["rows"] for c in got)),
+                    "nlpd": nl,
+                    "nlpd_ci": nl_ci,
+                    "coverage90": cov,
+                    "coverage_ci": cov_ci,
+                }
+            )
+    return rows
+
+
 def _fmt(rows: list[dict[str, Any]], columns: list[str]) -> str:
     return markdown_table(rows, columns, digits=3)
 
@@ -339,14 +496,21 @@ def report(
     two: list[dict[str, Any]],
     skills: list[dict[str, Any]],
     chains: list[dict[str, Any]],
+    stepped: dict[str, list[dict[str, Any]]] | None = None,
 ) -> str:
-    """The summary's Markdown: each table with the thesis's numbers beside it."""
+    """The summary's Markdown: each table with the thesis's numbers beside it.
+
+    `stepped` holds the rows of `summarise_stepped` (``"rows"``), `summarise_stepped_paired`
+    (``"paired"``) and `summarise_stepped_calibration` (``"calibration"``); its section is
+    left out when it is ``None`` or holds no rows.
+    """
     fwd, bwd = THESIS["backward_along_cm"]
     mod, mono = THESIS["modular_along_cm"], THESIS["monolithic_along_cm"]
     md = [
         "# Chapter 6: modular transition models",
         "",
-        f"Hand: {config.hand} (how the simulated hand follows its command). "
+        f"Hand: {config.hand} (how the simulated hand follows its command); push scene: "
+        f"`{config.push_scene}`. "
         f"{config.trials} trials per training size; each trial fits on its own draw of the "
         f"training pool and predicts its own {config.test_scenes} test scenes per skill. "
         "`*_ci`: half-width of the 95 % Student-t interval of the mean over trials; "
@@ -391,4 +555,32 @@ def report(
         _fmt(chains, _CHAIN_COLUMNS),
         "",
     ]
+    if stepped and stepped.get("rows"):
+        md += [
+            "## The stepped push model (two-object scenes)",
+            "",
+            f"Each push cut into steps of {100 * config.settings.step_length:g} cm of "
+            "commanded hand travel and rolled out step by step: predict the step's effect, "
+            "then its reaction, move the object, set the hand to its command plus the "
+            "reaction (thesis section 6.3.1). `stepped_backward`: with the backward "
+            "components; `stepped_forward`: the same forward models, the hand kept on its "
+            "command; `stepped_planned`: forward models fitted on the planned actions, as a "
+            "rollout without reactions places the hand (the fair baseline); `whole_push`: "
+            f"the whole-push chain above. Thesis: {fwd} cm without, {bwd} cm with the "
+            "backward component (o1 along the push). Final-position errors:",
+            "",
+            _fmt(stepped["rows"], _STEPPED_COLUMNS),
+            "",
+            "Paired differences of the Euclidean error (positive: the stepped model with "
+            "its backward components is the better), mean over trials of each trial's mean "
+            "over its test scenes:",
+            "",
+            _fmt(stepped["paired"], _PAIRED_COLUMNS),
+            "",
+            "The components on the held-out steps (goal: backward 90 % intervals cover "
+            "85-95 %, backward NLPD within 2 nats of the forward model's):",
+            "",
+            _fmt(stepped["calibration"], _CALIBRATION_COLUMNS),
+            "",
+        ]
     return "\n".join(md)

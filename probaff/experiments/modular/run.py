@@ -3,8 +3,9 @@
 `run` generates (or resumes) the datasets under ``out/data/``, all with the hand of
 ``config.hand`` (compliant by default: a Cartesian impedance that lags and deflects against
 resistance, whose deviation from its command, the reaction, the datasets record along the
-path; `probaff.sim.pusher`): a pool of tabletop
-``modular_push`` pushes (two cuboids, a 35 cm push, the second up to 30 cm sideways), of
+path; `probaff.sim.pusher`): a pool of tabletop pushes of ``config.push_scene``
+(``modular_push``: two cuboids, a 35 cm push, the second up to 30 cm sideways;
+``resistance_push``: heavy boxes pushed into others), of
 side-view ``pick`` and ``place`` skills, and held-out test sets of each and of the
 ``chain_3`` .. ``chain_5`` rows of cuboids. Every (part, training-set scale, trial) is one
 resumable task (`probaff.experiments.modular.trials`): trial t draws its training rows from
@@ -23,6 +24,10 @@ What it reports (``summary.md``, one CSV per table, PNG figures):
   that cannot be picked should be predicted at about zero displacement);
 * ``chains.csv``: error and 90 % interval coverage of every object of 3-, 4- and 5-object
   chains, which the monolithic model cannot represent;
+* ``stepped.csv`` and ``stepped_paired.csv`` (with ``settings.stepped``): the stepped push
+  model's rollouts of the two-object test scenes with and without its backward components,
+  beside the whole-push chain, and the paired differences; ``stepped_calibration.csv``: its
+  components' held-out NLPD and 90 % coverage;
 * figures: predicted against observed motion on the table and in the side view, error
   against chain position, modular against monolithic, and errors against training size.
 """
@@ -41,6 +46,9 @@ from probaff.experiments.modular.report import (
     summarise_backward,
     summarise_chains,
     summarise_skills,
+    summarise_stepped,
+    summarise_stepped_calibration,
+    summarise_stepped_paired,
     summarise_two_objects,
 )
 from probaff.experiments.modular.trials import (
@@ -53,10 +61,9 @@ from probaff.experiments.modular.trials import (
 
 __all__ = ["modular_task", "run"]
 
-_VERSION = 6  # 2: path reaction, hand mode; 3: SMEM by partial EM; 4: coroutines; 5: fused; 6: l1
+_VERSION = 7  # 2: path reaction, hand mode; 3: SMEM; 4: coroutines; 5: fused; 6: l1; 7: stepped
 _TEST_SEED_OFFSET = 1000  # test datasets use seed + this, so they never share a draw
 _WORLD = (
-    "scenes/modular_push.yaml",
     "scenes/chain_3.yaml",
     "scenes/chain_4.yaml",
     "scenes/chain_5.yaml",
@@ -84,7 +91,7 @@ def _datasets(study: StudyRun[ModularStudyConfig]) -> dict[str, str]:
     top = max(config.scales)
     n_test = config.test_scenes * config.trials
     paths = {}
-    for part, scene in (("push", "modular_push"), ("pick", "pick"), ("place", "place")):
+    for part, scene in (("push", config.push_scene), ("pick", "pick"), ("place", "place")):
         paths[f"{part}_pool"] = _dataset(study, scene, config.train_size(part, top), False)
         paths[f"{part}_test"] = _dataset(study, scene, n_test, True)
     for k in config.chain_lengths:
@@ -97,8 +104,9 @@ def _datasets(study: StudyRun[ModularStudyConfig]) -> dict[str, str]:
 def _tasks(config: ModularStudyConfig, paths: dict[str, str]) -> list[tuple[str, tuple[Any, ...]]]:
     """Every (part, scale, trial) task, keyed by the settings that shape it."""
     # The extension does not shape the thesis's parts.
-    tag = config.tag(exclude=("chain_train",), world=_WORLD, version=_VERSION)
-    chained_tag = config.tag(world=_WORLD, version=_VERSION)
+    world = (f"scenes/{config.push_scene}.yaml", *_WORLD)
+    tag = config.tag(exclude=("chain_train",), world=world, version=_VERSION)
+    chained_tag = config.tag(world=world, version=_VERSION)
     chains = tuple((k, paths[f"chain_{k}"]) for k in config.chain_lengths)
     tasks: list[tuple[str, tuple[Any, ...]]] = []
     for scale in config.scales:
@@ -155,7 +163,9 @@ def run(config: ModularStudyConfig) -> dict[str, Any]:
         config: Study settings.
 
     Returns:
-        ``{"backward", "two_objects", "skills", "chains": summary rows, "files": paths}``.
+        ``{"backward", "two_objects", "skills", "chains": summary rows, "stepped": its
+        ``"rows"``, ``"paired"`` and ``"calibration"`` rows (empty without
+        ``settings.stepped``), "files": paths}``.
 
     Raises:
         InputError: For an invalid config.
@@ -172,14 +182,24 @@ def run(config: ModularStudyConfig) -> dict[str, Any]:
     study.table("two_objects.csv", two)
     study.table("pick_place.csv", skills)
     study.table("chains.csv", chains)
+    stepped = {
+        "rows": summarise_stepped(records),
+        "paired": summarise_stepped_paired(records),
+        "calibration": summarise_stepped_calibration(records),
+    }
+    if stepped["rows"]:
+        study.table("stepped.csv", stepped["rows"])
+        study.table("stepped_paired.csv", stepped["paired"])
+        study.table("stepped_calibration.csv", stepped["calibration"])
     tables = {"backward": backward, "two": two, "skills": skills, "chains": chains}
     for path in study_figures(study.config.settings, paths, records, tables, study.out):
         study.figure(path)
-    study.summary(report(study.config, backward, two, skills, chains))
+    study.summary(report(study.config, backward, two, skills, chains, stepped))
     return {
         "backward": backward,
         "two_objects": two,
         "skills": skills,
         "chains": chains,
+        "stepped": stepped,
         "files": study.files,
     }

@@ -4,10 +4,13 @@ A trial is a study task (`probaff.eval.tasks.run_tasks`): its arguments are data
 row indices, so Dask workers load the datasets themselves (once per process) and a record is
 plain JSON. Two kinds:
 
-* `push_trial`: on tabletop pushes (the `modular_push` scene), fit the push model without
-  and with its backward component and as a mixture of experts, and the monolithic
-  two-object GP (`MonolithicTransitionModel` on `scene_features`). Predict the hand's effect
-  on o1 of every test push, both objects of every test scene (modular chains against the
+* `push_trial`: on tabletop pushes (a two-object push scene: `modular_push`, or
+  `resistance_push` where the hand meets resistance), fit the push model without and with
+  its backward component and as a mixture of experts, the monolithic two-object GP
+  (`MonolithicTransitionModel` on `scene_features`) and, with ``settings.stepped``, the
+  stepped push model (`probaff.features.ch6_stepped.fit_stepped`, rolled out step by step).
+  Predict the hand's effect on o1 of every test push, both objects of every test scene
+  (modular chains, stepped rollouts with and without the backward components, and the
   monolithic GP) and every test chain of 3, 4, 5 objects.
 * `skill_trial`: on side-view picks or places, fit the skill's model (GP, GP with the
   backward component, mixture) and predict each test case's effect, with the simulator's
@@ -46,6 +49,14 @@ from probaff.features.ch6_push import (
     push_interactions,
 )
 from probaff.features.ch6_scenes import push_scenes, scene_effects, scene_features
+from probaff.features.ch6_stepped import fit_stepped, link_training_rows
+from probaff.features.ch6_steps import (
+    StepOptions,
+    StepTrajectories,
+    check_step_length,
+    hand_steps,
+    step_trajectories,
+)
 from probaff.features.chain_geometry import Ch6Geometry
 from probaff.models import (
     EMOptions,
@@ -54,11 +65,13 @@ from probaff.models import (
     SkillTransitionModel,
     fit_transition,
 )
+from probaff.models.stepped_transition import SteppedModelOptions, SteppedPushModel, rollout
 
 __all__ = [
     "LEVEL",
     "PUSH_MODELS",
     "SKILL_MODELS",
+    "STEPPED_MODELS",
     "TrialData",
     "TrialSettings",
     "chain_trained_trial",
@@ -66,6 +79,7 @@ __all__ = [
     "push_trial",
     "skill_rows",
     "skill_trial",
+    "stepped_calibration",
 ]
 
 LEVEL = 0.9
@@ -76,6 +90,16 @@ PUSH_MODELS = ("forward", "backward", "mixture")
 
 SKILL_MODELS = ("forward", "backward", "mixture")
 """Pick and place models: the same three."""
+
+STEPPED_MODELS = ("stepped_forward", "stepped_planned", "stepped_backward")
+"""Stepped rollouts of a two-object test scene: the forward models of the stepped model with
+the backward components (``stepped_backward``) and without them (``stepped_forward``: the
+same forward models, the hand kept on its command), and forward models fitted on the
+planned actions, as a rollout without reactions places the hand (``stepped_planned``: the
+fair baseline of the backward components)."""
+
+STEPPED_COMPONENTS = ("hand_forward", "hand_backward", "link_forward", "link_backward")
+"""The stepped model's components, whose held-out calibration a trial records."""
 
 _Z90 = 1.6448536269514722  # standard normal quantile of 0.95
 
@@ -101,6 +125,10 @@ class TrialSettings:
             deviation from its command (`probaff.features.ch6_push.REACTIONS`): ``"path"``
             (its end point and its mean along the push, the default) or ``"end"`` (the end
             point alone).
+        stepped: Also fit the stepped push model and roll it out on the two-object test
+            scenes (`STEPPED_MODELS`).
+        step_length: Commanded hand travel per step of the stepped model (m); it must
+            divide the push (0.025 cuts a 35 cm push into 14 steps).
     """
 
     push_groups: tuple[str, ...] = ("pose", "action")
@@ -114,10 +142,15 @@ class TrialSettings:
     gp_max_iter: int = 50
     chain_backward: bool = True
     reaction: str = "path"
+    stepped: bool = True
+    step_length: float = 0.025
 
     def __post_init__(self) -> None:
-        """Raise `InputError` for a bad count, group list or reaction."""
+        """Raise `InputError` for a bad count, group list, reaction or step length."""
         check_count("chain_samples", self.chain_samples, minimum=2)
+        if not isinstance(self.stepped, bool):
+            raise InputError(f"stepped must be True or False, got {self.stepped!r}.")
+        check_step_length(self.step_length)
         if self.reaction not in REACTIONS:
             raise InputError(f"reaction must be one of {list(REACTIONS)}, got {self.reaction!r}.")
         check_count("n_experts", self.n_experts)
@@ -396,6 +429,96 @@ def push_trial(data: TrialData, settings: TrialSettings, keep: int = 2) -> dict[
             },
         }
         record["chains"] = _test_chains(chain, data, settings, keep)
+        if settings.stepped:
+            t0 = time.perf_counter()
+            record["stepped"] = _stepped_record(data, settings)
+            seconds["stepped"] = time.perf_counter() - t0
+    return record
+
+
+@cache
+def _steps(path: str, groups: tuple[str, ...], step_length: float) -> StepTrajectories:
+    ds = _push_dataset(path)
+    options = StepOptions(step_length)
+    return step_trajectories(ds, options, geometry=geometry_for(groups), reaction=True)
+
+
+def stepped_calibration(model: SteppedPushModel, test: StepTrajectories) -> dict[str, Any]:
+    """Coverage and NLPD per dimension of a stepped model's components on held-out steps.
+
+    Args:
+        model: A stepped model fitted with its backward components.
+        test: Held-out pushes at their step boundaries, cut with reactions.
+
+    Returns:
+        Per component of `STEPPED_COMPONENTS` (that `model` holds): ``"rows"``, and per
+        output dimension ``"nlpd"`` and ``"coverage"`` of the central `LEVEL` interval
+        (empty lists where no held-out step makes that contact).
+    """
+    geo = model.geometry
+    assert isinstance(geo, Ch6Geometry)
+    hand = hand_steps(test, geo)
+    t = hand.touches
+    rows = {
+        "hand_forward": (hand.features[t], hand.effect[t]),
+        "hand_backward": (np.concatenate([hand.features, hand.effect], 1), hand.reaction),
+    }
+    if test.n_objects > 1:
+        links = link_training_rows(model, test, hand)
+        rows["link_forward"] = (links.features, links.effect)
+        rows["link_backward"] = (np.concatenate([links.features, links.effect], 1), links.reaction)
+    out: dict[str, Any] = {}
+    for name, (x, y) in rows.items():
+        if name not in model.models:
+            continue
+        if len(x) == 0:
+            out[name] = {"rows": 0, "nlpd": [], "coverage": []}
+            continue
+        with torch.no_grad():
+            dist = model.models[name].predict(torch.as_tensor(x, dtype=torch.float64))
+            target = torch.as_tensor(y, dtype=torch.float64)
+            out[name] = {
+                "rows": len(x),
+                "nlpd": nlpd(dist, target).tolist(),
+                "coverage": interval_coverage(dist, target, LEVEL).tolist(),
+            }
+    return out
+
+
+def _stepped_record(data: TrialData, settings: TrialSettings) -> dict[str, Any]:
+    """The stepped model fitted on the training pushes and rolled out on the test scenes.
+
+    Returns:
+        ``{"true", <each of STEPPED_MODELS>: (n, K, 3) displacements (off, along, turn) in the
+        hand's action frame, "calibration": `stepped_calibration` on the test pushes,
+        "steps": steps per push}``.
+    """
+    geo = geometry_for(settings.push_groups)
+    train = _steps(data.train, settings.push_groups, settings.step_length)
+    test = _steps(data.test, settings.push_groups, settings.step_length)
+    train, test = train.subset(data.train_rows), test.subset(data.test_rows)
+    options = SteppedModelOptions(gp_max_iter=settings.gp_max_iter, seed=data.seed)
+    model = fit_stepped(train, geo, options, backward=True)
+    planned = fit_stepped(train, geo, options, backward=False)
+    full = model.components(backward=True)
+    variants = {
+        "stepped_forward": full.without_backward(),
+        "stepped_planned": planned.components(),
+        "stepped_backward": full,
+    }
+    ds = _push_dataset(data.test)
+    rows = np.asarray(data.test_rows)
+    T_a = push_scenes(ds, geometry=geo).T_world_action[rows]
+    scenes = test.scenes()
+    record: dict[str, Any] = {
+        "true": scene_effects(ds)[rows].reshape(len(rows), -1, 3).tolist(),
+        "steps": int(test.n_steps),
+    }
+    for name, comps in variants.items():
+        d = rollout(comps, geo, scenes).final - test.objects[:, 0]  # (n, K, 3) world
+        d[..., 2] = (d[..., 2] + np.pi) % (2 * np.pi) - np.pi  # as scene_effects wraps it
+        record[name] = np.stack([_in_action(T_a[i], d[i]) for i in range(len(rows))]).tolist()
+    record["calibration"] = stepped_calibration(model, test)
     return record
 
 
