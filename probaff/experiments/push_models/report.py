@@ -17,6 +17,7 @@ from probaff.data.noise import PoseNoise
 from probaff.eval.metrics import mean_halfwidth
 from probaff.eval.tables import markdown_table
 from probaff.experiments.config_cli import settings_view
+from probaff.experiments.push_models.claims import claim_lines
 from probaff.experiments.push_models.config import (
     CH4_EFFECTS,
     CH5_EFFECTS,
@@ -201,8 +202,14 @@ def header(config: PushModelStudyConfig) -> list[str]:
     ]
 
 
-def chapter5_section(rows5: list[dict[str, Any]]) -> list[str]:
-    """Chapter 5's Markdown section from its summary rows (`summarise`)."""
+def chapter5_section(
+    rows5: list[dict[str, Any]], claims: list[dict[str, Any]] | None = None
+) -> list[str]:
+    """Chapter 5's Markdown section from its summary rows (`summarise`).
+
+    `claims` (`probaff.experiments.push_models.claims.chapter5_claims`) adds the claims
+    judged with intervals over folds.
+    """
     md = [
         "## Chapter 5: two-object pushes, mean over folds",
         "",
@@ -228,6 +235,16 @@ def chapter5_section(rows5: list[dict[str, Any]]) -> list[str]:
         *_findings(rows5, "em-hard"),
         "",
     ]
+    if claims:
+        md += [
+            "The claims judged fold by fold (paired: the same held-out pushes), with 95 % "
+            "Student-t intervals over folds: `holds` when the interval lies on the thesis's "
+            "side of 0, `refuted` when on the other, `not shown` when it holds 0 "
+            "(`ch5_claims.csv` has every comparison):",
+            "",
+            *claim_lines(claims),
+            "",
+        ]
     return md
 
 

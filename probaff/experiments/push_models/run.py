@@ -30,6 +30,7 @@ from probaff.data import GenerateConfig
 from probaff.data.noise import PoseNoise
 from probaff.eval.metrics import interval_coverage, nlpd, rmse
 from probaff.experiments.base import StudyRun
+from probaff.experiments.push_models.claims import chapter5_claims
 from probaff.experiments.push_models.config import (
     CH4_EFFECTS,
     CH4_FEATURES,
@@ -335,7 +336,8 @@ def run(config: PushModelStudyConfig) -> dict[str, Any]:
         config: Study settings.
 
     Returns:
-        ``{"config": the settings, "ch5": summary rows, "ch4": summary rows, "files":
+        ``{"config": the settings, "ch5": summary rows, "ch5_claims": chapter 5's claims
+        judged with intervals over folds (`chapter5_claims`), "ch4": summary rows, "files":
         [written paths]}``.
 
     Raises:
@@ -354,7 +356,9 @@ def run(config: PushModelStudyConfig) -> dict[str, Any]:
     summary["ch5"] = summarise(ch5, CH5_EFFECTS)
     study.table("ch5_folds.csv", ch5)
     study.table("ch5_summary.csv", summary["ch5"])
-    md = header(config) + chapter5_section(summary["ch5"])
+    summary["ch5_claims"] = chapter5_claims(ch5)
+    study.table("ch5_claims.csv", summary["ch5_claims"])
+    md = header(config) + chapter5_section(summary["ch5"], summary["ch5_claims"])
     if "ch4" in data:
         summary["ch4"] = summarise([r for r in results if r["experiment"] == "ch4"], CH4_EFFECTS)
         study.table("ch4_summary.csv", summary["ch4"])

@@ -1,0 +1,186 @@
+"""Chapter 5's claims judged with intervals over folds: holds, refuted, or not shown.
+
+Each claim compares two cells of the study, (features, method, M) against another, fold by
+fold on the same held-out pushes, so the comparison is paired. An RMSE comparison is the
+relative change ``RMSE(a) / RMSE(b) - 1`` in %, averaged over the claim's effect dimensions
+(so metres and radians weigh alike); an NLPD comparison is the difference of the total NLPD
+(nats per held-out push, summed over the six effects). The mean over folds gets a 95 %
+Student-t interval, and the verdict reads the interval against the thesis's direction:
+
+* ``holds``: the whole interval lies on the thesis's side of 0;
+* ``refuted``: the whole interval lies on the other side;
+* ``not shown``: the interval holds 0;
+* ``too few folds``: fewer than two folds, so no interval.
+
+The claims (thesis section 5.4): context features help o2 (f_o & f_c & f_x against f_o, o2's
+three effects, -11.8 %); M > 1 beats M = 1 on RMSE (-5.9 to -6.5 %); M = 3 is best (its NLPD
+below every other M's); the gate-on-context split (``gx-eoc``) is best for o1 along the push
+(its o1 dz RMSE below all features' and f_o & f_c's).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from probaff.eval.metrics import mean_halfwidth
+from probaff.eval.tables import markdown_table
+from probaff.experiments.push_models.config import CH5_EFFECTS
+
+__all__ = ["CLAIM_COLUMNS", "VERDICTS", "chapter5_claims", "claim_lines", "verdict"]
+
+CLAIM_COLUMNS = [
+    "claim",
+    "a",
+    "b",
+    "metric",
+    "thesis",
+    "folds",
+    "mean",
+    "ci95",
+    "verdict",
+]
+"""Columns of the claims table (``ch5_claims.csv``)."""
+
+VERDICTS = ("holds", "refuted", "not shown", "too few folds")
+"""What a comparison can find: see the module docstring; fewer than two folds give no
+interval."""
+
+_O1_DZ = ("o1.dz",)
+_O2 = CH5_EFFECTS[3:]
+
+
+def verdict(mean: float, halfwidth: float, direction: int, folds: int) -> str:
+    """One of `VERDICTS` for an interval over folds and the thesis's sign.
+
+    Args:
+        mean: Mean paired difference over folds.
+        halfwidth: Half-width of its 95 % interval.
+        direction: The thesis's sign of the difference, -1 or +1.
+        folds: Folds the interval is over.
+    """
+    if folds < 2:
+        return "too few folds"
+    lo, hi = direction * mean - halfwidth, direction * mean + halfwidth
+    if lo > 0:
+        return "holds"
+    if hi < 0:
+        return "refuted"
+    return "not shown"
+
+
+def _by_fold(
+    results: list[dict[str, Any]], method: str
+) -> dict[tuple[str, int], dict[int, dict[str, Any]]]:
+    """Fold rows of `method`, by (features, M) and then fold."""
+    out: dict[tuple[str, int], dict[int, dict[str, Any]]] = {}
+    for r in results:
+        if r["method"] == method:
+            out.setdefault((r["features"], int(r["M"])), {})[int(r["fold"])] = r
+    return out
+
+
+def _rmse_change(a: dict[str, Any], b: dict[str, Any], dims: Sequence[str]) -> float:
+    idx = [CH5_EFFECTS.index(d) for d in dims]
+    return 100 * float(np.mean([a["rmse"][i] / b["rmse"][i] - 1 for i in idx]))
+
+
+def _nlpd_change(a: dict[str, Any], b: dict[str, Any], dims: Sequence[str]) -> float:
+    return float(np.sum(a["nlpd"]) - np.sum(b["nlpd"]))
+
+
+def _row(
+    cells: dict[tuple[str, int], dict[int, dict[str, Any]]],
+    claim: str,
+    a: tuple[str, int],
+    b: tuple[str, int],
+    metric: str,
+    dims: Sequence[str],
+    thesis: str,
+    *,
+    direction: int,
+) -> dict[str, Any] | None:
+    """One paired comparison of cells `a` and `b` over their shared folds (None if none)."""
+    fa, fb = cells.get(a, {}), cells.get(b, {})
+    folds = sorted(set(fa) & set(fb))
+    if not folds:
+        return None
+    change = _rmse_change if metric.startswith("rmse") else _nlpd_change
+    values = [change(fa[f], fb[f], dims) for f in folds]
+    mean, hw = float(np.mean(values)), mean_halfwidth(values)
+    return {
+        "claim": claim,
+        "a": f"{a[0]}, M={a[1]}",
+        "b": f"{b[0]}, M={b[1]}",
+        "metric": metric,
+        "thesis": thesis,
+        "folds": len(folds),
+        "mean": mean,
+        "ci95": hw,
+        "verdict": verdict(mean, hw, direction, len(folds)),
+    }
+
+
+def chapter5_claims(results: list[dict[str, Any]], method: str = "em") -> list[dict[str, Any]]:
+    """Chapter 5's claims on the study's fold rows (``ch5_folds.csv``), one row per comparison.
+
+    Args:
+        results: The chapter 5 fold rows: ``features``, ``method``, ``M``, ``fold``, ``rmse``
+            (6,) and ``nlpd`` (6,) in `CH5_EFFECTS` order.
+        method: The method judged (``"em"``: the gated mixture).
+
+    Returns:
+        Rows of `CLAIM_COLUMNS`: the claim, the cells compared (``a`` against ``b``), the
+        metric (``rmse %`` over the named effects, or ``nlpd`` in nats), the thesis's value,
+        the folds, the mean paired difference, its 95 % half-width and the `verdict`.
+        Comparisons whose cells were not run are left out.
+    """
+    cells = _by_fold(results, method)
+    feats = sorted({f for f, _ in cells})
+    ms = sorted({m for _, m in cells})
+    o2, more, best = "context features help o2", "M > 1 beats M = 1 on RMSE", "M = 3 is best"
+    gate = "gate-on-context split best for o1 along the push"
+    specs: list[tuple[str, tuple[str, int], tuple[str, int], str, Sequence[str], str]] = []
+    for m in ms:
+        specs.append((o2, ("ocx", m), ("o", m), "rmse % (o2)", _O2, "-11.8 %"))
+        specs.append((o2, ("ocx", m), ("oc", m), "rmse % (o2)", _O2, "-4.37 %"))
+    for feat in feats:
+        for m in (m for m in ms if m != 1):
+            specs.append(
+                (more, (feat, m), (feat, 1), "rmse % (all)", CH5_EFFECTS, "-5.9 to -6.5 %")
+            )
+    for feat in feats:
+        for m in (m for m in ms if m != 3):
+            specs.append((best, (feat, 3), (feat, m), "nlpd", CH5_EFFECTS, "M = 3 lowest"))
+    for m in ms:
+        for other in ("ocx", "oc"):
+            specs.append(
+                (gate, ("gx-eoc", m), (other, m), "rmse % (o1 dz)", _O1_DZ, "gx-eoc lowest")
+            )
+    rows = [_row(cells, *spec, direction=-1) for spec in specs]
+    return [r for r in rows if r is not None]
+
+
+def claim_lines(rows: list[dict[str, Any]]) -> list[str]:
+    """The claims' Markdown: verdict counts per claim, then the comparisons at M = 3.
+
+    For "M = 3 is best" the table keeps, per feature set, the comparison least in its
+    favour (against the runner-up M).
+    """
+    lines = []
+    for claim in dict.fromkeys(r["claim"] for r in rows):
+        mine = [r for r in rows if r["claim"] == claim]
+        counts = {v: sum(r["verdict"] == v for r in mine) for v in VERDICTS}
+        told = ", ".join(f"{n} {v}" for v, n in counts.items() if n)
+        lines.append(f"- **{claim}**: {len(mine)} comparisons over every M: {told}.")
+    at3 = [r for r in rows if r["a"].endswith("M=3") and r["claim"] != "M = 3 is best"]
+    hardest: dict[str, dict[str, Any]] = {}
+    for r in rows:
+        if r["claim"] == "M = 3 is best":
+            feat = r["a"].split(",")[0]
+            if feat not in hardest or r["mean"] > hardest[feat]["mean"]:
+                hardest[feat] = r
+    table = markdown_table([*at3, *hardest.values()], CLAIM_COLUMNS, digits=2)
+    return [*lines, "", "At M = 3:", "", table]

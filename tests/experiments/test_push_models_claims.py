@@ -1,0 +1,76 @@
+"""Chapter 5's claims judged fold by fold: known answers on hand-made fold rows.
+
+Covers probaff.experiments.push_models.claims.
+"""
+
+import pytest
+
+from probaff.experiments.push_models.claims import (
+    CLAIM_COLUMNS,
+    chapter5_claims,
+    claim_lines,
+    verdict,
+)
+
+
+def _row(features, m, fold, rmse, nlpd=0.0, method="em"):
+    """A fold row: every effect's RMSE `rmse` (or six values), NLPD `nlpd` per effect."""
+    values = list(rmse) if isinstance(rmse, (list, tuple)) else [rmse] * 6
+    return {
+        "features": features,
+        "method": method,
+        "M": m,
+        "fold": fold,
+        "rmse": values,
+        "nlpd": [nlpd] * 6,
+    }
+
+
+def test_verdicts_read_the_interval_against_the_thesis_sign():
+    assert verdict(-2.0, 1.0, -1, 3) == "holds"
+    assert verdict(2.0, 1.0, -1, 3) == "refuted"
+    assert verdict(-0.5, 1.0, -1, 3) == "not shown"
+    assert verdict(2.0, 1.0, +1, 3) == "holds"
+    assert verdict(-5.0, 0.0, -1, 1) == "too few folds"  # one fold: no interval
+
+
+def test_claims_pair_folds_and_judge_each_comparison():
+    rows = []
+    for fold, noise in enumerate((0.0, 0.01, -0.01)):
+        # o: RMSE 1.0 everywhere; ocx: o2 10 % lower at every M (o1 unchanged)
+        for m in (1, 3):
+            rows.append(_row("o", m, fold, 1.0 + noise, nlpd=1.0))
+            rows.append(_row("oc", m, fold, 1.0 + noise, nlpd=1.0))
+            o2 = 0.9 * (1.0 + noise)
+            rmse = [1.0 + noise] * 3 + [o2] * 3
+            # M = 3 has a lower NLPD than M = 1 by 0.5 nats per effect (3 nats in all)
+            rows.append(_row("ocx", m, fold, rmse, nlpd=1.0 if m == 1 else 0.5))
+        rows.append(_row("ocx", 3, fold, 0.5, method="vi"))  # another method: ignored
+    claims = chapter5_claims(rows)
+    assert all(set(CLAIM_COLUMNS) == set(r) for r in claims)
+    by = {(r["claim"], r["a"], r["b"]): r for r in claims}
+    o2 = by["context features help o2", "ocx, M=3", "o, M=3"]
+    assert o2["folds"] == 3 and o2["mean"] == pytest.approx(-10.0) and o2["ci95"] < 1e-9
+    assert o2["verdict"] == "holds"
+    # M = 3 against M = 1 on all six effects: o2 unchanged between M, so 0 %: not shown
+    more = by["M > 1 beats M = 1 on RMSE", "ocx, M=3", "ocx, M=1"]
+    assert more["mean"] == pytest.approx(0.0) and more["verdict"] == "not shown"
+    best = by["M = 3 is best", "ocx, M=3", "ocx, M=1"]
+    assert best["mean"] == pytest.approx(-3.0) and best["verdict"] == "holds"
+    # no gx-eoc cells were run: that claim's comparisons are left out
+    assert not any(r["claim"].startswith("gate-on-context") for r in claims)
+    text = "\n".join(claim_lines(claims))
+    assert "- **context features help o2**: 4 comparisons over every M: 4 holds." in text
+    assert "| M = 3 is best | ocx, M=3 | ocx, M=1 | nlpd | M = 3 lowest | 3 | -3.00 |" in text
+
+
+def test_a_worse_split_is_refuted():
+    rows = []
+    for fold, noise in enumerate((0.0, 0.02, -0.02)):
+        for feats in ("ocx", "oc"):
+            rows.append(_row(feats, 3, fold, 1.0 + noise))
+        rows.append(_row("gx-eoc", 3, fold, 1.2 * (1.0 + noise)))  # 20 % worse on o1 dz
+    claims = chapter5_claims(rows)
+    split = [r for r in claims if r["claim"].startswith("gate-on-context")]
+    assert [r["b"] for r in split] == ["ocx, M=3", "oc, M=3"]
+    assert all(r["mean"] == pytest.approx(20.0) and r["verdict"] == "refuted" for r in split)
