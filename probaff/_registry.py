@@ -1,10 +1,13 @@
 """One registry for every kind of named thing probaff looks up: models, worlds, datasets, studies.
 
 Each registry is a `Registry` of entries of one class, each with a ``name``. A kind registers
-itself in its own module (``register_world(WorldKind(...))`` in `probaff.sim.registry`,
-``register_model_kind(ModelKind(...))`` beside the model's fitter, ...). The rules are the
-same everywhere: a name taken already is refused (remove the old entry first), an unknown name
-is refused with the registered names listed, and entries keep their registration order.
+itself in its own module (``register_world(WorldKind(...))`` in the world's module of
+`probaff.sim`, ``register_model_kind(ModelKind(...))`` beside the model's fitter, a study by its
+folder in `probaff.experiments`, ...). The rules are the same everywhere: a name taken
+already is refused (remove the old entry first), an unknown name is refused with the
+registered names listed, and entries keep their registration order. A registry of kinds that
+register themselves finds their modules with `import_submodules` (discovery, not lists): the
+world kinds in `probaff.sim`, the dataset kinds in `probaff.data`.
 
 Example:
     >>> from dataclasses import dataclass
@@ -24,12 +27,15 @@ Example:
 
 from __future__ import annotations
 
+import importlib
+import pkgutil
+import sys
 from collections.abc import Iterator
 from typing import Generic, Protocol, TypeVar
 
 from probaff.errors import InputError
 
-__all__ = ["Registry"]
+__all__ = ["Registry", "import_submodules"]
 
 
 class _Named(Protocol):
@@ -107,3 +113,35 @@ class Registry(Generic[_N]):
 
     def __len__(self) -> int:
         return len(self.entries)
+
+
+def import_submodules(package: str) -> list[str]:
+    """Import every module of `package` not imported yet, so that each registers its entries.
+
+    A registry whose kinds register themselves in their own modules calls this before a
+    lookup: a module added to the package (or to a folder on its ``__path__``) is then found
+    without being named anywhere. Modules whose names start with ``_`` are skipped, and so are
+    subpackages (a registry's kinds are modules of one package).
+
+    Args:
+        package: The dotted name of a package (``"probaff.sim"``); a package still being
+            imported is searched as far as its ``__path__`` goes.
+
+    Returns:
+        The modules imported (none once every module is imported).
+
+    Raises:
+        InputError: If a module registers an entry under a name that is taken.
+    """
+    found = [
+        info.name
+        for info in pkgutil.iter_modules(importlib.import_module(package).__path__, f"{package}.")
+        if not info.ispkg
+        and info.name not in sys.modules
+        and not info.name.rpartition(".")[2].startswith("_")
+    ]
+    if found:
+        importlib.invalidate_caches()  # a module written since the last import is found
+    for name in found:
+        importlib.import_module(name)
+    return found

@@ -56,11 +56,10 @@ def test_scenes_listing(capsys):
 
 def test_study_subcommand_runs_the_registered_studies_with_their_flags(capsys, tmp_path):
     from probaff.cli import main
+    from probaff.experiments import STUDIES
 
     assert main(["study", "--help"]) == 0
-    assert (
-        "studies: affordance_map, modular, planning, point_cloud_labels" in capsys.readouterr().out
-    )
+    assert f"studies: {', '.join(STUDIES)}" in capsys.readouterr().out
     assert main(["study", "nope"]) == 2
     assert "unknown study 'nope'" in capsys.readouterr().err
     out = str(tmp_path / "out")

@@ -1,9 +1,12 @@
 """probaff installs as packages are installed: a built wheel carries the world descriptions.
 
-Covers the packaging configuration in pyproject.toml and probaff.sim.world_files.worlds_dir:
-the world descriptions (``worlds/``, their one source) ship as the package data
-``probaff/worlds``; a wheel built from a copy of the sources, installed into a fresh virtual
-environment outside the repository, generates pushes, fits a model and lists the scenes.
+Covers the packaging configuration (pyproject.toml, and setup.py's package discovery) and
+probaff.sim.world_files.worlds_dir: the packages are found by the build, not listed, and the
+world descriptions (``worlds/``, their one source) ship as the package data ``probaff/worlds``.
+A wheel built from a copy of the sources, with a new subpackage and a new folder of world files
+added and nothing else edited, carries every package and every world file; installed into a
+fresh virtual environment outside the repository, it generates pushes, fits a model and lists
+the scenes.
 """
 
 import os
@@ -25,6 +28,8 @@ WORLD_FILES = sorted(
     for p in (REPO / "worlds").rglob("*")
     if p.is_file() and "__pycache__" not in p.parts
 )
+NEW_PACKAGE = "probaff/zz_new_subpackage/__init__.py"
+NEW_WORLD_FILE = "zz_new_scenes/zz_new.yaml"
 
 
 def _setuptools_table():
@@ -32,17 +37,54 @@ def _setuptools_table():
     return tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
 
 
-def test_every_package_folder_is_listed_and_worlds_is_the_data_package():
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory) -> Path:
+    """A wheel built offline from a copy of the sources, plus one new package and world folder.
+
+    The new subpackage (``NEW_PACKAGE``) and world file (``NEW_WORLD_FILE``) are added to the
+    copy with nothing else edited, as a new study, world or subpackage would be.
+    """
+    tmp = tmp_path_factory.mktemp("wheel")
+    src = tmp / "src"
+    ignore = shutil.ignore_patterns("__pycache__", "*.pyc")
+    shutil.copytree(REPO / "probaff", src / "probaff", ignore=ignore)
+    shutil.copytree(REPO / "worlds", src / "worlds", ignore=ignore)
+    for name in ("pyproject.toml", "setup.py", "README.md"):
+        shutil.copy(REPO / name, src / name)
+    for new in (src / NEW_PACKAGE, src / "worlds" / NEW_WORLD_FILE):
+        new.parent.mkdir()
+        new.write_text("")
+    wheels = tmp / "wheels"
+    pip = [sys.executable, "-m", "pip", "--disable-pip-version-check", "-q"]
+    subprocess.run(
+        [*pip, "wheel", str(src), "--no-deps", "--no-build-isolation", "--no-index", "-w", wheels],
+        check=True,
+        cwd=tmp,
+    )
+    (built,) = wheels.glob("probaff-*.whl")
+    return built
+
+
+def test_the_packages_are_discovered_and_worlds_is_the_data_package():
     table = _setuptools_table()
-    folders = {
-        ".".join(p.parent.relative_to(REPO).parts) for p in (REPO / "probaff").rglob("__init__.py")
-    }
-    data = {"probaff.worlds"} | {
-        f"probaff.worlds.{p.name}" for p in (REPO / "worlds").iterdir() if p.is_dir()
-    }
-    assert set(table["packages"]) == folders | data
+    assert "packages" not in table  # setup.py discovers them
     assert table["package-dir"] == {"probaff.worlds": "worlds"}
     assert not (REPO / "probaff" / "worlds").exists()  # worlds/ stays the one source
+
+
+def test_the_wheel_carries_every_package_module_and_world_file(wheel):
+    names = set(zipfile.ZipFile(wheel).namelist())
+    modules = {
+        p.relative_to(REPO).as_posix()
+        for p in (REPO / "probaff").rglob("*.py")
+        if (p.parent / "__init__.py").is_file()
+    }
+    packages = {p.rsplit("/", 1)[0] for p in modules}
+    assert modules and {f"{p}/__init__.py" for p in packages} <= modules
+    assert modules <= names
+    assert {f"probaff/worlds/{f}" for f in WORLD_FILES} <= names
+    assert "probaff/py.typed" in names and "probaff/demo.py" in names
+    assert NEW_PACKAGE in names and f"probaff/worlds/{NEW_WORLD_FILE}" in names
 
 
 def test_a_checkout_reads_its_worlds_folder_unless_probaff_worlds_is_set(tmp_path, monkeypatch):
@@ -104,25 +146,8 @@ def _venv_with_dependencies(root: Path) -> tuple[Path, Path]:
 
 
 @pytest.mark.slow
-def test_a_built_wheel_runs_from_a_fresh_environment_outside_the_repository(tmp_path):
-    src = tmp_path / "src"
-    ignore = shutil.ignore_patterns("__pycache__", "*.pyc")
-    shutil.copytree(REPO / "probaff", src / "probaff", ignore=ignore)
-    shutil.copytree(REPO / "worlds", src / "worlds", ignore=ignore)
-    for name in ("pyproject.toml", "README.md"):
-        shutil.copy(REPO / name, src / name)
-    wheels = tmp_path / "wheels"
+def test_a_built_wheel_runs_from_a_fresh_environment_outside_the_repository(wheel, tmp_path):
     pip = [sys.executable, "-m", "pip", "--disable-pip-version-check", "-q"]
-    subprocess.run(
-        [*pip, "wheel", str(src), "--no-deps", "--no-build-isolation", "--no-index", "-w", wheels],
-        check=True,
-        cwd=tmp_path,
-    )
-    (wheel,) = wheels.glob("probaff-*.whl")
-    names = set(zipfile.ZipFile(wheel).namelist())
-    assert {f"probaff/worlds/{f}" for f in WORLD_FILES} <= names
-    assert "probaff/py.typed" in names and "probaff/demo.py" in names
-
     python, site = _venv_with_dependencies(tmp_path / "venv")
     install = [*pip, "--python", str(python), "install", "--no-deps", "--no-index", str(wheel)]
     subprocess.run(install, check=True, cwd=tmp_path)

@@ -14,6 +14,14 @@ kind       world kind    dataset                       schema versions          
 ``skill``  ``sideview``  `probaff.data.SkillDataset`   3; 5 (observation-only)   skill
 =========  ============  ============================  ========================  =============
 
+Each kind registers itself in the module that generates it, at import: the ``push`` kind at
+the end of `probaff.data.push_generation`, the ``skill`` kind at the end of
+`probaff.data.skill_generation`. This module imports neither: every lookup first imports the
+modules of `probaff.data` not imported yet (`probaff._registry.import_submodules`), so a
+module added to the package registers its kind without being named anywhere. A world kind
+whose scenes declare their `probaff.sim.registry.SceneRows` needs no dataset kind of its own
+here: its kind is made from its rows.
+
 A kind's ``schema_versions`` are those of its simulated datasets; a dataset class may declare
 an observation-only version besides (`ArrayDataset.OBSERVATION_VERSION`, listed by
 `observation_versions`), for datasets that lack what only a simulator knows.
@@ -31,19 +39,9 @@ from typing import Any
 
 import numpy as np
 
-from probaff._registry import Registry
+from probaff._registry import Registry, import_submodules
 from probaff.data.config import GenerateConfig, base_plan
 from probaff.data.dataset import ArrayDataset
-from probaff.data.push_generation import (
-    make_push_shard,
-    push_manifest,
-    push_plan,
-    push_resume_problem,
-)
-from probaff.data.schema import READABLE_SCHEMA_VERSIONS, PushDataset
-from probaff.data.skill_generation import skill_manifest, skill_plan, skill_shard
-from probaff.data.skill_schema import SKILL_SCHEMA_VERSION, SkillDataset
-from probaff.data.summary import summarize_pushes, summarize_skills
 from probaff.errors import InputError
 from probaff.sim.registry import SceneRows, WorldKind, world_kind, world_kinds
 
@@ -94,10 +92,13 @@ class DatasetKind:
         resume_problem: ``resume_problem(started, plan)``: why a dataset started with plan
             `started` cannot be resumed with `plan`, in words, or ``None``; the plans are
             compared in full afterwards.
+        order: Its place in `dataset_kinds`: lower first, kinds of equal order in
+            registration order. The built-in kinds are 0 (push) and 1 (skill); the default
+            puts a new kind after them.
 
     Raises:
         InputError: For an empty name, a dataset type that is not an `ArrayDataset`, no
-            schema version, or a hook that is not callable.
+            schema version, a hook that is not callable, or an order that is not an integer.
     """
 
     name: str
@@ -111,6 +112,7 @@ class DatasetKind:
     unit: str = "row"
     loader: str = "load_any_dataset"
     resume_problem: Callable[[dict[str, Any], dict[str, Any]], str | None] | None = None
+    order: int = 100
 
     def __post_init__(self) -> None:
         for name in ("name", "world_kind", "unit", "loader"):
@@ -134,9 +136,14 @@ class DatasetKind:
         for name in ("make_shard", "manifest", "plan", "summarize"):
             if not callable(getattr(self, name)):
                 raise InputError(f"DatasetKind.{name} of {self.name!r} must be callable.")
+        if isinstance(self.order, bool) or not isinstance(self.order, int):
+            raise InputError(
+                f"DatasetKind.order of {self.name!r} must be an integer, got {self.order!r}."
+            )
 
 
 _KINDS: Registry[DatasetKind] = Registry("dataset kind", DatasetKind, "unregister_dataset_kind")
+_PACKAGE = __name__.rpartition(".")[0]
 
 
 def _rows_shard(
@@ -185,8 +192,13 @@ def _from_rows(world: WorldKind, rows: SceneRows, name: str) -> DatasetKind:
 
 
 def _all_kinds() -> dict[str, DatasetKind]:
-    """The registered dataset kinds, then those of world kinds that declare their rows."""
-    out = dict(_KINDS.entries)
+    """The registered dataset kinds (by order), then those of world kinds that declare rows.
+
+    The modules of `probaff.data` not imported yet are imported first, so that each kind
+    defined in one is registered.
+    """
+    import_submodules(_PACKAGE)
+    out = {kind.name: kind for kind in sorted(_KINDS.values(), key=lambda kind: kind.order)}
     for world in world_kinds():
         name = world.dataset_kind
         if world.rows is not None and name is not None and name not in out:
@@ -232,7 +244,8 @@ def dataset_kind(name: str) -> DatasetKind:
 def dataset_kinds() -> list[DatasetKind]:
     """Every dataset kind: the registered ones, then those of world kinds with `SceneRows`.
 
-    The registered ones come in registration order, the built-in ones first.
+    The registered ones come by `DatasetKind.order` (push, then skill, then the others in
+    registration order).
     """
     return list(_all_kinds().values())
 
@@ -272,34 +285,3 @@ def kind_of_dataset(ds: ArrayDataset) -> DatasetKind:
         f"{type(ds).__name__} is the dataset class of no registered dataset kind; give a "
         "PushDataset, a SkillDataset or a dataset of a registered kind."
     )
-
-
-register_dataset_kind(
-    DatasetKind(
-        name="push",
-        dataset_type=PushDataset,
-        world_kind="tabletop",
-        make_shard=make_push_shard,
-        unit="push",
-        manifest=push_manifest,
-        loader="load_dataset",
-        plan=push_plan,
-        schema_versions=READABLE_SCHEMA_VERSIONS,
-        summarize=summarize_pushes,
-        resume_problem=push_resume_problem,
-    )
-)
-register_dataset_kind(
-    DatasetKind(
-        name="skill",
-        dataset_type=SkillDataset,
-        world_kind="sideview",
-        make_shard=skill_shard,
-        unit="skill",
-        manifest=skill_manifest,
-        loader="load_skill_dataset",
-        plan=skill_plan,
-        schema_versions=(SKILL_SCHEMA_VERSION,),
-        summarize=summarize_skills,
-    )
-)

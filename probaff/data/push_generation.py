@@ -5,6 +5,8 @@ which drive, in order, the physics (scenes and pushes), the cloud sensor and the
 pose-measurement noise; the noise stream is separate, so turning noise on changes only the
 observed poses and effects, never which pushes are simulated.
 
+The module registers the ``push`` dataset kind (`probaff.data.kinds`).
+
 Covered by tests/data/test_data.py and tests/data/test_data_noise.py.
 """
 
@@ -16,9 +18,11 @@ import numpy as np
 
 from probaff._threads import torch_threads
 from probaff.data.config import GenerateConfig, base_plan
+from probaff.data.kinds import DatasetKind, register_dataset_kind
 from probaff.data.noise import PoseNoise, observe_poses
 from probaff.data.queries import world_meta
-from probaff.data.schema import schema_version_for
+from probaff.data.schema import READABLE_SCHEMA_VERSIONS, PushDataset, schema_version_for
+from probaff.data.summary import summarize_pushes
 from probaff.sim.runner import PushSample, PushSimulator
 from probaff.sim.sensing import object_cloud
 from probaff.sim.specs import load_catalogue
@@ -240,3 +244,21 @@ def push_resume_problem(started: dict[str, Any], plan: dict[str, Any]) -> str | 
         f"was started with {_describe_noise(started)}, not {_describe_noise(plan)}; resume it "
         "with the same pose noise (--pose-noise) or choose a new output path."
     )
+
+
+register_dataset_kind(
+    DatasetKind(
+        name="push",
+        dataset_type=PushDataset,
+        world_kind="tabletop",
+        make_shard=make_push_shard,
+        unit="push",
+        manifest=push_manifest,
+        loader="load_dataset",
+        plan=push_plan,
+        schema_versions=READABLE_SCHEMA_VERSIONS,
+        summarize=summarize_pushes,
+        resume_problem=push_resume_problem,
+        order=0,
+    )
+)

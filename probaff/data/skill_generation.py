@@ -5,7 +5,7 @@ the arm cannot reach and draws replacements from the same generator, so a shard 
 exactly its row count and depends only on the generator's state. Every shard of a dataset has
 the same array shapes: the object slots K, the waypoints W and the trajectory samples T are
 bounds computed from the scene template and the world (`skill_dimensions`), not from the
-sampled scenes.
+sampled scenes. The module registers the ``skill`` dataset kind (`probaff.data.kinds`).
 """
 
 from __future__ import annotations
@@ -19,7 +19,9 @@ import numpy as np
 from probaff._checks import check_count, check_positive
 from probaff._threads import torch_threads
 from probaff.data.config import GenerateConfig, base_plan
-from probaff.data.skill_schema import NO_OBJECT, SKILL_SCHEMA_VERSION
+from probaff.data.kinds import DatasetKind, register_dataset_kind
+from probaff.data.skill_schema import NO_OBJECT, SKILL_SCHEMA_VERSION, SkillDataset
+from probaff.data.summary import summarize_skills
 from probaff.errors import DatasetError
 from probaff.sim.arm import load_arm
 from probaff.sim.runner import trapezoid_progress
@@ -398,3 +400,20 @@ def skill_manifest(config: GenerateConfig) -> dict[str, Any]:
         "object_names": skill_object_names(world),
         "meta": {**skill_meta(spec, world, _record_rate(config)), "hand": world.hand.to_dict()},
     }
+
+
+register_dataset_kind(
+    DatasetKind(
+        name="skill",
+        dataset_type=SkillDataset,
+        world_kind="sideview",
+        make_shard=skill_shard,
+        unit="skill",
+        manifest=skill_manifest,
+        loader="load_skill_dataset",
+        plan=skill_plan,
+        schema_versions=(SKILL_SCHEMA_VERSION,),
+        summarize=summarize_skills,
+        order=1,
+    )
+)

@@ -19,21 +19,32 @@ Modules:
     base: `StudyConfig` (out, seed, workers, scheduler, progress, the smoke sizes, and their
         checks) and `StudyRun` (the run skeleton: tasks on Dask, tables, figures, summary).
     config_cli: command-line flags from a config's fields, ``--smoke``.
-    registry: `STUDIES`, `discover_studies` and `study_main` (``probaff study``).
+    registry: `STUDIES` (a `StudyRegistry` of `Study`, in the shared registry),
+        `discover_studies` and `study_main` (``probaff study``).
 
 A new study is one folder here (its ``config``, ``run``, ``report`` and ``figures``), its
-test and its notebook.
+test and its notebook; nothing else names it (``probaff study NAME`` runs it, and the build
+finds its package).
 """
 
 from probaff.experiments.base import StudyConfig, StudyRun
 from probaff.experiments.config_cli import parse_study_args
-from probaff.experiments.registry import STUDIES, StudyRegistry, discover_studies, study_main
+from probaff.experiments.registry import (
+    STUDIES,
+    Study,
+    StudyRegistry,
+    UnknownStudyError,
+    discover_studies,
+    study_main,
+)
 
 __all__ = [
     "STUDIES",
+    "Study",
     "StudyConfig",
     "StudyRegistry",
     "StudyRun",
+    "UnknownStudyError",
     "discover_studies",
     "parse_study_args",
     "study_main",

@@ -1,9 +1,10 @@
 """Simulated robot: registered world kinds, the URDF arm, pymunk worlds, skills and sensors.
 
-Each world kind (tabletop, side view, warehouse, office) is registered in
-`probaff.sim.registry` with its loaders, its simulation and the dataset kind its scenes make;
-its world file is read by its own ``<world>_config`` module over the shared YAML helpers of
-`probaff.sim.world_files`. The depth camera (`probaff.sim.camera`) images any of them through
+Each world kind (tabletop, side view, warehouse, office) registers itself in its own module
+with `probaff.sim.registry` (its loaders, its simulation and the dataset kind its scenes make),
+which finds the world modules of this package by itself; its world file is read by its own
+``<world>_config`` module over the shared YAML helpers of `probaff.sim.world_files`. The
+depth camera (`probaff.sim.camera`) images any of them through
 `probaff.sim.primitives.PrimitiveScene`. Everything not named here stays importable from its
 module.
 """

@@ -28,6 +28,8 @@ otherwise anywhere on the floor. A chair next to a table faces it; a chair again
 its back to it. Boxes on a table or a box lie wholly on its top, ``min_clearance`` apart from
 each other and from its edges; a box meant for a table or a stack that fits on no table or
 free floor box within the tries (the tops are full) goes to the floor instead.
+
+The module registers the ``office`` world kind (`probaff.sim.registry`).
 """
 
 from __future__ import annotations
@@ -50,10 +52,12 @@ from probaff.sim.office_config import (
     OfficeLabelRules,
     OfficeSpec,
     OfficeTableSpec,
+    load_office,
 )
 from probaff.sim.office_labels import office_labels
 from probaff.sim.office_objects import OfficeObject
 from probaff.sim.primitives import PrimitiveScene
+from probaff.sim.registry import WorldKind, register_world
 from probaff.sim.world_files import Range
 
 __all__ = [
@@ -466,3 +470,10 @@ def sample_office_scenes(spec: OfficeSpec, n: int, seed: int) -> list[OfficeScen
     seed = check_count("seed", seed, minimum=0)
     streams = np.random.SeedSequence(seed).spawn(n)
     return [sample_office_scene(spec, np.random.default_rng(ss)) for ss in streams]
+
+
+register_world(
+    WorldKind(
+        name="office", label="office", load_world=load_office, simulate=sample_office_scene, order=3
+    )
+)

@@ -14,9 +14,17 @@ kind            world file, loader          scene templates                datas
 ``office``      ``office.yaml``             none (scenes are sampled)      none
 ==============  ==========================  =============================  ============
 
-A new world kind is its world file and scene templates, its module (spec, loader and simulate
-function), one `register_world` call and its test; a dataset kind for it is registered in
-`probaff.data.kinds`.
+Each kind registers itself in its own module, at import: ``register_world(WorldKind(...))``
+at the end of `probaff.sim.tabletop`, `probaff.sim.sideview`, `probaff.sim.warehouse` and
+`probaff.sim.office`. This module imports none of them: every lookup (`world_kind`,
+`world_kinds`, `kind_of_scene`) first imports the modules of `probaff.sim` not imported yet
+(`discover_worlds`), so a module added to the package registers its kind without being named
+anywhere, and a name registered twice is an `InputError`. Listings keep the order of
+`WorldKind.order` (the built-in kinds first, in the table's order). A new world kind is
+therefore its YAML (world file and scene templates under ``worlds/``), its module in
+`probaff.sim` (spec, loader, simulate function and its `register_world` call) and its test.
+A kind whose scenes become dataset rows declares `SceneRows` and gets its dataset kind from
+`probaff.data.kinds` with nothing registered there.
 """
 
 from __future__ import annotations
@@ -29,24 +37,15 @@ from typing import Any
 import numpy as np
 
 from probaff._checks import check_count
-from probaff._registry import Registry
+from probaff._registry import Registry, import_submodules
 from probaff.errors import ConfigError, InputError
-from probaff.sim.office import sample_office_scene
-from probaff.sim.office_config import load_office
-from probaff.sim.sideview import simulate_sideview
-from probaff.sim.sideview_config import SCENES as SIDEVIEW_SCENES
-from probaff.sim.sideview_config import load_sideview, load_sideview_scene
-from probaff.sim.tabletop import simulate_push
-from probaff.sim.tabletop_config import SCENES as TABLETOP_SCENES
-from probaff.sim.tabletop_config import load_scene, load_tabletop
-from probaff.sim.warehouse import push_box
-from probaff.sim.warehouse_config import load_warehouse
 from probaff.sim.world_files import scene_names, worlds_dir
 
 __all__ = [
     "SceneRows",
     "UnknownSceneError",
     "WorldKind",
+    "discover_worlds",
     "kind_of_scene",
     "register_world",
     "unregister_world",
@@ -118,11 +117,14 @@ class WorldKind:
             loaded template's ``description``.
         rows: How its scenes become dataset rows, for a `dataset_kind` that is not registered
             in `probaff.data.kinds` (one with no options of its own).
+        order: Its place in `world_kinds` and in listings such as ``probaff scenes``: lower
+            first, kinds of equal order in registration order. The built-in kinds are 0
+            (tabletop) to 3 (office); the default puts a new kind after them.
 
     Raises:
         InputError: For an empty name or label, a non-callable loader or simulation, scene
-            templates without a `load_scene`, or `rows` without scene templates and a
-            `dataset_kind`.
+            templates without a `load_scene`, `rows` without scene templates and a
+            `dataset_kind`, or an order that is not an integer.
     """
 
     name: str
@@ -135,6 +137,7 @@ class WorldKind:
     actions: str = ""
     describe_scene: Callable[[str], str] | None = None
     rows: SceneRows | None = None
+    order: int = 100
 
     def __post_init__(self) -> None:
         for name in ("name", "label"):
@@ -158,6 +161,10 @@ class WorldKind:
             raise InputError(
                 f"WorldKind {self.name!r} has rows but no scene templates or dataset_kind; "
                 "rows are made from a scene template for the dataset kind."
+            )
+        if isinstance(self.order, bool) or not isinstance(self.order, int):
+            raise InputError(
+                f"WorldKind.order of {self.name!r} must be an integer, got {self.order!r}."
             )
 
     def scene_names(self) -> list[str]:
@@ -184,16 +191,52 @@ class WorldKind:
 
 
 _WORLDS: Registry[WorldKind] = Registry("world kind", WorldKind, "unregister_world")
+_PACKAGE = __name__.rpartition(".")[0]
+
+
+def discover_worlds() -> list[str]:
+    """Import every module of `probaff.sim` not imported yet, so that each registers its kind.
+
+    Run by every lookup (`probaff._registry.import_submodules`), so a world module added to
+    the package (or to a folder on its ``__path__``) is found without being named anywhere.
+
+    Returns:
+        The modules it imported (none once every module is imported).
+
+    Raises:
+        InputError: If a module registers a world kind under a name that is taken.
+    """
+    return import_submodules(_PACKAGE)
 
 
 register_world = _WORLDS.add
-"""Register a world kind under its name and return it (see `probaff._registry.Registry.add`)."""
+"""Register a world kind under its name and return it (see `probaff._registry.Registry.add`).
+
+Raises:
+    InputError: If the name is taken (`unregister_world` it first, or choose another name).
+"""
 unregister_world = _WORLDS.remove
 """Remove a registered world kind by name and return it (`probaff._registry.Registry.remove`)."""
-world_kind = _WORLDS.get
-"""The registered world kind of a name (see `probaff._registry.Registry.get`)."""
-world_kinds = _WORLDS.values
-"""Every registered world kind, in registration order, the built-in ones first."""
+
+
+def world_kind(name: str) -> WorldKind:
+    """The registered world kind of a name (after `discover_worlds`).
+
+    Raises:
+        InputError: If no kind has that name (the message lists the registered ones).
+    """
+    discover_worlds()
+    return _WORLDS.get(name)
+
+
+def world_kinds() -> list[WorldKind]:
+    """Every registered world kind (after `discover_worlds`), by `WorldKind.order`.
+
+    The built-in kinds come first, in the order tabletop, side view, warehouse, office; kinds
+    of equal order keep their registration order.
+    """
+    discover_worlds()
+    return sorted(_WORLDS.values(), key=lambda kind: kind.order)
 
 
 def kind_of_scene(scene: str) -> WorldKind:
@@ -224,41 +267,3 @@ def kind_of_scene(scene: str) -> WorldKind:
         )
         raise UnknownSceneError(f"unknown scene {scene!r}; available scenes: {listing}.")
     return owners[0]
-
-
-def _describe_sideview_scene(name: str) -> str:
-    spec = load_sideview_scene(name)
-    return f"side view, {spec.skill}: {spec.description}"
-
-
-register_world(
-    WorldKind(
-        name="tabletop",
-        label="tabletop",
-        load_world=load_tabletop,
-        simulate=simulate_push,
-        scenes=TABLETOP_SCENES,
-        load_scene=load_scene,
-        dataset_kind="push",
-        actions="push",
-    )
-)
-register_world(
-    WorldKind(
-        name="sideview",
-        label="side-view",
-        load_world=load_sideview,
-        simulate=simulate_sideview,
-        scenes=SIDEVIEW_SCENES,
-        load_scene=load_sideview_scene,
-        dataset_kind="skill",
-        actions="pick/place",
-        describe_scene=_describe_sideview_scene,
-    )
-)
-register_world(
-    WorldKind(name="warehouse", label="warehouse", load_world=load_warehouse, simulate=push_box)
-)
-register_world(
-    WorldKind(name="office", label="office", load_world=load_office, simulate=sample_office_scene)
-)

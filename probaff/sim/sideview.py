@@ -15,6 +15,8 @@ whose force is limited to the squeeze force: a closed finger presses on an objec
 that force. A centring spring couples the two fingers symmetrically about the tcp, as the
 mimic joint of a parallel gripper does, without adding to the squeeze. A grasp holds by
 friction alone; nothing welds the object to the hand.
+
+The module registers the ``sideview`` world kind (`probaff.sim.registry`).
 """
 
 from __future__ import annotations
@@ -31,7 +33,14 @@ from probaff.errors import ConfigError, InputError
 from probaff.sim.geometry import convex_penetration
 from probaff.sim.inputs import check_objects, check_type, floats, numeric_fields
 from probaff.sim.pusher import TrackedPusher
-from probaff.sim.sideview_config import SKILLS, SideViewSpec, load_sideview
+from probaff.sim.registry import WorldKind, register_world
+from probaff.sim.sideview_config import (
+    SCENES,
+    SKILLS,
+    SideViewSpec,
+    load_sideview,
+    load_sideview_scene,
+)
 from probaff.sim.specs import ObjectSpec, load_catalogue
 
 __all__ = ["SideViewRun", "SideViewScene", "simulate_rest", "simulate_sideview"]
@@ -628,3 +637,24 @@ def _snapshot_arrays(snaps: list[tuple], k: int) -> dict[str, np.ndarray]:
         "snap_fingers": np.array([s[3] for s in snaps], dtype=int).reshape(-1, k),
         "snap_supported": np.array([s[4] for s in snaps], dtype=bool).reshape(-1, k),
     }
+
+
+def _describe_scene(name: str) -> str:
+    spec = load_sideview_scene(name)
+    return f"side view, {spec.skill}: {spec.description}"
+
+
+register_world(
+    WorldKind(
+        name="sideview",
+        label="side-view",
+        load_world=load_sideview,
+        simulate=simulate_sideview,
+        scenes=SCENES,
+        load_scene=load_sideview_scene,
+        dataset_kind="skill",
+        actions="pick/place",
+        describe_scene=_describe_scene,
+        order=1,
+    )
+)

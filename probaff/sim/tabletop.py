@@ -8,6 +8,8 @@ simulation. Objects slide with Coulomb friction spread over their footprints
 (`probaff.sim.friction`). pymunk multiplies the two shapes' friction coefficients at a contact,
 so each shape is given the square root of its catalogue coefficient and a contact pair sees the
 geometric mean.
+
+The module registers the ``tabletop`` world kind (`probaff.sim.registry`).
 """
 
 from __future__ import annotations
@@ -29,8 +31,9 @@ from probaff.sim.geometry import (
 )
 from probaff.sim.inputs import check_objects, check_type, numeric_fields
 from probaff.sim.pusher import TrackedPusher
+from probaff.sim.registry import WorldKind, register_world
 from probaff.sim.specs import ObjectSpec
-from probaff.sim.tabletop_config import TabletopSpec
+from probaff.sim.tabletop_config import SCENES, TabletopSpec, load_scene, load_tabletop
 
 __all__ = ["PushOutcome", "SceneInstance", "simulate_push"]
 
@@ -494,3 +497,18 @@ def _max_penetration(space: pymunk.Space) -> float:
     """Deepest overlap (m) of an object with anything: the hand, a wall or another object."""
     objects = [s for s in space.shapes if s.collision_type >= _OBJECT0]
     return max((contact_depth(space, s) for s in objects), default=0.0)
+
+
+register_world(
+    WorldKind(
+        name="tabletop",
+        label="tabletop",
+        load_world=load_tabletop,
+        simulate=simulate_push,
+        scenes=SCENES,
+        load_scene=load_scene,
+        dataset_kind="push",
+        actions="push",
+        order=0,
+    )
+)

@@ -11,6 +11,8 @@ box's footprint and height in one cell, which the sensor cannot tell from a box 
 A box is pushable in a direction when the cell beyond it is inside the border walls and free:
 walls (border or interior) never move, and the robot cannot push two boxes in a row.
 `physics_affordances` measures this in the physics engine; `rule_affordances` states the rule.
+
+The module registers the ``warehouse`` world kind (`probaff.sim.registry`).
 """
 
 from __future__ import annotations
@@ -28,8 +30,9 @@ from probaff.grid import DIRECTION_NAMES, DIRECTION_OFFSETS
 from probaff.sim.friction import add_sliding_body
 from probaff.sim.inputs import check_rng, check_type
 from probaff.sim.pusher import TrackedPusher
+from probaff.sim.registry import WorldKind, register_world
 from probaff.sim.runner import trapezoid_progress
-from probaff.sim.warehouse_config import WarehouseSpec
+from probaff.sim.warehouse_config import WarehouseSpec, load_warehouse
 
 __all__ = [
     "DIRECTION_NAMES",
@@ -585,3 +588,10 @@ def physics_affordances(spec: WarehouseSpec, m: WarehouseMap) -> np.ndarray:
         for k in range(4):
             out[r, c, k] = push_box(spec, m, (int(r), int(c)), k).moved
     return out
+
+
+register_world(
+    WorldKind(
+        name="warehouse", label="warehouse", load_world=load_warehouse, simulate=push_box, order=2
+    )
+)

@@ -1,5 +1,10 @@
-"""The registry of dataset kinds: the built-ins, a kind registered with a class of its own."""
+"""The registry of dataset kinds: the built-ins, a kind registered with a class of its own.
 
+Each kind registers itself in the module that generates it; a module added to `probaff.data`
+(here, to a folder on its path) is found by the registry's next lookup.
+"""
+
+import sys
 from dataclasses import replace
 from typing import ClassVar
 
@@ -87,6 +92,51 @@ def test_the_built_in_kinds():
     assert dataset_kind("push").dataset_type is PushDataset and DEFAULT_KIND == "push"
     assert dataset_kind("skill").dataset_type is SkillDataset
     assert readable_versions()["push"] == (1, 2, 6) and readable_versions()["skill"] == (3,)
+    assert [dataset_kind(n).make_shard.__module__ for n in ("push", "skill")] == [
+        "probaff.data.push_generation",
+        "probaff.data.skill_generation",
+    ]  # each kind registers itself in its own module
+
+
+NEW_KIND_MODULE = """
+from typing import ClassVar
+
+from probaff.data.dataset import ArrayDataset
+from probaff.data.kinds import DatasetKind, register_dataset_kind
+
+
+class NewDotDataset(ArrayDataset):
+    KIND = "dots"
+    REQUIRED: ClassVar[dict[str, str]] = {"object_ids": "int16", "x": "float64"}
+
+
+register_dataset_kind(
+    DatasetKind(
+        name="dots",
+        world_kind="dots",
+        dataset_type=NewDotDataset,
+        schema_versions=(7,),
+        make_shard=lambda config, rows, seeds: {},
+        manifest=lambda config: {},
+        order=-1,
+    )
+)
+"""
+
+
+def test_a_kind_in_a_new_module_of_the_package_is_found(tmp_path, monkeypatch):
+    import probaff.data
+
+    (tmp_path / "zz_dots_generation.py").write_text(NEW_KIND_MODULE)
+    monkeypatch.setattr(probaff.data, "__path__", [*probaff.data.__path__, str(tmp_path)])
+    register_world(replace(world_kind("office"), name="dots", dataset_kind="dots"))
+    try:
+        assert dataset_kind("dots").order == -1  # found, named nowhere else
+        assert [k.name for k in dataset_kinds()][:3] == ["dots", "push", "skill"]
+    finally:
+        unregister_dataset_kind("dots")
+        unregister_world("dots")
+        sys.modules.pop("probaff.data.zz_dots_generation", None)
 
 
 def test_a_kind_with_its_own_dataset_class(dots, tmp_path):

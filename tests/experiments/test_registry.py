@@ -1,17 +1,25 @@
 """Studies are found folder by folder, and ``probaff study NAME`` runs any of them.
 
-Covers probaff.experiments.registry. A new study is one folder: the test writes one to
-tmp_path and points the registry at it.
+Covers probaff.experiments.registry. A new study is its folder (with its test and notebook):
+the tests write one to tmp_path, as a package of its own and as a folder on
+`probaff.experiments`'s path, and find it with nothing else edited.
 """
 
+import importlib
 import json
 import re
+import sys
 import textwrap
+from pathlib import Path
 
 import pytest
 
-from probaff.errors import InputError
-from probaff.experiments import STUDIES, discover_studies, study_main
+import probaff.experiments
+from probaff.cli import main
+from probaff.errors import ConfigError, InputError
+from probaff.experiments import STUDIES, Study, UnknownStudyError, discover_studies, study_main
+
+EXPERIMENTS = Path(probaff.experiments.__file__).parent
 
 TINY = '''
 """A study of squares (a test's study)."""
@@ -68,21 +76,37 @@ def tiny(tmp_path, monkeypatch):
     (root / "_helpers" / "__init__.py").write_text("")
     (root / "notes").mkdir()  # nor folders without a package
     monkeypatch.syspath_prepend(str(tmp_path))
-    return discover_studies(root, package)
+    return discover_studies(package)
 
 
-def test_the_studies_of_probaff():
-    assert list(STUDIES) == [
-        "affordance_map",
-        "modular",
-        "planning",
-        "point_cloud_labels",
-        "push_models",
-        "pusht",
-    ]
+def test_the_studies_of_probaff_are_its_study_folders():
+    folders = sorted(
+        p.parent.name
+        for p in EXPERIMENTS.glob("*/__init__.py")
+        if not p.parent.name.startswith("_")
+    )
+    assert list(STUDIES) == folders and len(STUDIES) >= 6
     for name in STUDIES:
         study = STUDIES[name]
+        assert study.__name__ == STUDIES.study(name).package == f"probaff.experiments.{name}"
         assert study.run and study.SMOKE is study.Config.SMOKE
+
+
+def test_a_new_study_folder_beside_the_others_is_found(tmp_path, monkeypatch, capsys):
+    """A study folder on `probaff.experiments`'s path: ``probaff study`` runs it, unedited."""
+    (tmp_path / "squares").mkdir()
+    (tmp_path / "squares" / "__init__.py").write_text(textwrap.dedent(TINY))
+    monkeypatch.setattr(
+        probaff.experiments, "__path__", [*probaff.experiments.__path__, str(tmp_path)]
+    )
+    try:
+        assert "squares" in STUDIES and list(STUDIES)[-1] == "squares"
+        out = tmp_path / "out"
+        assert main(["study", "squares", "--smoke", "--out", str(out)]) == 0
+        assert json.loads(capsys.readouterr().out)["files"][0] == str(out / "squares.csv")
+    finally:
+        STUDIES.unregister("squares")
+        sys.modules.pop("probaff.experiments.squares", None)
 
 
 def test_a_new_study_is_one_folder(tiny, tmp_path, capsys):
@@ -123,9 +147,32 @@ def test_a_real_study_refuses_a_bad_flag_before_any_work(tmp_path, capsys):
 
 
 def test_a_folder_without_the_study_face_is_refused(tiny):
-    (tiny.folder / "broken").mkdir()
-    (tiny.folder / "broken" / "__init__.py").write_text("x = 1\n")
+    (tiny.folders[0] / "broken").mkdir()
+    (tiny.folders[0] / "broken" / "__init__.py").write_text("x = 1\n")
     with pytest.raises(InputError, match=r"does not name \['Config', 'SMOKE', 'run'\]"):
         tiny["broken"]
-    with pytest.raises(KeyError):
+
+
+def test_unknown_and_duplicate_study_names_are_refused_by_name(tiny):
+    with pytest.raises(UnknownStudyError, match=r"unknown study 'nothing'; studies: \['squares'\]"):
         tiny["nothing"]
+    with pytest.raises(KeyError):  # a Mapping's miss, too
+        tiny["nothing"]
+    assert tiny.get("nothing") is None and "nothing" not in tiny
+    with pytest.raises(InputError, match="study 'squares' is registered already"):
+        tiny.register(Study("squares", "elsewhere.squares"))
+    cubes = tiny.register(Study("cubes", f"{tiny.package}.squares"))
+    assert list(tiny) == ["squares", "cubes"] and tiny["cubes"].SMOKE == {"n": 2, "progress": False}
+    assert tiny.unregister("cubes") is cubes and list(tiny) == ["squares"]
+    with pytest.raises(InputError, match="must be an identifier"):
+        Study("two words", "x")
+
+
+def test_two_study_folders_of_one_name_are_refused(tiny, tmp_path, monkeypatch):
+    other = tmp_path / "other"
+    (other / "squares").mkdir(parents=True)
+    (other / "squares" / "__init__.py").write_text("")
+    package = importlib.import_module(tiny.package)
+    monkeypatch.setattr(package, "__path__", [*package.__path__, str(other)])
+    with pytest.raises(ConfigError, match=r"study 'squares' is a folder in both .* rename one"):
+        list(tiny)

@@ -1,36 +1,49 @@
-"""The registry of world kinds, and a new scene kind added end to end.
+"""The registry of world kinds, and a new world kind added end to end from its own files.
 
-A real new scene kind touches four files; this test plays all four roles in one:
+A new world kind is three files, and this test writes the first two to a temporary folder on
+`probaff.sim`'s path, edits nothing else and finds the kind through the registry:
 
-1. its YAML: its scene templates under ``worlds/<folder>/`` (and its world file, if it has
-   one), written here to a temporary folder;
-2. its module, ``probaff/sim/<kind>.py``: its spec and loader, its simulate function and the
-   `SceneRows` that turn a scene's draws into dataset rows (`PuckSpec`, `load_puck_scene`,
-   `simulate_puck`, `make_rows` below);
-3. its registration: one ``register_world(WorldKind(...))`` among the built-ins of
-   ``probaff/sim/registry.py`` (here in a fixture); `probaff.data.generate`, the dataset
-   store and the ``probaff scenes | generate | describe`` commands then serve it unchanged
-   (a kind with generation options of its own registers a `probaff.data.kinds.DatasetKind`
-   instead, see tests/data/test_kinds.py);
-4. its test.
+1. its YAML: its scene templates (``worlds/<folder>/NAME.yaml``, and its world file if it has
+   one), here ``puck_scenes/puck_slide.yaml``;
+2. its module, ``probaff/sim/<kind>.py`` (here ``puck.py``, imported as
+   ``probaff.sim.puck``): its spec and loader, its simulate function, the `SceneRows` that
+   turn a scene's draws into dataset rows and its own ``register_world(WorldKind(...))``.
+   `probaff.sim.registry` discovers the module (`discover_worlds`) on its next lookup;
+   `probaff.data.generate`, the dataset store and the ``probaff scenes | generate |
+   describe`` commands then serve it unchanged (a kind with generation options of its own
+   registers a `probaff.data.kinds.DatasetKind` instead, see tests/data/test_kinds.py);
+3. its test (this one).
 """
 
 import json
-from dataclasses import dataclass, replace
+import sys
+import textwrap
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import probaff.sim
+from probaff.cli import main
+from probaff.data import GenerateConfig, generate, load_any_dataset
+from probaff.errors import ConfigError, InputError
+from probaff.sim import kind_of_scene, register_world, world_kind, world_kinds
+from probaff.sim.registry import SceneRows, UnknownSceneError, discover_worlds, unregister_world
+
+PUCK_MODULE = '''
+"""A puck pushed along x by a paddle: the world kind ``puck`` (a test's world)."""
+
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pymunk
-import pytest
 
-from probaff.cli import main
-from probaff.data import GenerateConfig, generate, load_any_dataset
-from probaff.errors import ConfigError, InputError
-from probaff.sim import WorldKind, kind_of_scene, register_world, world_kind, world_kinds
-from probaff.sim.registry import SceneRows, UnknownSceneError, unregister_world
+from probaff.sim.registry import SceneRows, WorldKind, register_world
 from probaff.sim.world_files import mapping, number_field, range_field, read_yaml
 
-# --- the new kind's module: spec, loader, simulate function and rows ---------------------
+SCENES = Path(__file__).resolve().parent / "puck_scenes"
 
 
 @dataclass(frozen=True)
@@ -44,11 +57,8 @@ class PuckSpec:
     duration: float
 
 
-SCENES: list[Path] = []  # the kind's scene folder, set by the fixture
-
-
 def load_puck_scene(name: str) -> PuckSpec:
-    path = SCENES[0] / f"{name}.yaml"
+    path = SCENES / f"{name}.yaml"
     raw = mapping(path.name, read_yaml(path))
     return PuckSpec(
         name=name,
@@ -97,36 +107,66 @@ PUCK_ROWS = SceneRows(
     unit="push",
 )
 
-# --- its YAML and its registration ---------------------------------------------------------
+register_world(
+    WorldKind(
+        name="puck",
+        label="puck",
+        load_world=load_puck_world,
+        simulate=simulate_puck,
+        scenes=SCENES,
+        load_scene=load_puck_scene,
+        dataset_kind="puck",
+        actions="push",
+        rows=PUCK_ROWS,
+    )
+)
+'''
+
+PUCK_SCENE = """
+description: A puck pushed along x by a paddle.
+mass: [0.2, 0.5]
+speed: [0.1, 0.3]
+duration: 0.5
+"""
 
 
 @pytest.fixture
-def puck_kind(tmp_path):
-    scenes = tmp_path / "puck_scenes"
-    scenes.mkdir()
-    (scenes / "puck_slide.yaml").write_text(
-        "description: A puck pushed along x by a paddle.\n"
-        "mass: [0.2, 0.5]\nspeed: [0.1, 0.3]\nduration: 0.5\n"
-    )
-    SCENES[:] = [scenes]
-    kind = register_world(
-        WorldKind(
-            name="puck",
-            label="puck",
-            load_world=load_puck_world,
-            simulate=simulate_puck,
-            scenes=scenes,
-            load_scene=load_puck_scene,
-            dataset_kind="puck",
-            actions="push",
-            rows=PUCK_ROWS,
-        )
-    )
+def world_folder(tmp_path, monkeypatch):
+    """A folder on `probaff.sim`'s path: a module written there is ``probaff.sim.<stem>``."""
+    monkeypatch.setattr(probaff.sim, "__path__", [*probaff.sim.__path__, str(tmp_path)])
+    yield tmp_path
+    for name in [m for m in sys.modules if m.startswith("probaff.sim.") and "puck" in m]:
+        del sys.modules[name]
+
+
+@pytest.fixture
+def puck_kind(world_folder):
+    """The ``puck`` kind, from its two files alone (its module and its scene template)."""
+    (world_folder / "puck_scenes").mkdir()
+    (world_folder / "puck_scenes" / "puck_slide.yaml").write_text(PUCK_SCENE.lstrip())
+    (world_folder / "puck.py").write_text(textwrap.dedent(PUCK_MODULE))
+    kind = world_kind("puck")  # found by the registry's discovery, named nowhere else
     yield kind
     unregister_world("puck")
 
 
 # --- its test ------------------------------------------------------------------------------
+
+
+def test_a_new_world_is_its_module_and_its_yaml(puck_kind):
+    assert puck_kind.simulate.__module__ == "probaff.sim.puck"
+    assert [k.name for k in world_kinds()][-1] == "puck"  # after the built-in kinds
+    assert discover_worlds() == []  # every module is imported once
+
+
+def test_a_module_registering_a_taken_name_is_refused(world_folder):
+    (world_folder / "puck_again.py").write_text(
+        "from dataclasses import replace\n"
+        "from probaff.sim.registry import register_world, world_kind\n"
+        "register_world(replace(world_kind('tabletop'), order=9))\n"
+    )
+    with pytest.raises(InputError, match="world kind 'tabletop' is registered already"):
+        world_kinds()
 
 
 def _files(root: Path) -> dict[str, bytes]:
@@ -158,6 +198,9 @@ def test_a_new_scene_kind_generates_through_the_one_generate(puck_kind, tmp_path
 def test_the_built_in_kinds():
     names = [k.name for k in world_kinds()]
     assert names[:4] == ["tabletop", "sideview", "warehouse", "office"]
+    assert [world_kind(name).simulate.__module__ for name in names[:4]] == [
+        f"probaff.sim.{name}" for name in names[:4]
+    ]  # each kind registers itself in its own module
     assert world_kind("tabletop").dataset_kind == "push"
     assert world_kind("sideview").dataset_kind == "skill"
     assert world_kind("office").scene_names() == []
@@ -188,6 +231,9 @@ def test_unknown_names_and_clashes(tmp_path):
         unregister_world("clash")
 
 
+ROWS = SceneRows({"x": "float64"}, lambda scene, rows, seeds: {}, lambda scene: [])
+
+
 @pytest.mark.parametrize(
     "change,message",
     [
@@ -195,7 +241,8 @@ def test_unknown_names_and_clashes(tmp_path):
         ({"simulate": 3}, "simulate of 'tabletop' must be callable"),
         ({"load_scene": None}, "no load_scene"),
         ({"dataset_kind": 7}, "dataset_kind"),
-        ({"scenes": None, "rows": PUCK_ROWS}, "rows but no scene templates"),
+        ({"scenes": None, "rows": ROWS}, "rows but no scene templates"),
+        ({"order": 1.5}, "order of 'tabletop' must be an integer"),
     ],
 )
 def test_bad_world_kinds_are_refused(change, message):
@@ -205,6 +252,6 @@ def test_bad_world_kinds_are_refused(change, message):
 
 def test_bad_scene_rows_are_refused():
     with pytest.raises(InputError, match="at least one array"):
-        SceneRows({}, make_rows, lambda scene: [])
+        SceneRows({}, ROWS.make, lambda scene: [])
     with pytest.raises(InputError, match="make must be callable"):
         SceneRows({"a": "float64"}, 3, lambda scene: [])  # type: ignore[arg-type]
