@@ -8,7 +8,7 @@ On data whose true regimes are known, every fold fits, side by side in the same 
   distribution `predict` (its RMSE is that of the mixture's mean);
 * ``em_stacked``: the same fit's point prediction `predict_point` (``point="stacked"``: per
   output, the mixture's mean stacked with one GP fitted on every row, the weights `alpha`
-  chosen out of sample on the training rows; `probaff.models.point`). Only the point
+  chosen out of sample on the training rows; `probaff.models.mixture.point`). Only the point
   changes, so its NLPD is ``em``'s (the same predictive distribution, repeated);
 * ``em_best_expert``: ``em``'s experts, each held-out row predicted by the mean of the
   expert closest to its target (squared error summed over the outputs, each divided by its
@@ -101,8 +101,8 @@ from probaff.errors import InputError
 from probaff.eval.metrics import mean_halfwidth, nlpd, rmse
 from probaff.eval.tasks import ResultStore, run_tasks
 from probaff.models import GPExpert, GPOptions, MixtureOfGPExperts, fit_em
-from probaff.models.gate import make_gate
-from probaff.models.gated import mixture_distribution
+from probaff.models.gates.gate import make_gate
+from probaff.models.gates.gated import mixture_distribution
 
 MODELS = (
     "single_gp",

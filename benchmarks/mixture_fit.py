@@ -16,7 +16,7 @@ threads. A small EM fit runs first so that one-time import costs are not timed.
 
 With ``--batched-vs-reference`` it instead times, at each N of `--sizes` and alternating
 `--repeats` times, the default EM fit (the experts of each M-step fitted as one batch,
-`probaff.models.expert_batch`) against the reference path that fits and predicts the experts
+`probaff.models.experts.expert_batch`) against the reference path that fits and predicts the experts
 one at a time (`per_expert_fits`), in this one process, and prints both wall and CPU times,
 their ratio, and both fits' final objective and held-out NLPD (which should agree).
 
@@ -52,7 +52,7 @@ from probaff._cli_errors import run_cli
 from probaff._threads import torch_threads
 from probaff.errors import InputError
 from probaff.models import MIXTURE_GP, GPOptions, MixtureOfGPExperts, fit_em
-from probaff.models.expert_batch import per_expert_fits
+from probaff.models.experts.expert_batch import per_expert_fits
 from probaff.models.synthetic import regime_features
 
 

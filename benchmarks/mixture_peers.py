@@ -9,7 +9,7 @@ each data set, in the same run, and scored on the held-out fold by
 * RMSE of the predictive mean per output, and their mean after dividing each by the standard
   deviation of that output over the whole data set (``srmse``); the point is the model's
   point prediction (`probaff.models.point_prediction`: ``em_stacked``'s stacked point, see
-  `probaff.models.point`; the predictive mean for every other model), and ``srmse_mean``
+  `probaff.models.mixture.point`; the predictive mean for every other model), and ``srmse_mean``
   (in ``peers.csv``) is the same for the predictive mean;
 * coverage of the central 90 % predictive interval, averaged over the outputs;
 * wall-clock seconds of fit plus predict (one torch and one BLAS thread per task; each
@@ -38,7 +38,7 @@ budget) -> Prediction``: a distribution with batch shape ``(N_test,)`` and event
   (``n_finish=2``).
 * ``em_stacked``: the default EM fit of a mixture with ``point="stacked"``: the same
   distribution (NLPD) as ``em``, with RMSE scored on the mean stacked with a single GP
-  (`probaff.models.point`).
+  (`probaff.models.mixture.point`).
 * ``vi``: `VariationalMixtureOfGPExperts` (``min(32, N)`` inducing points) fitted by
   `fit_svi`.
 
@@ -150,7 +150,7 @@ from probaff.models import (
     fit_svi,
     point_prediction,
 )
-from probaff.models.mixture import mixture_distribution
+from probaff.models.mixture.model import mixture_distribution
 
 Prediction = Distribution | tuple[Distribution, torch.Tensor]
 """What a model of the benchmark returns: its distribution, or it and its point prediction."""

@@ -47,10 +47,11 @@ Methods (``METHODS``; each is ``fit(X, Y, seed, n_experts, em=..., **options) ->
 * ``vi``: `VariationalMixtureOfGPExperts(M)` with ``min(128, N)`` inducing points per expert
   (``--n-inducing`` overrides) fitted by `fit_svi` with minibatches of 256 and ``--svi-steps``
   steps (its start, an EM fit on at most 2,000 rows, is timed with it).
-* ``svgp``: one sparse variational GP per output (GPyTorch SVGP, `probaff.models.vi.SVGPExpert`,
-  ``min(128, N)`` inducing inputs drawn from the rows, a Gaussian likelihood per output) on
-  standardised inputs and outputs, trained by Adam (step 0.01) on
-  `gpytorch.mlls.VariationalELBO` with minibatches of 256 for ``--svgp-steps`` steps.
+* ``svgp``: one sparse variational GP per output (GPyTorch SVGP,
+  `probaff.models.variational.vi.SVGPExpert`, ``min(128, N)`` inducing inputs drawn from the
+  rows, a Gaussian likelihood per output) on standardised inputs and outputs, trained by Adam
+  (step 0.01) on `gpytorch.mlls.VariationalELBO` with minibatches of 256 for ``--svgp-steps``
+  steps.
 * ``ccr``: scikit-learn cluster-classify-regress, ``ccr`` of ``benchmarks/mixture_peers.py``
   (a GMM on the joint standardised [x, y], a logistic-regression gate, one exact scikit-learn
   GP per cluster and output, ``--ccr-restarts`` optimizer restarts). It fits and predicts in
@@ -105,9 +106,9 @@ from probaff._threads import torch_threads
 from probaff.eval.metrics import nlpd, rmse
 from probaff.models import MixtureOfGPExperts, VariationalMixtureOfGPExperts, fit_em, fit_svi
 from probaff.models._scaling import Standardizer
-from probaff.models.expert_batch import per_expert_fits
+from probaff.models.experts.expert_batch import per_expert_fits
 from probaff.models.synthetic import regime_features
-from probaff.models.vi import SVGPExpert
+from probaff.models.variational.vi import SVGPExpert
 
 PEERS_SCRIPT = Path(__file__).resolve().parent / "mixture_peers.py"
 CCR_MAX_N = 5000

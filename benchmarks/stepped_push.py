@@ -56,7 +56,11 @@ from probaff.features.ch6_scenes import push_scenes
 from probaff.features.ch6_stepped import fit_stepped
 from probaff.features.ch6_steps import StepOptions, StepTrajectories, step_trajectories
 from probaff.models import ModularTransitionModel, SkillTransitionModel, fit_transition
-from probaff.models.stepped_transition import SteppedModelOptions, SteppedPushModel, rollout
+from probaff.models.transitions.stepped_transition import (
+    SteppedModelOptions,
+    SteppedPushModel,
+    rollout,
+)
 from probaff.sim.tabletop_config import load_scene
 
 GROUPS = ("pose", "action")  # the chapter 6 study's push feature groups

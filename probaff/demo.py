@@ -373,7 +373,7 @@ def _compare_models(
     """Held-out scores of a 3-expert EM mixture and of a single GP, and o2's density figure.
 
     The mixture is scored twice by RMSE: by its predictive mean and by its mean stacked with
-    the single GP (``point="stacked"``, `probaff.models.point`); the densities are the
+    the single GP (``point="stacked"``, `probaff.models.mixture.point`); the densities are the
     same. Both models see the same pushes, features (gate: f_x; experts: f_o & f_c) and noise
     floor (that of the dataset's pose noise). The figure shows, for the held-out push where
     the mixture's prediction of o2's displacement along the push is most clearly bimodal

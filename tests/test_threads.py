@@ -132,7 +132,7 @@ def test_public_fits_are_sized():
 
 
 def test_em_fit_runs_on_one_thread(monkeypatch):
-    import probaff.models.em as em
+    import probaff.models.mixture.em as em
     from probaff.models import MixtureOfGPExperts, fit_em
     from probaff.models.synthetic import softmax_regimes
 

@@ -9,13 +9,13 @@
   private), and a "Subpackages" one with one page per nested package, documented the same way
   (the flag ``:no-subpackages:`` leaves them out, for the top-level ``probaff`` page).
 
-``.. probaff-module:: probaff.models.mixture`` writes a module's page: its docstring and the
+``.. probaff-module:: probaff.models.mixture.model`` writes a module's page: its docstring and the
 names of its ``__all__`` that it defines, each described once, under the name a user imports it
 by (``probaff.models.MixtureOfGPExperts`` for a class the package exports), with links to those
 it imports. The pages of modules and nested packages are written into ``api/modules/`` when the
 build starts (`write_module_pages`); modules are found with `pkgutil`, so a new module gets its
 page without editing the docs. Autodoc records a class's defining module as its canonical
-name, so a reference to ``probaff.models.mixture.MixtureOfGPExperts`` (as type annotations
+name, so a reference to ``probaff.models.mixture.model.MixtureOfGPExperts`` (as type annotations
 write it) finds ``probaff.models.MixtureOfGPExperts``.
 
 Single backticks (the default role, ``probaff-name``) are Python cross-references: a name that

@@ -32,7 +32,7 @@ from probaff.features.action_frame import action_frame, tabletop_transform
 from probaff.features.ch6_push import box_sizes, hand_poses
 from probaff.features.chain_geometry import Ch6Geometry, resolve_geometry
 from probaff.features.requirements import FEATURE_REQUIREMENTS
-from probaff.models.chain import ChainScene
+from probaff.models.transitions.chain import ChainScene
 
 __all__ = [
     "REQUIRES",

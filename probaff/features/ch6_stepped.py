@@ -22,7 +22,7 @@ from probaff.errors import InputError
 from probaff.features.ch6_push import PLANAR_EFFECT_COLUMNS
 from probaff.features.ch6_steps import LinkSteps, StepTrajectories, hand_steps, link_steps
 from probaff.features.chain_geometry import Ch6Geometry, resolve_geometry
-from probaff.models.stepped_transition import (
+from probaff.models.transitions.stepped_transition import (
     MeanPredictor,
     SteppedModelOptions,
     SteppedPushModel,

@@ -41,7 +41,7 @@ from probaff.features._common import FINGER_LENGTH, meta_float
 from probaff.features.action_frame import effect_in_action_frame, tabletop_transform
 from probaff.features.ch6_push import PLANAR_EFFECT_COLUMNS, box_sizes
 from probaff.features.chain_geometry import Ch6Geometry, resolve_geometry
-from probaff.models.stepped_transition import SteppedScenes
+from probaff.models.transitions.stepped_transition import SteppedScenes
 
 __all__ = [
     "HAND_STARTS",

@@ -1,10 +1,10 @@
 """The chapter 6 geometry of chained predictions: box surfaces, features and effects.
 
-`Ch6Geometry` is the feature layer's side of `probaff.models.modular.InteractionGeometry`:
-`ModularTransitionModel` takes it by injection, so the models never import the feature
-layer. Its features are the chapter 6 interaction features (`interaction_features`, 169
-columns, or a chosen subset of them), followed by two columns of the commanded motion that
-the 169 do not hold:
+`Ch6Geometry` is the feature layer's side of
+`probaff.models.transitions.modular.InteractionGeometry`: `ModularTransitionModel` takes it
+by injection, so the models never import the feature layer. Its features are the chapter 6
+interaction features (`interaction_features`, 169 columns, or a chosen subset of them),
+followed by two columns of the commanded motion that the 169 do not hold:
 
 * ``action_length``: the length of the actor's commanded displacement (m);
 * ``travel``: how far the actor moves on after it first touches the target,
@@ -39,7 +39,7 @@ from probaff.features.ch6 import (
 )
 
 if TYPE_CHECKING:
-    from probaff.models.modular import InteractionGeometry
+    from probaff.models.transitions.modular import InteractionGeometry
 
 __all__ = ["MOTION_COLUMNS", "Ch6Geometry", "InteractionRows", "resolve_geometry"]
 

@@ -19,21 +19,25 @@ registered model in one file.
 `MixtureOfGPExpertsRegressor` (`probaff.models.sklearn`) is the EM mixture as a scikit-learn
 regressor, for `cross_val_score`, `GridSearchCV` and `Pipeline`; `mean_log_predictive_density`
 scores its whole predictive distribution there.
+
+The code is grouped by idea, as GPyTorch groups its own: ``experts`` (the exact and sparse GP
+experts, their kernel and weighted likelihood), ``gates`` (the softmax and Fourier gates and
+the `GatedMixture` base), ``mixture`` (`MixtureOfGPExperts`, its EM fit and the clustered
+baseline), ``variational`` (the variational mixture and its SVI fit) and ``transitions``
+(chapter 6's transition models); options, the registry, persistence, the scikit-learn
+estimator and the shared tensor, column and optimiser helpers stay at this level.
 """
 
 from probaff.errors import NotFittedError
-from probaff.models.clustered import ClusteredGPModel
-from probaff.models.em import EMHistory, fit_em, fit_em_path
-from probaff.models.gate import FourierGate, SoftmaxGate, make_gate
-from probaff.models.gated import GatedMixture
-from probaff.models.gp_expert import GPExpert
+from probaff.models.experts import GPExpert, SparseGPExpert
+from probaff.models.gates import FourierGate, GatedMixture, SoftmaxGate, make_gate
 from probaff.models.interface import PushModel, point_prediction
-from probaff.models.mixture import MixtureOfGPExperts
-from probaff.models.modular import (
-    ChainPrediction,
-    ChainScene,
-    InteractionGeometry,
-    ModularTransitionModel,
+from probaff.models.mixture import (
+    ClusteredGPModel,
+    EMHistory,
+    MixtureOfGPExperts,
+    fit_em,
+    fit_em_path,
 )
 from probaff.models.options import MIXTURE_GP, EMOptions, GPOptions, SparseGPOptions, SVIOptions
 from probaff.models.persistence import load, save
@@ -48,15 +52,17 @@ from probaff.models.registry import (
     unregister_model_kind,
 )
 from probaff.models.sklearn import MixtureOfGPExpertsRegressor, mean_log_predictive_density
-from probaff.models.sparse_expert import SparseGPExpert
-from probaff.models.svi import SVIHistory, fit_svi
-from probaff.models.transition import (
+from probaff.models.transitions import (
+    ChainPrediction,
+    ChainScene,
+    InteractionGeometry,
+    ModularTransitionModel,
     MonolithicTransitionModel,
     SkillTransitionModel,
     TransitionHistory,
     fit_transition,
 )
-from probaff.models.vi import VariationalMixtureOfGPExperts
+from probaff.models.variational import SVIHistory, VariationalMixtureOfGPExperts, fit_svi
 
 __all__ = [
     "MIXTURE_GP",

@@ -9,7 +9,7 @@ Named initialisations (`INITIALIZATIONS`):
   the effect block. Regimes that overlap in effect space but are decided by the gate's
   inputs are separated by this start and not by ``"effects"``.
 * ``"grow"``: fit `M` experts from the `M - 1` solution by splitting one expert
-  (`split_responsibilities`); `probaff.models.em.fit_em` runs it.
+  (`split_responsibilities`); `probaff.models.mixture.em.fit_em` runs it.
 """
 
 from __future__ import annotations

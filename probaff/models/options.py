@@ -115,7 +115,7 @@ def check_lengthscale_prior(value: Any) -> bool | float:
     """`lengthscale_prior` as False (off), True (on, at the default width) or a width.
 
     Args:
-        value: False, True (the prior at `probaff.models.kernels.LENGTHSCALE_PRIOR_SCALE`)
+        value: False, True (the prior at `probaff.models.experts.kernels.LENGTHSCALE_PRIOR_SCALE`)
             or the prior's width, the standard deviation of the log length scales (a finite
             number > 0). The integers 0 and 1 are False and True.
 
@@ -352,7 +352,7 @@ class GPOptions:
     Attributes:
         max_iter: L-BFGS iterations per call to `GPExpert.fit`.
         lengthscale_prior: Put the dimension-scaled log-normal prior on the length scales:
-            False, True (at `probaff.models.kernels.LENGTHSCALE_PRIOR_SCALE`) or its width
+            False, True (at `probaff.models.experts.kernels.LENGTHSCALE_PRIOR_SCALE`) or its width
             (the standard deviation of the log length scales).
         noise_floor: Smallest observation-noise standard deviation, in output units: None
             (no floor), one value, one value per output `(E,)` (stored as a tuple), or

@@ -31,7 +31,7 @@ import torch
 from probaff._checks import check_output_file
 from probaff._io import atomic_write_bytes
 from probaff.errors import InputError, ProbaffError
-from probaff.models.em import FORMAT
+from probaff.models.mixture.em import FORMAT
 from probaff.models.registry import Codec, model_kind, model_kinds
 
 __all__ = ["FORMAT", "FORMATS", "load", "save"]

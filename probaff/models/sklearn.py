@@ -29,9 +29,9 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 from probaff._checks import as_float_array, check_count
 from probaff._threads import threads_by_rows
 from probaff.errors import InputError, NotFittedError
-from probaff.models.em import fit_em
-from probaff.models.em_run import EMHistory
-from probaff.models.mixture import FLAT_GP_KEYWORDS, MixtureOfGPExperts
+from probaff.models.mixture.em import fit_em
+from probaff.models.mixture.em_run import EMHistory
+from probaff.models.mixture.model import FLAT_GP_KEYWORDS, MixtureOfGPExperts
 from probaff.models.options import EMOptions, GPOptions
 
 __all__ = [

@@ -69,7 +69,7 @@ EDGE_PRIOR_WIDTH = math.sqrt(3.0)
 r"""Width of the length-scale prior of the push-to-edge models (`fit_edge_model`).
 
 Hvarfner et al.'s (2024) :math:`\sqrt 3`, wider than the library's default
-(`probaff.models.kernels.LENGTHSCALE_PRIOR_SCALE`, 1, chosen by held-out density on the
+(`probaff.models.experts.kernels.LENGTHSCALE_PRIOR_SCALE`, 1, chosen by held-out density on the
 peer table). On the planning study's 100 push-to-edge episodes (seed 0, 240 training pushes,
 the same episodes), the default width gave A* with the mixture 91, the risk-aware A* 88 and
 A* with a single GP 90 successes; this width gave 94, 94 and 93 (and the mixture's one-step

@@ -17,7 +17,7 @@ from probaff.features.ch6_steps import (
     step_trajectories,
 )
 from probaff.features.chain_geometry import Ch6Geometry
-from probaff.models.stepped_transition import SteppedModelOptions
+from probaff.models.transitions.stepped_transition import SteppedModelOptions
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,7 @@ from sklearn.metrics import adjusted_rand_score
 
 from probaff.errors import InputError, NotFittedError
 from probaff.eval.metrics import rmse
-from probaff.models.clustered import ClusteredGPModel
+from probaff.models.mixture.clustered import ClusteredGPModel
 
 
 def _blocked_pushes(n=150, seed=0):

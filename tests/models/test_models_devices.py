@@ -9,7 +9,7 @@ from device_checks import DEVICES, assert_on_device, elsewhere, tensors_in
 
 from probaff.errors import InputError
 from probaff.models import MIXTURE_GP, GPExpert, MixtureOfGPExperts, fit_em
-from probaff.models.gate import make_gate
+from probaff.models.gates.gate import make_gate
 from probaff.models.initialization import initial_responsibilities, split_responsibilities
 from probaff.models.synthetic import regime_features
 from probaff.models.tensors import as_matrix, as_vector, resolve_device, training_rows

@@ -1,7 +1,7 @@
 """EM that cannot lose to a smaller model: initialisations, restarts, split/merge, annealing.
 
-Covers probaff.models.em (the fits), probaff.models.em_run (one run) and
-probaff.models.em_starts (the starts of one mixture size).
+Covers probaff.models.mixture.em (the fits), probaff.models.mixture.em_run (one run) and
+probaff.models.mixture.em_starts (the starts of one mixture size).
 """
 
 import copy
@@ -18,9 +18,9 @@ from probaff.data.generation import GenerateConfig, generate
 from probaff.errors import InputError
 from probaff.features import chapter5_features
 from probaff.models import MIXTURE_GP, GPOptions, MixtureOfGPExperts, fit_em, fit_em_path
-from probaff.models.em_run import EMRun, loo_terms
-from probaff.models.em_starts import _copy_state, _objective
 from probaff.models.initialization import initial_responsibilities, split_responsibilities
+from probaff.models.mixture.em_run import EMRun, loo_terms
+from probaff.models.mixture.em_starts import _copy_state, _objective
 from probaff.models.options import EMOptions
 from probaff.models.synthetic import piecewise_1d, softmax_regimes
 

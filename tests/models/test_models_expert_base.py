@@ -6,10 +6,10 @@ import torch
 
 from probaff.errors import InputError
 from probaff.models import GPExpert, ModelSettings
-from probaff.models.expert_base import WeightedExpert, noise_floor_vector
-from probaff.models.kernels import LENGTHSCALE_PRIOR_SCALE
+from probaff.models.experts.expert_base import WeightedExpert, noise_floor_vector
+from probaff.models.experts.kernels import LENGTHSCALE_PRIOR_SCALE
+from probaff.models.experts.sparse_expert import SparseGPExpert
 from probaff.models.options import GPOptions
-from probaff.models.sparse_expert import SparseGPExpert
 
 
 def test_both_experts_share_the_base_and_its_checks():

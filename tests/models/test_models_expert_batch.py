@@ -10,7 +10,7 @@ from device_checks import DEVICES, assert_on_device, elsewhere
 
 from probaff.errors import InputError, NotFittedError
 from probaff.models import MIXTURE_GP, GPExpert, MixtureOfGPExperts, fit_em
-from probaff.models.expert_batch import (
+from probaff.models.experts.expert_batch import (
     ExpertStack,
     _Batch,
     _floors,

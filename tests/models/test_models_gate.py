@@ -3,7 +3,7 @@ import torch
 
 from probaff.errors import InputError
 from probaff.models import NotFittedError, SoftmaxGate
-from probaff.models.gate import DEFAULT_L2_GRID, FourierGate, make_gate
+from probaff.models.gates.gate import DEFAULT_L2_GRID, FourierGate, make_gate
 
 
 def _soft_targets(n: int = 200, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:

@@ -1,10 +1,10 @@
 import pytest
 import torch
 
-import probaff.models.gate as gate_module
+import probaff.models.gates.gate as gate_module
 from probaff.models import SoftmaxGate
-from probaff.models.gate_newton import _rescale_zeroed, newton_fit
-from probaff.models.gate_penalty import penalised_loss, penalty_grad, penalty_value
+from probaff.models.gates.gate_newton import _rescale_zeroed, newton_fit
+from probaff.models.gates.gate_penalty import penalised_loss, penalty_grad, penalty_value
 
 
 def _problem(n: int = 300, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:

@@ -2,7 +2,7 @@ import pytest
 import torch
 
 from probaff.errors import InputError
-from probaff.models.gate_penalty import (
+from probaff.models.gates.gate_penalty import (
     L1_SMOOTHING,
     check_strength,
     log_softmax_last,

@@ -8,9 +8,9 @@ from linear_operator.utils.errors import NotPSDError
 
 from probaff.errors import InputError
 from probaff.models import GPExpert, NotFittedError
-from probaff.models.gaussian_density import gaussian_log_density, loo_moments
-from probaff.models.gp_expert import exact_gp_settings
-from probaff.models.likelihood import WeightedNoise
+from probaff.models.experts.gaussian_density import gaussian_log_density, loo_moments
+from probaff.models.experts.gp_expert import exact_gp_settings
+from probaff.models.experts.likelihood import WeightedNoise
 
 
 def _data(n: int = 40, d: int = 3, e: int = 2, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:

@@ -19,8 +19,8 @@ from probaff.models import (
     fit_svi,
     model_kind,
 )
-from probaff.models.gated import ExpertList
-from probaff.models.gp_expert import GPExpert
+from probaff.models.experts.gp_expert import GPExpert
+from probaff.models.gates.gated import ExpertList
 from probaff.models.synthetic import piecewise_1d
 
 pytestmark = pytest.mark.usefixtures("single_thread")

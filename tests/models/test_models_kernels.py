@@ -1,10 +1,10 @@
-"""The GP experts' SE-ARD kernel (probaff.models.kernels)."""
+"""The GP experts' SE-ARD kernel (probaff.models.experts.kernels)."""
 
 import math
 
 import torch
 
-from probaff.models.kernels import ard_se_kernel
+from probaff.models.experts.kernels import ard_se_kernel
 
 
 def test_ard_se_kernel_is_batched_with_one_length_scale_per_feature():

@@ -17,9 +17,9 @@ from probaff.models import (
     fit_em,
     fit_em_path,
 )
-from probaff.models import mixture as mixture_module
-from probaff.models.mixture import AUTO_SPARSE_ABOVE, MIXTURE_GP
-from probaff.models.sparse_expert import FitMemoryError, SparseGPExpert
+from probaff.models.experts.sparse_expert import FitMemoryError, SparseGPExpert
+from probaff.models.mixture import model as mixture_module
+from probaff.models.mixture.model import AUTO_SPARSE_ABOVE, MIXTURE_GP
 from probaff.models.synthetic import piecewise_1d
 
 pytestmark = pytest.mark.usefixtures("single_thread")
@@ -233,7 +233,7 @@ def test_lasso_gate_is_the_default_and_chosen_by_cross_validation():
 
 def test_files_without_a_lasso_gate_load_as_ridge_gates(tmp_path):
     from probaff.models import load, save
-    from probaff.models.em import _dump, _restore
+    from probaff.models.mixture.em import _dump, _restore
 
     x, y, _ = piecewise_1d(40, seed=2)
     model = MixtureOfGPExperts(2, gate_l1=0.0, gp=replace(MIXTURE_GP, max_iter=5))

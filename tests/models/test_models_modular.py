@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 import torch
 
-import probaff.models.chain as chain_module
-import probaff.models.modular as modular
+import probaff.models.transitions.chain as chain_module
+import probaff.models.transitions.modular as modular
 from probaff._threads import torch_threads
 from probaff.errors import InputError, NotFittedError
 from probaff.features import (
@@ -39,7 +39,7 @@ from probaff.models import (
     SkillTransitionModel,
     fit_transition,
 )
-from probaff.models.transition_base import sample_effects
+from probaff.models.transitions.transition_base import sample_effects
 
 N_TRAIN = 160
 RADIUS = 0.005  # m, the hand cylinder's radius (1 cm across)

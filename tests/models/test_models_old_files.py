@@ -16,7 +16,7 @@ import torch
 
 from probaff.errors import InputError
 from probaff.models import MIXTURE_GP, GPOptions, MixtureOfGPExperts, load, save
-from probaff.models.em import _saved_config
+from probaff.models.mixture.em import _saved_config
 
 FIXTURES = Path(__file__).resolve().parents[1] / "data" / "fixtures"
 OLD = FIXTURES / "mixture_before_hash.pt"

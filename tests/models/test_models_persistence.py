@@ -22,8 +22,8 @@ from probaff.models import (
     fit_svi,
     fit_transition,
 )
+from probaff.models.experts.sparse_expert import SparseGPExpert
 from probaff.models.persistence import FORMATS, load, save
-from probaff.models.sparse_expert import SparseGPExpert
 from probaff.models.synthetic import piecewise_1d
 
 pytestmark = pytest.mark.usefixtures("single_thread")
@@ -120,7 +120,7 @@ def test_clustered_model_round_trip_is_bit_identical(tmp_path):
     with pytest.raises(NotFittedError):
         save(ClusteredGPModel(2), tmp_path / "c.pt")
     # files written before `gp` hold the experts' keywords under "expert_kwargs"
-    from probaff.models.clustered import _dump, _restore
+    from probaff.models.mixture.clustered import _dump, _restore
 
     payload = _dump(model)
     assert payload["config"]["gp"] == dataclasses.asdict(GPOptions(max_iter=10))  # builtins

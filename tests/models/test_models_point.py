@@ -5,7 +5,7 @@ import torch
 
 from probaff.errors import InputError
 from probaff.models import MixtureOfGPExperts, fit_em, load, point_prediction, save
-from probaff.models.point import out_of_fold_gate, stacking_weights
+from probaff.models.mixture.point import out_of_fold_gate, stacking_weights
 from probaff.models.synthetic import softmax_regimes
 
 pytestmark = pytest.mark.usefixtures("single_thread")

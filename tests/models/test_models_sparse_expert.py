@@ -8,9 +8,8 @@ from gpytorch.mlls import ExactMarginalLogLikelihood
 
 from probaff.errors import InputError, NotFittedError
 from probaff.models import GPExpert
-from probaff.models.gp_expert import exact_gp_settings
-from probaff.models.options import SparseGPOptions
-from probaff.models.sparse_expert import (
+from probaff.models.experts.gp_expert import exact_gp_settings
+from probaff.models.experts.sparse_expert import (
     DEFAULT_N_INDUCING,
     FitMemoryError,
     SparseGPExpert,
@@ -18,6 +17,7 @@ from probaff.models.sparse_expert import (
     fit_memory_bytes,
     select_inducing,
 )
+from probaff.models.options import SparseGPOptions
 
 
 @pytest.fixture(autouse=True, scope="module")

@@ -5,7 +5,7 @@ import pytest
 
 from probaff.errors import InputError
 from probaff.features.chain_geometry import Ch6Geometry
-from probaff.models.stepped_transition import (
+from probaff.models.transitions.stepped_transition import (
     StepComponents,
     SteppedModelOptions,
     SteppedPushModel,

@@ -6,11 +6,12 @@ import torch
 from pyro.infer import TraceEnum_ELBO
 
 from probaff._threads import torch_threads
-from probaff.models import MixtureOfGPExperts, fit_em, svi_fixed
-from probaff.models.svi import fit_svi
-from probaff.models.svi_fixed import FixedHyperparameterSVI
+from probaff.models import MixtureOfGPExperts, fit_em
 from probaff.models.synthetic import softmax_regimes
-from probaff.models.vi import VariationalMixtureOfGPExperts, WhitenedQ
+from probaff.models.variational import svi_fixed
+from probaff.models.variational.svi import fit_svi
+from probaff.models.variational.svi_fixed import FixedHyperparameterSVI
+from probaff.models.variational.vi import VariationalMixtureOfGPExperts, WhitenedQ
 
 
 @pytest.fixture(autouse=True, scope="module")

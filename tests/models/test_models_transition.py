@@ -1,7 +1,7 @@
 """Chapter 6's transition models and `fit_transition`.
 
-Covers probaff.models.transition, probaff.models.transition_base,
-probaff.models.skill_transition and probaff.models.monolithic.
+Covers probaff.models.transitions.transition, probaff.models.transitions.transition_base,
+probaff.models.transitions.skill_transition and probaff.models.transitions.monolithic.
 """
 
 import math

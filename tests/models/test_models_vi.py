@@ -9,9 +9,9 @@ from torch.distributions import MixtureSameFamily
 from probaff._threads import torch_threads
 from probaff.errors import InputError
 from probaff.models import MixtureOfGPExperts, NotFittedError, fit_em
-from probaff.models.svi import SVIHistory, fit_svi
 from probaff.models.synthetic import piecewise_1d, regime_features
-from probaff.models.vi import SVGPExpert, VariationalMixtureOfGPExperts
+from probaff.models.variational.svi import SVIHistory, fit_svi
+from probaff.models.variational.vi import SVGPExpert, VariationalMixtureOfGPExperts
 
 
 @pytest.fixture(autouse=True, scope="module")

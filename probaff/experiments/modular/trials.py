@@ -65,7 +65,11 @@ from probaff.models import (
     SkillTransitionModel,
     fit_transition,
 )
-from probaff.models.stepped_transition import SteppedModelOptions, SteppedPushModel, rollout
+from probaff.models.transitions.stepped_transition import (
+    SteppedModelOptions,
+    SteppedPushModel,
+    rollout,
+)
 
 __all__ = [
     "LEVEL",

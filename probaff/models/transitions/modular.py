@@ -39,15 +39,15 @@ from torch.distributions import MultivariateNormal
 
 from probaff._checks import check_count, check_shape
 from probaff.errors import InputError
-from probaff.models.chain import (
+from probaff.models.transitions.chain import (
     MIN_ACTION_LENGTH,
     ChainPrediction,
     ChainScene,
     planar_poses,
     wrap_angle,
 )
-from probaff.models.transition import SKILLS, SkillTransitionModel
-from probaff.models.transition_base import sample_effects
+from probaff.models.transitions.transition import SKILLS, SkillTransitionModel
+from probaff.models.transitions.transition_base import sample_effects
 
 __all__ = [
     "CHAIN_SKILL",

@@ -3,7 +3,7 @@
 `ChainScene` holds K boxes and one commanded hand motion, validated once (rigid poses, unit
 normals, no overlapping boxes, a known skill and chain order); `ChainPrediction` holds the S
 sampled final poses of a chain and their planar summaries. `ModularTransitionModel`
-(`probaff.models.modular`) predicts one from the other.
+(`probaff.models.transitions.modular`) predicts one from the other.
 
 Frames: poses are world-from-object transforms ``T_world_obj`` of the box centres; the
 hand's points are given in the hand frame and placed by its commanded poses. Planar
@@ -23,7 +23,7 @@ from torch.distributions import MultivariateNormal
 
 from probaff._checks import as_float_array, check_count, check_finite, check_shape
 from probaff.errors import InputError
-from probaff.models.transition_base import SKILLS
+from probaff.models.transitions.transition_base import SKILLS
 
 __all__ = ["MIN_ACTION_LENGTH", "ChainPrediction", "ChainScene", "planar_poses", "wrap_angle"]
 

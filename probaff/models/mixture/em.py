@@ -38,10 +38,10 @@ from torch import Tensor
 from probaff._checks import check_count, check_probability
 from probaff._threads import threads_by_rows
 from probaff.errors import InputError
-from probaff.models.em_run import EMHistory, EMRun
-from probaff.models.em_starts import _fresh, fit_level
-from probaff.models.gated import mixture_payload
-from probaff.models.mixture import FLAT_GP_KEYWORDS, MixtureOfGPExperts
+from probaff.models.gates.gated import mixture_payload
+from probaff.models.mixture.em_run import EMHistory, EMRun
+from probaff.models.mixture.em_starts import _fresh, fit_level
+from probaff.models.mixture.model import FLAT_GP_KEYWORDS, MixtureOfGPExperts
 from probaff.models.options import MIXTURE_GP, EMOptions, GPOptions, resolve_options
 from probaff.models.registry import Codec, ModelKind, ModelSettings, register_model_kind
 from probaff.models.tensors import as_matrix
@@ -166,7 +166,7 @@ def fit_em(
     samples the model explains worst.
 
     The starts (`init`) and how a large training set is searched are in the module's
-    docstring (`probaff.models.em`).
+    docstring (`probaff.models.mixture.em`).
 
     After the best run has converged, up to `split_merge` rounds of split-and-merge moves
     (merge the two experts that explain each other's samples best, split the one that

@@ -1,6 +1,6 @@
 r"""One sparse GP expert: E inducing-point GPs (SGPR) with per-sample noise weights.
 
-`SparseGPExpert` has the interface of `probaff.models.gp_expert.GPExpert` (``condition``,
+`SparseGPExpert` has the interface of `probaff.models.experts.gp_expert.GPExpert` (``condition``,
 ``fit``, ``predict``, ``loo_predict``, ``log_prob``, ``lengthscales``, ``noise``) but its fit
 maximises Titsias's (2009) collapsed variational bound with `m` inducing inputs per output,
 
@@ -31,9 +31,9 @@ from torch.distributions import Normal
 
 from probaff._threads import threads_by_rows
 from probaff.errors import InputError, NotFittedError
-from probaff.models.expert_base import WeightedExpert
-from probaff.models.kernels import ard_se_kernel
-from probaff.models.likelihood import weight_correction
+from probaff.models.experts.expert_base import WeightedExpert
+from probaff.models.experts.kernels import ard_se_kernel
+from probaff.models.experts.likelihood import weight_correction
 from probaff.models.options import (
     DEFAULT_N_INDUCING,
     OUTPUTSCALE_BOUNDS,
@@ -256,7 +256,7 @@ class SparseGPExpert(WeightedExpert):
         **overrides: Fields of `SparseGPOptions` that replace those of `options`.
 
     Attributes:
-        covar_module: The batched SE-ARD kernel (`probaff.models.kernels.ard_se_kernel`).
+        covar_module: The batched SE-ARD kernel (`probaff.models.experts.kernels.ard_se_kernel`).
         likelihood: Its weighted Gaussian likelihood.
         inducing: Inducing inputs in standardised feature units, `(E, m, D)`.
     """

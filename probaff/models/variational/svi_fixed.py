@@ -7,7 +7,7 @@ are then fixed, so they are computed once, and a minibatch step (the ELBO it rec
 assignment posterior, the natural-gradient targets) is a few products with the minibatch's
 whitened projections :math:`A = L^{-1} K_{uf}` instead of a pass through gpytorch's
 variational strategy and Pyro's enumeration. Every q(u) is held in natural parameters
-(`probaff.models.vi.WhitenedQ`: precision and precision-times-mean), which the
+(`probaff.models.variational.vi.WhitenedQ`: precision and precision-times-mean), which the
 natural-gradient step mixes linearly, so a step costs one Cholesky factor and one
 triangular inverse of the precision per expert and output; `store` writes the mean and
 covariance factor back into the model. The numbers are those of
@@ -20,7 +20,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from probaff.models.vi import (
+from probaff.models.variational.vi import (
     SVGPExpert,
     VariationalMixtureOfGPExperts,
     WhitenedQ,

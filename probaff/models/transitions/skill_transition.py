@@ -1,6 +1,6 @@
 """Chapter 6's per-skill transition model, with its backward (reaction) component.
 
-See `probaff.models.transition` for the model family and `fit_transition`.
+See `probaff.models.transitions.transition` for the model family and `fit_transition`.
 """
 
 from __future__ import annotations
@@ -14,12 +14,12 @@ from torch.distributions import Distribution, Independent, Normal
 
 from probaff._checks import check_count
 from probaff.errors import InputError, NotFittedError
-from probaff.models.em import fit_em
-from probaff.models.gp_expert import GPExpert
-from probaff.models.mixture import MixtureOfGPExperts
+from probaff.models.experts.gp_expert import GPExpert
+from probaff.models.mixture.em import fit_em
+from probaff.models.mixture.model import MixtureOfGPExperts
 from probaff.models.options import EMOptions, GPOptions
 from probaff.models.tensors import as_matrix
-from probaff.models.transition_base import (
+from probaff.models.transitions.transition_base import (
     COMPONENTS,
     DEFAULT_EXPERTS,
     KINDS,

@@ -13,9 +13,9 @@ import math
 import torch
 from torch import Tensor
 
-from probaff.models.em_run import EMHistory, EMRun, loo_terms
 from probaff.models.initialization import initial_responsibilities, split_responsibilities
-from probaff.models.mixture import MixtureOfGPExperts
+from probaff.models.mixture.em_run import EMHistory, EMRun, loo_terms
+from probaff.models.mixture.model import MixtureOfGPExperts
 from probaff.models.options import EMOptions
 
 __all__ = ["fit_level"]

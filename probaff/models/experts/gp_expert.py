@@ -20,11 +20,11 @@ from torch.distributions import Normal
 
 from probaff._threads import threads_by_rows
 from probaff.errors import NotFittedError
-from probaff.models.expert_base import WeightedExpert, noise_floor_vector
-from probaff.models.gaussian_density import gaussian_log_density, loo_moments, psd_cholesky
-from probaff.models.kernels import ard_se_kernel
+from probaff.models.experts.expert_base import WeightedExpert, noise_floor_vector
+from probaff.models.experts.gaussian_density import gaussian_log_density, loo_moments, psd_cholesky
+from probaff.models.experts.kernels import ard_se_kernel
+from probaff.models.experts.likelihood import WeightedGaussianLikelihood
 from probaff.models.lbfgs import Evaluation, assign, drive, flat_grad, flatten, lbfgs_coroutine
-from probaff.models.likelihood import WeightedGaussianLikelihood
 from probaff.models.options import OUTPUTSCALE_BOUNDS, GPOptions, resolve_options
 from probaff.models.tensors import as_matrix
 
@@ -102,10 +102,10 @@ class GPExpert(WeightedExpert):
 
     With `lengthscale_prior`, each length scale gets the log-normal prior
     :math:`\log \ell_d \sim \mathcal N(\sqrt 2 + \tfrac12 \log D, 1)` whose median grows
-    as :math:`\sqrt D` (Hvarfner et al., 2024; see `probaff.models.kernels.lengthscale_prior`
-    for the choice of its width), and the fit maximises the weighted marginal likelihood
-    plus the log prior. This curbs the overfitting of ML-II when the number of samples is
-    not much larger than `D`.
+    as :math:`\sqrt D` (Hvarfner et al., 2024; see
+    `probaff.models.experts.kernels.lengthscale_prior` for the choice of its width), and the
+    fit maximises the weighted marginal likelihood plus the log prior. This curbs the
+    overfitting of ML-II when the number of samples is not much larger than `D`.
 
     Args:
         n_features: Number of input features `D`.
@@ -236,7 +236,7 @@ class GPExpert(WeightedExpert):
         `(P,)` (in the order of `trainable`) to evaluate, and is sent ``(loss, grad)``: minus
         the sum over outputs of `marginal_log_likelihood` at that jitter and its gradient
         `(P,)`, as `evaluate` computes them; ``NotPSDError`` or ``NanError`` thrown into it
-        abandon that jitter level. `probaff.models.expert_batch` runs many side by side
+        abandon that jitter level. `probaff.models.experts.expert_batch` runs many side by side
         and evaluates them as one batch.
 
         Returns:

@@ -30,11 +30,11 @@ from torch.distributions import Normal
 from probaff._checks import check_count
 from probaff.errors import NotFittedError
 from probaff.models._scaling import Standardizer
-from probaff.models.gate import SoftmaxGate
-from probaff.models.gated import ExpertList, GatedMixture
-from probaff.models.gp_expert import GPExpert
-from probaff.models.kernels import ard_se_kernel
-from probaff.models.mixture import MixtureOfGPExperts
+from probaff.models.experts.gp_expert import GPExpert
+from probaff.models.experts.kernels import ard_se_kernel
+from probaff.models.gates.gate import SoftmaxGate
+from probaff.models.gates.gated import ExpertList, GatedMixture
+from probaff.models.mixture.model import MixtureOfGPExperts
 
 __all__ = ["SVGPExpert", "VariationalMixtureOfGPExperts", "WhitenedQ", "expected_log_density"]
 

@@ -35,9 +35,9 @@ from torch import Tensor
 from torch.distributions import Normal
 
 from probaff.errors import NotFittedError
-from probaff.models.expert_base import out_of_sample
-from probaff.models.gaussian_density import loo_moments
-from probaff.models.gp_expert import FitRequest, GPExpert
+from probaff.models.experts.expert_base import out_of_sample
+from probaff.models.experts.gaussian_density import loo_moments
+from probaff.models.experts.gp_expert import FitRequest, GPExpert
 from probaff.models.lbfgs import Evaluation, lockstep
 
 __all__ = [
@@ -313,7 +313,7 @@ class _StackedLogDensity(torch.autograd.Function):
 
     Inputs are the inverse squared length scales `u: (B, E, D)`, the amplitudes, noise
     variances and means `(B, E)`, the per-expert jitters `(B,)` and the `ExpertStack`. The
-    gradient is the closed form of `probaff.models.gaussian_density` carried through the
+    gradient is the closed form of `probaff.models.experts.gaussian_density` carried through the
     SE kernel by hand: with :math:`G = \tfrac12(\alpha\alpha^\top - A^{-1})` and
     :math:`H = G \circ K`, :math:`\partial/\partial u_d = -\sum_i (H 1)_i x_{id}^2 +
     \sum_i x_{id} (H x)_{id}`. Experts that cannot be factorised get the value 0 and are
@@ -613,7 +613,7 @@ def _loo_group(
 ) -> list[Normal]:
     """`GPExpert.loo_predict` of a batch of experts from their training factors.
 
-    The moments are `probaff.models.gaussian_density.loo_moments`', in output units.
+    The moments are `probaff.models.experts.gaussian_density.loo_moments`', in output units.
     """
     noise = hyper[2]  # (B, E)
     own = noise[..., None] * stack.noise_scale  # sigma^2 / w_i on real rows, (B, E, n)

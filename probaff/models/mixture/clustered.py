@@ -24,8 +24,8 @@ from torch.distributions import MixtureSameFamily, Normal
 from probaff._checks import check_count
 from probaff._threads import threads_by_rows
 from probaff.errors import InputError, NotFittedError
-from probaff.models.gated import gated_probs, mixture_distribution
-from probaff.models.gp_expert import GPExpert
+from probaff.models.experts.gp_expert import GPExpert
+from probaff.models.gates.gated import gated_probs, mixture_distribution
 from probaff.models.options import GPOptions
 from probaff.models.registry import Codec, ModelKind, ModelSettings, register_model_kind
 from probaff.models.tensors import as_matrix

@@ -1,6 +1,6 @@
 """The thesis's monolithic baseline: one GP on whole scenes of a fixed number of objects.
 
-See `probaff.models.transition` for the model family and `fit_transition`.
+See `probaff.models.transitions.transition` for the model family and `fit_transition`.
 """
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ from torch.distributions import Independent
 
 from probaff._checks import check_count
 from probaff.errors import InputError, NotFittedError
-from probaff.models.gp_expert import GPExpert
+from probaff.models.experts.gp_expert import GPExpert
 from probaff.models.tensors import as_matrix
-from probaff.models.transition_base import (
+from probaff.models.transitions.transition_base import (
     MONOLITHIC_NOT_FITTED,
     TransitionBase,
     TransitionHistory,

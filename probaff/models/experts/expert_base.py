@@ -2,8 +2,9 @@
 
 Sizes, settings, the weighted likelihood, the standardisers, the jitter and the noise floor.
 
-`probaff.models.gp_expert.GPExpert` (exact) and `probaff.models.sparse_expert.SparseGPExpert`
-(inducing points) derive from `WeightedExpert`; each adds its kernel and its own fit.
+`probaff.models.experts.gp_expert.GPExpert` (exact) and
+`probaff.models.experts.sparse_expert.SparseGPExpert` (inducing points) derive from
+`WeightedExpert`; each adds its kernel and its own fit.
 """
 
 from __future__ import annotations
@@ -20,8 +21,8 @@ from torch.distributions import Normal
 from probaff._checks import check_count, check_finite
 from probaff.errors import InputError
 from probaff.models._scaling import Standardizer
-from probaff.models.kernels import lengthscale_prior
-from probaff.models.likelihood import WeightedGaussianLikelihood
+from probaff.models.experts.kernels import lengthscale_prior
+from probaff.models.experts.likelihood import WeightedGaussianLikelihood
 from probaff.models.options import AUTO_NOISE_FLOOR, NOISE_BOUNDS, GPOptions
 from probaff.models.tensors import as_matrix, as_vector, check_to_device, resolve_device
 
@@ -244,7 +245,7 @@ def out_of_sample(experts: Sequence[WeightedExpert], X: Tensor, held: Tensor) ->
 
     Where expert `j` holds row `i` (``held[i, j]``) it is its `loo_predict` normal;
     elsewhere its `predict` (noise included), which is already out of sample. One expert
-    at a time; `probaff.models.expert_batch.predict_exact_experts_out_of_sample` batches
+    at a time; `probaff.models.experts.expert_batch.predict_exact_experts_out_of_sample` batches
     exact experts.
 
     Args:

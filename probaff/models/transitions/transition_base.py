@@ -1,7 +1,7 @@
 """What chapter 6's transition models share: skills, components, checks, sampling, history.
 
 The constants and helpers of `SkillTransitionModel` and `MonolithicTransitionModel`
-(`probaff.models.transition`): the skill and component names, the checks of their
+(`probaff.models.transitions.transition`): the skill and component names, the checks of their
 arguments, the predictive distribution and draws of a component, and the record of a fit.
 """
 
@@ -16,9 +16,9 @@ from torch.distributions import Distribution, Independent, MixtureSameFamily, No
 
 from probaff._checks import check_count, check_positive
 from probaff.errors import InputError
-from probaff.models.em import EMHistory
-from probaff.models.gp_expert import GPExpert, exact_gp_settings
-from probaff.models.mixture import MixtureOfGPExperts
+from probaff.models.experts.gp_expert import GPExpert, exact_gp_settings
+from probaff.models.mixture.em import EMHistory
+from probaff.models.mixture.model import MixtureOfGPExperts
 from probaff.models.options import check_lengthscale_prior
 from probaff.models.tensors import training_rows
 

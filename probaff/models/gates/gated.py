@@ -25,7 +25,7 @@ from probaff.models.columns import (
     resolve_features,
     resolve_groups,
 )
-from probaff.models.gate import SoftmaxGate
+from probaff.models.gates.gate import SoftmaxGate
 from probaff.models.tensors import as_matrix, check_to_device, resolve_device
 
 __all__ = [

@@ -38,10 +38,10 @@ import torch
 
 from probaff._checks import check_count, check_positive
 from probaff.errors import InputError
-from probaff.models.chain import _overlapping_pairs, planar_poses, wrap_angle
-from probaff.models.modular import InteractionGeometry
 from probaff.models.options import EMOptions
-from probaff.models.transition import SkillTransitionModel, fit_transition
+from probaff.models.transitions.chain import _overlapping_pairs, planar_poses, wrap_angle
+from probaff.models.transitions.modular import InteractionGeometry
+from probaff.models.transitions.transition import SkillTransitionModel, fit_transition
 
 __all__ = [
     "COMPONENT_NAMES",

@@ -2,7 +2,7 @@
 
 `EMRun` alternates the M-step (gate and experts refitted to the responsibilities) and the
 E-step (leave-one-out responsibilities), repairs collapsed experts, and keeps the best state
-it reaches; `EMHistory` records the kept run. `probaff.models.em` drives the runs.
+it reaches; `EMHistory` records the kept run. `probaff.models.mixture.em` drives the runs.
 """
 
 from __future__ import annotations
@@ -18,13 +18,13 @@ import torch
 from torch import Tensor
 
 from probaff.models.initialization import split_responsibilities
-from probaff.models.mixture import MixtureOfGPExperts
+from probaff.models.mixture.model import MixtureOfGPExperts
 from probaff.models.options import EMOptions
 
 __all__ = ["EMHistory", "EMRun", "loo_terms"]
 
 # EM logs under the module users call.
-logger = logging.getLogger("probaff.models.em")
+logger = logging.getLogger("probaff.models.mixture.em")
 
 
 @dataclass

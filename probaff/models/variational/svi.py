@@ -3,8 +3,8 @@
 `fit_svi` initialises the model from responsibilities (those of an exact EM mixture by
 default) and trains it on Pyro's `TraceEnum_ELBO`, which sums out every sample's expert
 assignment: natural-gradient steps for every q(u) and Adam for the gate (and for the
-hyperparameters when no exact mixture gave them); see `probaff.models.vi` for the model and
-its Pyro programs.
+hyperparameters when no exact mixture gave them); see `probaff.models.variational.vi` for the
+model and its Pyro programs.
 """
 
 from __future__ import annotations
@@ -23,15 +23,15 @@ from torch import Tensor
 from probaff._checks import check_probability
 from probaff._threads import threads_by_rows
 from probaff.errors import InputError
-from probaff.models.em import fit_em
-from probaff.models.gated import mixture_payload
+from probaff.models.gates.gated import mixture_payload
 from probaff.models.initialization import check_initialization, initial_responsibilities
-from probaff.models.mixture import MixtureOfGPExperts, training_data
+from probaff.models.mixture.em import fit_em
+from probaff.models.mixture.model import MixtureOfGPExperts, training_data
 from probaff.models.options import SVIOptions, resolve_options
 from probaff.models.registry import Codec, ModelKind, ModelSettings, register_model_kind
-from probaff.models.svi_fixed import FixedHyperparameterSVI
 from probaff.models.tensors import as_matrix
-from probaff.models.vi import VariationalMixtureOfGPExperts
+from probaff.models.variational.svi_fixed import FixedHyperparameterSVI
+from probaff.models.variational.vi import VariationalMixtureOfGPExperts
 
 __all__ = ["SVIHistory", "fit_svi"]
 
@@ -117,7 +117,7 @@ def fit_svi(
     responsibilities) that the ELBO lacks, and moving them by the ELBO made held-out
     predictions worse on chapter 5's pushes (by 0.3 nats per point for the
     hyperparameters, up to 0.09 for the gate). With nothing for Adam to move, every step
-    runs on quantities computed once (`probaff.models.svi_fixed.FixedHyperparameterSVI`:
+    runs on quantities computed once (`probaff.models.variational.svi_fixed.FixedHyperparameterSVI`:
     the same ELBO and updates, about 5x less time on chapter 5's pushes). A last
     full-data update sets every q(u) to its optimum. Parameters live in a private Pyro
     parameter-store scope, and the global random state is left untouched.

@@ -18,8 +18,8 @@ from torch import Tensor
 from probaff._checks import check_count, check_positive, check_probability
 from probaff.errors import InputError, NotFittedError
 from probaff.models._scaling import Standardizer
-from probaff.models.gate_newton import NEWTON_MAX_PARAMETERS, newton_fit
-from probaff.models.gate_penalty import (
+from probaff.models.gates.gate_newton import NEWTON_MAX_PARAMETERS, newton_fit
+from probaff.models.gates.gate_penalty import (
     DEFAULT_L1_GRID,
     DEFAULT_L2_GRID,
     Penalty,
@@ -70,10 +70,10 @@ class SoftmaxGate(torch.nn.Module):
     Here `z` is `f` standardised and :math:`\phi(z) = z`. Fitted by minimising the
     soft-target cross-entropy :math:`-\frac{1}{\sum_i s_i} \sum_i s_i \sum_j r_{ij} \log p(m
     = j \mid f_i) + \frac{\lambda}{2} \lVert W \rVert^2 + \lambda_1 \lVert W \rVert_1` (the
-    intercept `b` is not penalised) by Newton's method (`probaff.models.gate_newton`; L-BFGS
+    intercept `b` is not penalised) by Newton's method (`probaff.models.gates.gate_newton`; L-BFGS
     for gates of more than `NEWTON_MAX_PARAMETERS` parameters and on the cross-validation
     paths); the lasso term is smoothed within 1e-4 of
-    zero (`probaff.models.gate_penalty.penalty_value`). The objective is convex, so the fit
+    zero (`probaff.models.gates.gate_penalty.penalty_value`). The objective is convex, so the fit
     is unique up to the optimiser's tolerance. The lasso (`l1`) keeps a gate on many
     features to the few that separate the experts: on
     `probaff.models.synthetic.regime_features` (two of 101 columns set the regime) logistic
@@ -345,7 +345,7 @@ class SoftmaxGate(torch.nn.Module):
     ) -> None:
         """Fit `weight` and `bias` from their current values with strengths `penalty`.
 
-        Newton's method (`probaff.models.gate_newton`) while the gate has at most
+        Newton's method (`probaff.models.gates.gate_newton`) while the gate has at most
         `NEWTON_MAX_PARAMETERS` parameters, L-BFGS above.
 
         Args:

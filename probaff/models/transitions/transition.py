@@ -25,11 +25,11 @@ from typing import Any
 
 from probaff._threads import threads_by_rows
 from probaff.errors import InputError
-from probaff.models.monolithic import MonolithicTransitionModel
 from probaff.models.options import EMOptions, resolve_options
 from probaff.models.registry import Codec, ModelKind, register_model_kind
-from probaff.models.skill_transition import SkillTransitionModel
-from probaff.models.transition_base import (
+from probaff.models.transitions.monolithic import MonolithicTransitionModel
+from probaff.models.transitions.skill_transition import SkillTransitionModel
+from probaff.models.transitions.transition_base import (
     COMPONENTS,
     KINDS,
     SKILLS,

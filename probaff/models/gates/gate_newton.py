@@ -1,6 +1,6 @@
 """Newton's method for a gate's penalised soft-target multinomial logistic regression.
 
-The gate's objective (`probaff.models.gate_penalty.penalised_objective`) is convex and smooth
+The gate's objective (`probaff.models.gates.gate_penalty.penalised_objective`) is convex and smooth
 with at most a few hundred parameters, so its exact Hessian is cheap: `N (M (P + 1))^2`
 operations, against hundreds of L-BFGS evaluations when the smoothed lasso makes the
 problem ill-conditioned (curvature ``l1 / eps`` next to zero weights, next to almost
@@ -25,7 +25,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from probaff.models.gate_penalty import (
+from probaff.models.gates.gate_penalty import (
     L1_SMOOTHING,
     Penalty,
     penalised_gradient,

@@ -12,30 +12,34 @@ from torch.distributions import Normal
 
 from probaff._checks import check_count
 from probaff.errors import InputError, NotFittedError
-from probaff.models.expert_base import noise_floor_vector, out_of_sample, training_noise_floor
-from probaff.models.expert_batch import (
+from probaff.models.experts.expert_base import (
+    noise_floor_vector,
+    out_of_sample,
+    training_noise_floor,
+)
+from probaff.models.experts.expert_batch import (
     fit_exact_experts,
     predict_exact_experts,
     predict_exact_experts_out_of_sample,
 )
-from probaff.models.gate import GATE_KINDS, make_gate
-from probaff.models.gate_penalty import check_strength
-from probaff.models.gated import ExpertList, GatedMixture, gated_probs, mixture_distribution
-from probaff.models.gp_expert import GPExpert
-from probaff.models.options import MIXTURE_GP, GPOptions, SparseGPOptions, check_hyper_rows
-from probaff.models.point import (
-    MIN_STACK_ROWS,
-    POINT_KINDS,
-    out_of_fold_gate,
-    stacking_weights,
-)
-from probaff.models.sparse_expert import (
+from probaff.models.experts.gp_expert import GPExpert
+from probaff.models.experts.sparse_expert import (
     DEFAULT_N_INDUCING,
     FitMemoryError,
     SparseGPExpert,
     available_memory_bytes,
     fit_memory_bytes,
 )
+from probaff.models.gates.gate import GATE_KINDS, make_gate
+from probaff.models.gates.gate_penalty import check_strength
+from probaff.models.gates.gated import ExpertList, GatedMixture, gated_probs, mixture_distribution
+from probaff.models.mixture.point import (
+    MIN_STACK_ROWS,
+    POINT_KINDS,
+    out_of_fold_gate,
+    stacking_weights,
+)
+from probaff.models.options import MIXTURE_GP, GPOptions, SparseGPOptions, check_hyper_rows
 from probaff.models.tensors import as_matrix, training_rows
 
 __all__ = [
@@ -128,13 +132,13 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
     ``MixtureOfGPExperts(3, groups={"f_o": slice(0, 8), "f_c": slice(8, 21),
     "f_x": slice(21, 101)}, gate_features=("f_x",), expert_features=("f_o", "f_c"))`` gates on
     the objects' profiles and gives the experts the poses and contacts. The model is fitted
-    with `probaff.models.em.fit_em`.
+    with `probaff.models.mixture.em.fit_em`.
 
     Args:
         n_experts: Number of experts `M`.
         gate: Kind of gate: ``"linear"`` (the thesis's softmax on the gate features) or
             ``"fourier"`` (softmax on random Fourier features, for regimes that no
-            hyperplane separates); see `probaff.models.gate.make_gate`.
+            hyperplane separates); see `probaff.models.gates.gate.make_gate`.
         gate_l2: L2 penalty of the gate's weights, or ``"cv"`` (default) to choose it by
             inner 3-fold cross-validation at every fit of the gate.
         gate_l1: L1 (lasso) penalty of the gate's weights, or ``"cv"`` (default): with both
@@ -170,7 +174,7 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         point: What `predict_point` returns: ``"mean"`` (default), the mixture's predictive
             mean; ``"stacked"``, the mean stacked per output with one GP fitted on every
             row, by weights chosen on out-of-sample predictions of the training rows
-            (`probaff.models.point`, which gives the measurements behind the default), for
+            (`probaff.models.mixture.point`, which gives the measurements behind the default), for
             data where the experts extrapolate worse than one GP. `predict` is the same for
             both.
         **columns: The column selection of `GatedMixture`: ``groups`` (named column groups),
@@ -396,7 +400,7 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
     def check_fit_memory(self, kind: str, n_samples: int, n_outputs: int) -> None:
         """Refuse, before anything is allocated, a fit that would not fit in memory.
 
-        The estimate is `probaff.models.sparse_expert.fit_memory_bytes` for `M` experts;
+        The estimate is `probaff.models.experts.sparse_expert.fit_memory_bytes` for `M` experts;
         the memory available is read from the operating system (no check where it cannot
         be read).
 
@@ -453,7 +457,7 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         """The experts' noise floor for training effects `Y: (N, E)`, in effect units, `(E,)`.
 
         ``gp.noise_floor="auto"`` is 1 % of each effect's standard deviation over every row
-        of `Y` (`probaff.models.expert_base.training_noise_floor`).
+        of `Y` (`probaff.models.experts.expert_base.training_noise_floor`).
         """
         return training_noise_floor(self.gp.noise_floor, Y)
 
@@ -470,7 +474,7 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         """Refit every expert on its weighted data (the experts' half of the M-step).
 
         Exact experts are fitted together: each runs its own L-BFGS, and their evaluations
-        are computed as one batch (`probaff.models.expert_batch.fit_exact_experts`), which
+        are computed as one batch (`probaff.models.experts.expert_batch.fit_exact_experts`), which
         gives the fits of one expert at a time up to rounding. The mixture moves to the
         device of `X` first.
 
@@ -621,7 +625,7 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
     def fit_point(self, single: AnyGPExpert, X: Tensor, Y: Tensor, *, seed: int = 0) -> None:
         """Stack the mixture's mean with one GP fitted on every row (``point="stacked"``).
 
-        Chooses the weights of `predict_point` (`probaff.models.point`); with
+        Chooses the weights of `predict_point` (`probaff.models.mixture.point`); with
         ``point="mean"``, one expert, or fewer than `MIN_STACK_ROWS` rows, the point is the
         mixture's mean and nothing is stored.
 
