@@ -115,17 +115,19 @@ class Registry(Generic[_N]):
         return len(self.entries)
 
 
-def import_submodules(package: str) -> list[str]:
+def import_submodules(package: str, *, subpackages: bool = False) -> list[str]:
     """Import every module of `package` not imported yet, so that each registers its entries.
 
     A registry whose kinds register themselves in their own modules calls this before a
     lookup: a module added to the package (or to a folder on its ``__path__``) is then found
     without being named anywhere. Modules whose names start with ``_`` are skipped, and so are
-    subpackages (a registry's kinds are modules of one package).
+    subpackages unless `subpackages` (a registry's kinds are then modules of the package and
+    of its subpackages, at any depth, as the model kinds in `probaff.models`).
 
     Args:
         package: The dotted name of a package (``"probaff.sim"``); a package still being
             imported is searched as far as its ``__path__`` goes.
+        subpackages: Also import the modules of its subpackages, recursively.
 
     Returns:
         The modules imported (none once every module is imported).
@@ -133,15 +135,18 @@ def import_submodules(package: str) -> list[str]:
     Raises:
         InputError: If a module registers an entry under a name that is taken.
     """
-    found = [
-        info.name
+    infos = [
+        info
         for info in pkgutil.iter_modules(importlib.import_module(package).__path__, f"{package}.")
-        if not info.ispkg
-        and info.name not in sys.modules
-        and not info.name.rpartition(".")[2].startswith("_")
+        if not info.name.rpartition(".")[2].startswith("_")
     ]
+    found = [i.name for i in infos if not i.ispkg and i.name not in sys.modules]
     if found:
         importlib.invalidate_caches()  # a module written since the last import is found
     for name in found:
         importlib.import_module(name)
+    if subpackages:
+        for info in infos:
+            if info.ispkg:
+                found += import_submodules(info.name, subpackages=True)
     return found

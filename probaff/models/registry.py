@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
 from probaff._checks import check_count
-from probaff._registry import Registry
+from probaff._registry import Registry, import_submodules
 from probaff.errors import InputError
 from probaff.models.options import GPOptions
 
@@ -38,6 +38,7 @@ __all__ = [
     "Fitter",
     "ModelKind",
     "ModelSettings",
+    "discover_model_kinds",
     "fit",
     "model_kind",
     "model_kinds",
@@ -303,8 +304,22 @@ def unregister_model_kind(name: str) -> ModelKind:
     return _KINDS.remove(name)
 
 
+def discover_model_kinds() -> list[str]:
+    """Import every module of `probaff.models` (subpackages included) not imported yet.
+
+    Each kind registers itself in its own module (``register_model_kind(ModelKind(...))``
+    beside its fitter), so a kind's module added anywhere under ``probaff/models`` is found by
+    the next lookup (`model_kind`, `model_kinds`) without being named anywhere else.
+
+    Returns:
+        The modules it imported (none once every module is imported).
+    """
+    return import_submodules(__name__.rpartition(".")[0], subpackages=True)
+
+
 def model_kinds() -> dict[str, ModelKind]:
     """Every registered kind, by name (a copy)."""
+    discover_model_kinds()
     return {kind.name: kind for kind in _KINDS.values()}
 
 
@@ -323,6 +338,7 @@ def model_kind(name_or_model: Any) -> ModelKind:
     Raises:
         InputError: For an unknown name, or a model of no registered class.
     """
+    discover_model_kinds()
     if isinstance(name_or_model, str):
         return _KINDS.get(name_or_model)
     by_class = {k.model_class: k for k in _KINDS.values() if k.model_class is not None}

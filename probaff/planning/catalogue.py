@@ -267,11 +267,13 @@ def fit_tool_push_model(
     em: EMOptions | None = None,
     gp: GPOptions | None = None,
     seed: int = 0,
+    kind: str = "em",
 ) -> FeaturePushModel:
     """Fit chapter 5's mixture of GP experts on two-object pushes, for the tool-push planner.
 
     The gate and the experts read the chapter-5 feature groups `groups`; the targets are the
-    pushing-frame effects ``(dy_p, dz_p, dtheta_p)`` of o1 then o2 (6 outputs).
+    pushing-frame effects ``(dy_p, dz_p, dtheta_p)`` of o1 then o2 (6 outputs). Another
+    registered model kind (`kind`) is fitted on the same features and targets.
 
     Args:
         ds: Pushes of a two-object scene (e.g. ``probaff generate --scene tool_push``).
@@ -283,13 +285,15 @@ def fit_tool_push_model(
             iterations per expert fit, the length-scale prior at its default width, a noise
             floor of 1 % of each effect's standard deviation).
         seed: Seed of the fit (it replaces `em`'s seed).
+        kind: A registered model kind (`probaff.models.model_kinds`); ``"em"`` is chapter
+            5's mixture. `em` is used by kinds fitted with `EMOptions` and ignored by others.
 
     Returns:
         The fitted model with the features it reads.
 
     Raises:
-        InputError: If `ds` holds fewer than two objects per push, for bad counts, or for
-            `em` that is not `EMOptions` or `gp` that is not `GPOptions`.
+        InputError: If `ds` holds fewer than two objects per push, for bad counts, an unknown
+            `kind`, or `em` that is not `EMOptions` or `gp` that is not `GPOptions`.
     """
     if not isinstance(ds, PushDataset) or ds["effect"].shape[1] < _N_TOOL_OBJECTS:
         raise InputError(
@@ -306,13 +310,16 @@ def fit_tool_push_model(
             f"{list(fs.groups)}."
         )
     Y = ds["effect"][:, :_N_TOOL_OBJECTS].reshape(len(ds), 3 * _N_TOOL_OBJECTS)
+    chosen = model_kind(kind) if isinstance(kind, str) else None
+    if chosen is None:
+        raise InputError(f"kind must be the name of a registered model kind, got {kind!r}.")
     settings = ModelSettings(
         n_experts,
         seed=seed,
-        gp=gp,  # None: the mixture's default, MIXTURE_GP
-        fit=em,
+        gp=gp,  # None: the kind's default (MIXTURE_GP for the mixture)
+        fit=em if chosen.options_type is EMOptions else {},
     )
-    return _fit("em", settings, "ch5", fs, groups, Y, ds)
+    return _fit(chosen.name, settings, "ch5", fs, groups, Y, ds)
 
 
 def _check_em(em: EMOptions | None) -> EMOptions:

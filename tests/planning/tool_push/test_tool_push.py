@@ -338,6 +338,64 @@ def test_tool_push_refuses_non_models_and_bad_arguments():
         run_tool_push_trial(["random"], None, 0)  # type: ignore[arg-type]
 
 
+_MEAN_KIND = """
+import numpy as np
+import torch
+from torch.distributions import Independent, Normal
+
+from probaff.models import ModelKind, register_model_kind
+
+
+class ToolMeanModel:
+    def __init__(self, groups):
+        self.groups = dict(groups or {})
+        self.n_features = self.n_outputs = None
+
+    def predict(self, X):
+        loc = self.mean.expand(len(X), -1)
+        return Independent(Normal(loc, self.std.expand(len(X), -1)), 1)
+
+
+def fit_mean(model, X, Y, options=None):
+    model.n_features, model.n_outputs = X.shape[1], Y.shape[1]
+    model.mean, model.std = torch.as_tensor(Y.mean(0)), torch.as_tensor(Y.std(0) + 1e-3)
+    return model
+
+
+register_model_kind(
+    ModelKind("toolmean", ToolMeanModel, fit_mean, builder=lambda s: ToolMeanModel(s.groups))
+)
+"""
+
+
+@pytest.fixture
+def kind_module(tmp_path, monkeypatch):
+    """A model kind in a module of its own under probaff.models's path, named nowhere else."""
+    import sys
+
+    import probaff.models
+    from probaff.models import unregister_model_kind
+
+    (tmp_path / "toolmean_kind.py").write_text(_MEAN_KIND)
+    monkeypatch.setattr(probaff.models, "__path__", [*probaff.models.__path__, str(tmp_path)])
+    yield "toolmean"
+    unregister_model_kind("toolmean")
+    sys.modules.pop("probaff.models.toolmean_kind", None)
+
+
+def test_a_new_model_kind_module_is_found_and_plans_the_tool_push(dataset, kind_module):
+    fitted = fit_tool_push_model(dataset, n_experts=1, kind=kind_module)
+    assert type(fitted.model).__name__ == "ToolMeanModel" and fitted.model.n_outputs == 6
+    transition = LearnedTransition(fitted, load_tabletop())
+    with torch_threads(1):
+        plan = plan_tool_push(transition, _state(0), np.random.default_rng(0), SMALL)
+    assert plan.push_origin.shape == (2, 2) and np.isfinite(plan.predicted).all()
+    with pytest.raises(InputError, match="unknown model kind 'lstm'"):
+        fit_tool_push_model(dataset, kind="lstm")
+    with pytest.raises(InputError, match="kind must be the name of a registered model kind"):
+        fit_tool_push_model(dataset, kind=3)  # type: ignore[arg-type]
+
+
 def test_fit_tool_push_model_refuses_bad_settings(dataset):
     with pytest.raises(
         InputError, match=r"groups \['f_q'\] must name distinct chapter-5 feature groups"
