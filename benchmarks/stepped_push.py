@@ -55,7 +55,13 @@ from probaff.features.ch6_push import PLANAR_EFFECT_COLUMNS, push_interactions
 from probaff.features.ch6_scenes import push_scenes
 from probaff.features.ch6_stepped import fit_stepped
 from probaff.features.ch6_steps import StepOptions, StepTrajectories, step_trajectories
-from probaff.models import ModularTransitionModel, SkillTransitionModel, fit_transition
+from probaff.models import (
+    TRANSITION_GP,
+    GPOptions,
+    ModularTransitionModel,
+    SkillTransitionModel,
+    fit_transition,
+)
 from probaff.models.transitions.stepped_transition import (
     SteppedModelOptions,
     SteppedPushModel,
@@ -87,6 +93,12 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
     return ap.parse_args(argv)
 
 
+def _gp(args: argparse.Namespace) -> GPOptions:
+    """The GP settings of every model: `TRANSITION_GP` with the length-scale prior, and
+    ``--gp-max-iter`` L-BFGS iterations per fit."""
+    return dataclasses.replace(TRANSITION_GP, max_iter=args.gp_max_iter, lengthscale_prior=True)
+
+
 def _check(args: argparse.Namespace) -> None:
     """Refuse bad settings before any work."""
     StepOptions(args.step_length)
@@ -105,7 +117,7 @@ def _check(args: argparse.Namespace) -> None:
             f"--train {args.train} plus --test {args.test} exceed the --n {args.n} pushes; "
             "raise --n or lower them."
         )
-    SteppedModelOptions(gp_max_iter=args.gp_max_iter, max_rows=args.max_rows, seed=args.seed)
+    SteppedModelOptions(gp=_gp(args), max_rows=args.max_rows, seed=args.seed)
 
 
 def _dataset(args: argparse.Namespace) -> PushDataset:
@@ -183,9 +195,7 @@ def _whole_push(ds: PushDataset, train: np.ndarray, test: np.ndarray, args: Any)
     scenes = push_scenes(ds, geometry=geo)
     out = {}
     for backward in (False, True):
-        model = SkillTransitionModel(
-            "push", backward=backward, gp_max_iter=args.gp_max_iter, lengthscale_prior=True
-        )
+        model = SkillTransitionModel("push", backward=backward, gp=_gp(args))
         fit_transition(model, X, Y, R if backward else None)
         chain = ModularTransitionModel({"push": model}, geo)
         final = []
@@ -255,9 +265,7 @@ def main(argv: list[str] | None = None) -> int:
     yaw, true = ds["push_yaw"][test], ds["state_after"][test]
     t0 = time.perf_counter()
     with torch_threads(1):
-        options = SteppedModelOptions(
-            gp_max_iter=args.gp_max_iter, max_rows=args.max_rows, seed=args.seed
-        )
+        options = SteppedModelOptions(gp=_gp(args), max_rows=args.max_rows, seed=args.seed)
         print("fitting the stepped model ...", file=sys.stderr)
         model = fit_stepped(steps.subset(train), geo, options, backward=True)
         planned = fit_stepped(steps.subset(train), geo, options, backward=False)

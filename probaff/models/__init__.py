@@ -11,8 +11,9 @@ fitted by `fit_transition` and chained by `ModularTransitionModel`. Every push m
 
 Fits take typed options (`EMOptions`, `SVIOptions`, `GPOptions`), with single fields as
 keyword overrides; a mixture takes its experts' settings as one `GPOptions` (``gp=``, by
-default `MIXTURE_GP`). Every kind of model is a `ModelKind` in one registry (`model_kind`,
-`model_kinds`, `register_model_kind`): its class, fitter, options, save format and builder
+default `MIXTURE_GP`), and so does a transition model (by default `TRANSITION_GP`). Every
+kind of model is a `ModelKind` in one registry (`model_kind`, `model_kinds`,
+`register_model_kind`): its class, fitter, options, save format and builder
 (`ModelSettings`); `fit` fits any registered model, and `save` and `load` store any
 registered model in one file.
 
@@ -53,6 +54,7 @@ from probaff.models.registry import (
 )
 from probaff.models.sklearn import MixtureOfGPExpertsRegressor, mean_log_predictive_density
 from probaff.models.transitions import (
+    TRANSITION_GP,
     ChainPrediction,
     ChainScene,
     InteractionGeometry,
@@ -66,6 +68,7 @@ from probaff.models.variational import SVIHistory, VariationalMixtureOfGPExperts
 
 __all__ = [
     "MIXTURE_GP",
+    "TRANSITION_GP",
     "ChainPrediction",
     "ChainScene",
     "ClusteredGPModel",

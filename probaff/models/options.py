@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -37,6 +37,7 @@ __all__ = [
     "SparseGPOptions",
     "check_hyper_rows",
     "check_lengthscale_prior",
+    "refuse_flat_gp_keywords",
     "resolve_options",
 ]
 
@@ -394,6 +395,28 @@ expert's weighted share), and `GPOptions`' initial signal and noise variances. T
 from a single `GPExpert`'s defaults (`GPOptions()`: no prior, no floor): without the prior, a
 mixture of 3 experts on 250 rows of 101 features predicted held-out rows with NLPD 4.7
 against 1.3 with it (`probaff.models.synthetic.regime_features`)."""
+
+
+def refuse_flat_gp_keywords(what: str, given: Iterable[str], flat: Mapping[str, str]) -> None:
+    """Refuse the old flat GP keywords among `given`, naming the ``gp=GPOptions(...)`` to use.
+
+    Args:
+        what: The start of the message, e.g. ``"MixtureOfGPExperts takes its experts'
+            settings"``.
+        given: The keyword names a constructor was called with.
+        flat: Old keyword -> its field of `GPOptions`
+            (`probaff.models.mixture.model.FLAT_GP_KEYWORDS`, or the transition models'
+            `probaff.models.transitions.transition_base.TRANSITION_FLAT_GP_KEYWORDS`).
+
+    Raises:
+        InputError: If `given` holds any of `flat`'s keywords.
+    """
+    old = sorted(set(given) & set(flat))
+    if old:
+        fields = ", ".join(f"{flat[k]}=..." for k in old)
+        raise InputError(
+            f"{what} as one GPOptions: use gp=GPOptions({fields}) instead of {', '.join(old)}."
+        )
 
 
 def check_hyper_rows(hyper_rows: Any, n_inducing: int | None) -> int | None:

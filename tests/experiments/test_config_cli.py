@@ -92,6 +92,24 @@ def test_smoke_sizes_never_replace_a_value_the_user_gave():
     assert given.push_train == 221
 
 
+def test_the_modular_study_takes_its_gp_settings_as_flags_of_one_gp_options():
+    from probaff.experiments.config_cli import settings_view, study_config, study_parser
+    from probaff.experiments.modular import SMOKE as SMOKE_OVERRIDES
+    from probaff.experiments.modular import ModularStudyConfig
+    from probaff.models import TRANSITION_GP
+
+    parser = study_parser(ModularStudyConfig, "doc")
+    smoke = study_config(ModularStudyConfig, parser.parse_args(["--smoke"]), SMOKE_OVERRIDES)
+    assert smoke.settings.gp == dataclasses.replace(
+        TRANSITION_GP, max_iter=10, lengthscale_prior=True
+    )
+    args = parser.parse_args(["--smoke", "--gp-max-iter", "7", "--gp-lengthscale-prior", "0.5"])
+    given = study_config(ModularStudyConfig, args, SMOKE_OVERRIDES).settings.gp
+    assert (given.max_iter, given.lengthscale_prior, given.noise_floor) == (7, 0.5, "auto")
+    view = settings_view(ModularStudyConfig().settings)
+    assert view["gp_max_iter"] == 50 and view["gp_lengthscale_prior"] is True
+
+
 def test_a_bad_value_is_refused_even_under_smoke():
     from probaff.errors import InputError
     from probaff.experiments.config_cli import study_config, study_parser

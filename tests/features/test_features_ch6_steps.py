@@ -125,7 +125,8 @@ def test_a_backward_model_needs_the_commanded_path(pushes):
 def test_the_stepped_model_fits_and_rolls_out(pushes):
     geo = Ch6Geometry(columns=[0, 1, 2])
     traj = step_trajectories(pushes, StepOptions(0.07), geometry=geo)
-    options = SteppedModelOptions(gp_max_iter=2, max_rows=40)
+    gp = dataclasses.replace(SteppedModelOptions().gp, max_iter=2)
+    options = SteppedModelOptions(gp=gp, max_rows=40)
     model = fit_stepped(traj, geo, options)
     assert set(model.models) == {"hand_forward", "hand_backward", "link_forward", "link_backward"}
     links = link_training_rows(model, traj)

@@ -1,5 +1,6 @@
-"""Mixtures saved by earlier releases still load and predict as then: one from before the
-content hash, one from before the experts' settings were one `GPOptions`.
+"""Models saved by earlier releases still load and predict as then: a mixture from before the
+content hash, a mixture and a transition model from before their GP settings were one
+`GPOptions`.
 
 The file and the predictions beside it were written by probaff at commit 4b5b220 (the last one
 before model files carried a SHA-256; see tests/data/fixtures/README.md), with that commit's
@@ -15,8 +16,17 @@ import pytest
 import torch
 
 from probaff.errors import InputError
-from probaff.models import MIXTURE_GP, GPOptions, MixtureOfGPExperts, load, save
+from probaff.models import (
+    MIXTURE_GP,
+    TRANSITION_GP,
+    GPOptions,
+    MixtureOfGPExperts,
+    SkillTransitionModel,
+    load,
+    save,
+)
 from probaff.models.mixture.em import _saved_config
+from probaff.models.transitions.transition import _saved_config as _saved_transition_config
 
 FIXTURES = Path(__file__).resolve().parents[1] / "data" / "fixtures"
 OLD = FIXTURES / "mixture_before_hash.pt"
@@ -92,3 +102,30 @@ def test_the_old_releases_flat_keys_map_to_gp_options_and_missing_ones_to_the_de
     # a key a file lacks takes MIXTURE_GP's value
     config = _saved_config({"n_experts": 2, "gp_max_iter": 4})
     assert config["gp"] == replace(MIXTURE_GP, max_iter=4) and "gp_max_iter" not in config
+
+
+FLAT_GP_TRANSITION = FIXTURES / "transition_flat_gp.pt"
+
+
+def test_a_transition_model_saved_with_flat_gp_settings_loads_them_as_one_gp_options(tmp_path):
+    """Files written before ``gp=GPOptions`` hold a transition model's GP settings flat."""
+    container = torch.load(FLAT_GP_TRANSITION, weights_only=True)
+    assert container["format"] == "probaff.models.SkillTransitionModel/1"
+    model = load(FLAT_GP_TRANSITION)
+    assert isinstance(model, SkillTransitionModel)
+    assert model.gp == GPOptions(
+        max_iter=7, lengthscale_prior=0.5, noise_floor=0.02, outputscale=0.2, noise=0.05
+    )
+    assert {"gp_max_iter", "lengthscale_prior", "noise_floor"}.isdisjoint(model.config())
+    x = _predicts_as_recorded(model, "transition_flat_gp_expected.npz")
+    # saved again, the file holds GPOptions' fields under "gp" and loads to the same model
+    path = tmp_path / "again.pt"
+    save(model, path)
+    again = load(path)
+    assert again.gp == model.gp and again.config() == model.config()
+    assert torch.equal(again.predict(x).mean, model.predict(x).mean)
+    # a key a file lacks takes TRANSITION_GP's value; flat keys beside "gp" are refused
+    config = _saved_transition_config({"skill": "push", "gp_max_iter": 4})
+    assert config["gp"] == replace(TRANSITION_GP, max_iter=4) and "gp_max_iter" not in config
+    with pytest.raises(InputError, match="must hold GPOptions' fields"):
+        _saved_transition_config({"skill": "push", "noise": 0.1, "gp": {"max_iter": 4}})

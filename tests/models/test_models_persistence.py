@@ -11,6 +11,7 @@ import torch
 from probaff.errors import InputError
 from probaff.models import (
     MIXTURE_GP,
+    TRANSITION_GP,
     ClusteredGPModel,
     GPOptions,
     MixtureOfGPExperts,
@@ -198,21 +199,22 @@ def _skill_data(n=30):
 
 def _skill_gp_model():
     x, y, r = _skill_data()
-    model = SkillTransitionModel("push", gp_max_iter=5)
+    model = SkillTransitionModel("push", gp=replace(TRANSITION_GP, max_iter=5))
     fit_transition(model, x, y, r)
     return model, x
 
 
 def _skill_mixture_model():
     x, y, r = _skill_data()
-    model = SkillTransitionModel("pick", kind="mixture", n_experts=2, gp_max_iter=5)
+    gp = replace(TRANSITION_GP, max_iter=5)
+    model = SkillTransitionModel("pick", kind="mixture", n_experts=2, gp=gp)
     fit_transition(model, x, y, r, n_restarts=1, max_iter=1, split_merge=0)
     return model, x
 
 
 def _monolithic_model():
     x, y, _ = _skill_data()
-    model = MonolithicTransitionModel(1, gp_max_iter=5)
+    model = MonolithicTransitionModel(1, gp=replace(TRANSITION_GP, max_iter=5))
     fit_transition(model, x, y)
     return model, x
 

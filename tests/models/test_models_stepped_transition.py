@@ -1,10 +1,13 @@
 """The stepped push rollout: known answers with fixed predictors, and bad input."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from probaff.errors import InputError
 from probaff.features.chain_geometry import Ch6Geometry
+from probaff.models import GPOptions
 from probaff.models.transitions.stepped_transition import (
     StepComponents,
     SteppedModelOptions,
@@ -110,7 +113,8 @@ def test_predictors_of_the_wrong_shape_are_refused():
 
 def test_fitted_components_roll_out(rng):
     X = rng.uniform(size=(30, GEO.n_features))
-    model = SteppedPushModel(GEO, SteppedModelOptions(gp_max_iter=2, max_rows=20), backward=False)
+    options = SteppedModelOptions(gp=replace(SteppedModelOptions().gp, max_iter=2), max_rows=20)
+    model = SteppedPushModel(GEO, options, backward=False)
     model.fit_component("hand_forward", X, np.tile([0.0, L, 0.0], (30, 1)))
     assert model.models["hand_forward"].train_X.shape == (20, GEO.n_features)  # the row cap
     out = model.rollout(_scenes(1))
@@ -121,3 +125,9 @@ def test_fitted_components_roll_out(rng):
         model.fit_component("hand_backward", X, X)
     with pytest.raises(InputError, match="kind must be"):
         SteppedModelOptions(kind="forest")
+    with pytest.raises(InputError, match="gp must be GPOptions"):
+        SteppedModelOptions(gp=2)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="one standard deviation"):
+        SteppedModelOptions(gp=GPOptions(noise_floor=[0.1, 0.2]))
+    with pytest.raises(TypeError, match="gp_max_iter"):
+        SteppedModelOptions(gp_max_iter=2)  # type: ignore[call-arg]

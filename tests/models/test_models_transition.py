@@ -5,6 +5,7 @@ probaff.models.transitions.skill_transition and probaff.models.transitions.monol
 """
 
 import math
+from dataclasses import replace
 
 import pytest
 import torch
@@ -12,7 +13,9 @@ import torch
 from probaff._threads import torch_threads
 from probaff.errors import InputError, NotFittedError
 from probaff.models import (
+    TRANSITION_GP,
     GPExpert,
+    GPOptions,
     MonolithicTransitionModel,
     PushModel,
     SkillTransitionModel,
@@ -136,7 +139,9 @@ def test_one_expert_mixture_agrees_with_the_gp_kind(data, forward_model):
     rel = (a.mean - b.mean).abs() / y.std(0)
     assert float(rel.mean()) < 0.03 and float(rel.max()) < 0.15
     # from the mixture's own start values (GPExpert's defaults) it is the same fit
-    same_start = SkillTransitionModel("push", backward=False, outputscale=1.0)
+    same_start = SkillTransitionModel(
+        "push", backward=False, gp=replace(TRANSITION_GP, outputscale=1.0)
+    )
     fit_transition(same_start, x, y)
     c = same_start.predict(xt)
     torch.testing.assert_close(c.mean, a.mean, rtol=1e-6, atol=1e-8)
@@ -205,8 +210,8 @@ def test_skill_checks_and_bad_input(data, backward_model, forward_model):
         SkillTransitionModel("push", kind="mixture", n_experts=1.5)
     with pytest.raises(InputError, match="n_experts=2 needs kind='mixture'"):
         SkillTransitionModel("push", n_experts=2)
-    with pytest.raises(InputError, match="gp_max_iter"):
-        SkillTransitionModel("push", gp_max_iter=True)
+    with pytest.raises(InputError, match="max_iter must be a positive integer"):
+        SkillTransitionModel("push", gp=GPOptions(max_iter=True))
     with pytest.raises(InputError, match="n_samples"):
         model.predict(xt, n_samples=2.5)
     with pytest.raises(InputError, match="n_samples draws the reaction"):
@@ -216,9 +221,16 @@ def test_skill_checks_and_bad_input(data, backward_model, forward_model):
     with pytest.raises(InputError, match="does not predict reactions"):
         forward_model.predict_reaction(xt)
     with pytest.raises(InputError, match="outputscale"):
-        SkillTransitionModel("push", outputscale=0.0)
+        SkillTransitionModel("push", gp=GPOptions(outputscale=0.0))
     with pytest.raises(InputError, match="noise_floor"):
-        SkillTransitionModel("push", noise_floor="high")
+        SkillTransitionModel("push", gp=GPOptions(noise_floor="high"))
+    with pytest.raises(InputError, match="one standard deviation"):
+        SkillTransitionModel("push", gp=GPOptions(noise_floor=[0.1, 0.2]))
+    with pytest.raises(InputError, match="gp must be GPOptions"):
+        MonolithicTransitionModel(2, gp={"max_iter": 5})
+    with pytest.raises(TypeError, match="unexpected keyword"):
+        SkillTransitionModel("push", max_iter=5)
+
     with pytest.raises(InputError, match="exceeds the 3 training samples"):
         fit_transition(
             SkillTransitionModel("push", kind="mixture", n_experts=4, backward=False), x[:3], y[:3]
@@ -239,11 +251,29 @@ def test_skill_checks_and_bad_input(data, backward_model, forward_model):
         MonolithicTransitionModel().predict(xt)
 
 
+def test_the_old_flat_gp_keywords_are_refused_naming_gp_options():
+    """Each old keyword gets one `InputError` naming the `GPOptions` field to give instead."""
+    flat = "takes its GP settings as one GPOptions: use gp=GPOptions"
+    with pytest.raises(InputError, match=rf"SkillTransitionModel {flat}\(max_iter=\.\.\.\)"):
+        SkillTransitionModel("push", gp_max_iter=5)
+    with pytest.raises(
+        InputError, match=r"lengthscale_prior=\.\.\., noise_floor=\.\.\.\) instead of"
+    ):
+        SkillTransitionModel("push", kind="mixture", lengthscale_prior=True, noise_floor=0.1)
+    with pytest.raises(InputError, match=rf"MonolithicTransitionModel {flat}\(outputscale="):
+        MonolithicTransitionModel(2, outputscale=0.5)
+    with pytest.raises(InputError, match=r"GPOptions\(noise=\.\.\.\) instead of noise"):
+        MonolithicTransitionModel(2, noise=0.5)
+    # the default is the thesis's settings: no prior, the automatic floor, theta_0 = 0.1
+    assert SkillTransitionModel("push").gp == GPOptions(noise_floor="auto", outputscale=0.1)
+    assert SkillTransitionModel("push").config()["gp"] is TRANSITION_GP
+
+
 def test_registered_fitter_fits_the_model(data):
     (x, y, r), (xt, _, _) = data
     assert model_kind("transition").fit is fit_transition
-    a = SkillTransitionModel("place", gp_max_iter=5)
-    b = SkillTransitionModel("place", gp_max_iter=5)
+    a = SkillTransitionModel("place", gp=replace(TRANSITION_GP, max_iter=5))
+    b = SkillTransitionModel("place", gp=replace(TRANSITION_GP, max_iter=5))
     model_kind("transition").fit(a, x, y, R=r)
     fit_transition(b, x, y, r)
     assert a.is_fitted and torch.equal(a.predict(xt).mean, b.predict(xt).mean)
@@ -267,7 +297,9 @@ def test_save_load_round_trip_predicts_identically(tmp_path, data, backward_mode
     _assert_same(model.predict_reaction(xt), loaded.predict_reaction(xt), xt, rt)
     _assert_same(model.predict(xt, n_samples=50), loaded.predict(xt, n_samples=50), xt, yt)
 
-    mixture = SkillTransitionModel("pick", kind="mixture", n_experts=2, gp_max_iter=10)
+    mixture = SkillTransitionModel(
+        "pick", kind="mixture", n_experts=2, gp=replace(TRANSITION_GP, max_iter=10)
+    )
     fit_transition(mixture, x, y, r, n_restarts=1, max_iter=2, split_merge=0)
     save(mixture, tmp_path / "pick.pt")
     loaded_mixture = load(tmp_path / "pick.pt")
@@ -293,7 +325,7 @@ def _scenes(n: int, seed: int) -> tuple[torch.Tensor, torch.Tensor]:
 def test_monolithic_model_fits_whole_scenes_and_refuses_other_sizes(tmp_path):
     x, y = _scenes(50, 0)
     xt, yt = _scenes(30, 1)
-    model = MonolithicTransitionModel(2, gp_max_iter=20)
+    model = MonolithicTransitionModel(2, gp=replace(TRANSITION_GP, max_iter=20))
     history = fit_transition(model, x, y)
     assert set(history.objective) == {"effect"} and history.n_samples == 50
     assert model.effect_size == 2 and model.n_outputs == 4 and isinstance(model, PushModel)

@@ -41,7 +41,7 @@ SMOKE: Mapping[str, Any] = MappingProxyType(
         "scales": (1.0,),
         "chain_lengths": (3,),
         "chain_train": 6,
-        "settings": {"chain_samples": 16, "em": {"max_iter": 2}, "gp_max_iter": 10},
+        "settings": {"chain_samples": 16, "em": {"max_iter": 2}, "gp": {"max_iter": 10}},
         "progress": False,
     }
 )
@@ -60,7 +60,7 @@ DEMO: Mapping[str, Any] = MappingProxyType(
         "settings": {
             "chain_samples": 64,
             "em": {"max_iter": 3},
-            "gp_max_iter": 30,
+            "gp": {"max_iter": 30},
             "stepped": False,
         },
     }

@@ -24,7 +24,7 @@ displacements are ``(off, along, turn)`` in the hand's action frame (`scene_effe
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cache
 from typing import Any
 
@@ -59,7 +59,9 @@ from probaff.features.ch6_steps import (
 )
 from probaff.features.chain_geometry import Ch6Geometry
 from probaff.models import (
+    TRANSITION_GP,
     EMOptions,
+    GPOptions,
     ModularTransitionModel,
     MonolithicTransitionModel,
     SkillTransitionModel,
@@ -70,6 +72,7 @@ from probaff.models.transitions.stepped_transition import (
     SteppedPushModel,
     rollout,
 )
+from probaff.models.transitions.transition_base import check_transition_gp
 
 __all__ = [
     "LEVEL",
@@ -122,7 +125,9 @@ class TrialSettings:
         n_experts: Experts of the mixture option.
         em: The EM fit of the mixture option (`probaff.models.EMOptions`; flag
             ``--em-max-iter``); its seed is the trial's.
-        gp_max_iter: L-BFGS iterations of every GP fit.
+        gp: The GP settings of every transition model (`probaff.models.GPOptions`; flags
+            ``--gp-max-iter`` and ``--gp-lengthscale-prior``): `TRANSITION_GP` with the
+            length-scale prior on.
         chain_backward: Chain with the push model with the backward component (else
             without).
         reaction: What the push models' backward component predicts of the hand's
@@ -143,7 +148,10 @@ class TrialSettings:
         default=EMOptions(max_iter=10),
         metadata=option_flags(("max_iter",)),
     )
-    gp_max_iter: int = 50
+    gp: GPOptions = field(
+        default=replace(TRANSITION_GP, lengthscale_prior=True),
+        metadata=option_flags(("max_iter", "lengthscale_prior")),
+    )
     chain_backward: bool = True
     reaction: str = "path"
     stepped: bool = True
@@ -160,7 +168,7 @@ class TrialSettings:
         check_count("n_experts", self.n_experts)
         if not isinstance(self.em, EMOptions):
             raise InputError(f"em must be an EMOptions, got {type(self.em).__name__}.")
-        check_count("gp_max_iter", self.gp_max_iter)
+        check_transition_gp(self.gp)
         geometry_for(self.push_groups, "push_groups")
         geometry_for(self.skill_groups, "skill_groups")
 
@@ -283,15 +291,12 @@ def _fit_skill_models(
                 kind="mixture",
                 backward=False,
                 n_experts=settings.n_experts,
-                gp_max_iter=settings.gp_max_iter,
-                lengthscale_prior=True,
+                gp=settings.gp,
             )
             fit_transition(model, X, Y, options=settings.em, seed=seed)
         else:
             backward = name == "backward"
-            model = SkillTransitionModel(
-                skill, backward=backward, gp_max_iter=settings.gp_max_iter, lengthscale_prior=True
-            )
+            model = SkillTransitionModel(skill, backward=backward, gp=settings.gp)
             fit_transition(model, X, Y, R if backward else None)
         models[name] = model
         seconds[name] = time.perf_counter() - t0
@@ -390,9 +395,7 @@ def push_trial(data: TrialData, settings: TrialSettings, keep: int = 2) -> dict[
 
         ds_train, ds_test = _push_dataset(train), _push_dataset(test)
         t0 = time.perf_counter()
-        mono = MonolithicTransitionModel(
-            ds_train.n_objects, gp_max_iter=settings.gp_max_iter, lengthscale_prior=True
-        )
+        mono = MonolithicTransitionModel(ds_train.n_objects, gp=settings.gp)
         rows = np.asarray(train_rows)
         fit_transition(mono, scene_features(ds_train)[rows], scene_effects(ds_train)[rows])
         seconds["monolithic"] = time.perf_counter() - t0
@@ -501,7 +504,7 @@ def _stepped_record(data: TrialData, settings: TrialSettings) -> dict[str, Any]:
     train = _steps(data.train, settings.push_groups, settings.step_length)
     test = _steps(data.test, settings.push_groups, settings.step_length)
     train, test = train.subset(data.train_rows), test.subset(data.test_rows)
-    options = SteppedModelOptions(gp_max_iter=settings.gp_max_iter, seed=data.seed)
+    options = SteppedModelOptions(gp=settings.gp, seed=data.seed)
     model = fit_stepped(train, geo, options, backward=True)
     planned = fit_stepped(train, geo, options, backward=False)
     full = model.components(backward=True)
@@ -611,9 +614,7 @@ def chain_trained_trial(data: TrialData, settings: TrialSettings) -> dict[str, A
         ]
         X, Y, R = (np.concatenate(a) for a in zip(*parts, strict=True))
         backward = settings.chain_backward
-        model = SkillTransitionModel(
-            "push", backward=backward, gp_max_iter=settings.gp_max_iter, lengthscale_prior=True
-        )
+        model = SkillTransitionModel("push", backward=backward, gp=settings.gp)
         fit_transition(model, X, Y, R if backward else None)
         geo = geometry_for(settings.push_groups)
         chain = ModularTransitionModel({"push": model}, geo)

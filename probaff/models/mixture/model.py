@@ -39,7 +39,13 @@ from probaff.models.mixture.point import (
     out_of_fold_gate,
     stacking_weights,
 )
-from probaff.models.options import MIXTURE_GP, GPOptions, SparseGPOptions, check_hyper_rows
+from probaff.models.options import (
+    MIXTURE_GP,
+    GPOptions,
+    SparseGPOptions,
+    check_hyper_rows,
+    refuse_flat_gp_keywords,
+)
 from probaff.models.tensors import as_matrix, training_rows
 
 __all__ = [
@@ -74,7 +80,7 @@ FLAT_GP_KEYWORDS = {
 """The experts' settings a `MixtureOfGPExperts` once took one by one, each to its field of
 `GPOptions`: the keywords it now refuses, the keys of files saved before ``gp``, and the
 flat parameters of the scikit-learn estimator (`probaff.models.sklearn`), which scikit-learn's
-`get_params` needs one by one."""
+`get_params` needs one by one (the transition models' old keywords extend them)."""
 
 
 def _check_gp(gp: Any) -> GPOptions:
@@ -220,13 +226,8 @@ class MixtureOfGPExperts(GatedMixture[AnyGPExpert]):
         point: str = "mean",
         **columns: Any,
     ) -> None:
-        old = sorted(set(columns) & set(FLAT_GP_KEYWORDS))
-        if old:
-            fields = ", ".join(f"{FLAT_GP_KEYWORDS[k]}=..." for k in old)
-            raise InputError(
-                f"MixtureOfGPExperts takes its experts' settings as one GPOptions: use "
-                f"gp=GPOptions({fields}) instead of {', '.join(old)}."
-            )
+        what = "MixtureOfGPExperts takes its experts' settings"
+        refuse_flat_gp_keywords(what, columns, FLAT_GP_KEYWORDS)
         super().__init__(n_experts, gate_l2=gate_l2, **columns)
         self.gate_l1: float | str = check_strength("gate_l1", gate_l1)
         self.gp = _check_gp(gp)

@@ -3,7 +3,8 @@
 `SkillTransitionModel` (``skill_transition``, one model per skill with a backward component)
 and `MonolithicTransitionModel` (``monolithic``, one GP on whole scenes) share
 ``transition_base`` and are fitted by `fit_transition` (``transition``, with its
-`TransitionHistory`). `ModularTransitionModel` (``modular``) chains per-skill predictions
+`TransitionHistory`); both take their GP settings as one `GPOptions` (``gp=``, by default
+`TRANSITION_GP`). `ModularTransitionModel` (``modular``) chains per-skill predictions
 over scenes of n objects (`ChainScene` and `ChainPrediction`, from ``chain``), and
 `SteppedPushModel` (``stepped_transition``) rolls a forward and a backward push model out
 step by step.
@@ -18,8 +19,10 @@ from probaff.models.transitions.transition import (
     TransitionHistory,
     fit_transition,
 )
+from probaff.models.transitions.transition_base import TRANSITION_GP
 
 __all__ = [
+    "TRANSITION_GP",
     "ChainPrediction",
     "ChainScene",
     "InteractionGeometry",

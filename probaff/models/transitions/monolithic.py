@@ -14,6 +14,7 @@ from torch.distributions import Independent
 from probaff._checks import check_count
 from probaff.errors import InputError, NotFittedError
 from probaff.models.experts.gp_expert import GPExpert
+from probaff.models.options import GPOptions
 from probaff.models.tensors import as_matrix
 from probaff.models.transitions.transition_base import (
     MONOLITHIC_NOT_FITTED,
@@ -21,7 +22,6 @@ from probaff.models.transitions.transition_base import (
     TransitionHistory,
     check_asked_skill,
     gp_objective,
-    resolve_noise_floor,
     training_pair,
 )
 
@@ -40,8 +40,10 @@ class MonolithicTransitionModel(TransitionBase):
     Args:
         n_objects: Objects per scene.
         skill: The skill, one of `SKILLS`.
-        **gp_settings: The GP's settings (`TransitionBase`: ``gp_max_iter``,
-            ``lengthscale_prior``, ``noise_floor``, ``outputscale``, ``noise``).
+        gp: The GP's settings (`TransitionBase`); None for `TRANSITION_GP`.
+        **unexpected: Refused (`TransitionBase`): the old flat keywords ``gp_max_iter``,
+            ``lengthscale_prior``, ``noise_floor``, ``outputscale`` and ``noise`` with an
+            `InputError` naming the ``gp=GPOptions(...)`` to give.
 
     Attributes:
         components: ``{"effect": GPExpert}`` once fitted.
@@ -49,8 +51,8 @@ class MonolithicTransitionModel(TransitionBase):
         n_outputs: Effect columns `n_objects * E` (``None`` before fitting).
 
     Raises:
-        InputError: For an unknown skill, a non-integer count, or a malformed noise floor
-            or start value.
+        InputError: For an unknown skill, a non-integer count, a `gp` that is not a
+            `GPOptions`, or an old flat GP keyword.
     """
 
     def __init__(
@@ -58,9 +60,10 @@ class MonolithicTransitionModel(TransitionBase):
         n_objects: int = 2,
         *,
         skill: str = "push",
-        **gp_settings: Any,
+        gp: GPOptions | None = None,
+        **unexpected: Any,
     ) -> None:
-        super().__init__(skill, **gp_settings)
+        super().__init__(skill, gp=gp, **unexpected)
         self.n_objects = check_count("n_objects", n_objects)
 
     def config(self) -> dict[str, Any]:
@@ -68,7 +71,7 @@ class MonolithicTransitionModel(TransitionBase):
         return {
             "n_objects": self.n_objects,
             "skill": self.skill,
-            **self._gp_config(),
+            "gp": self.gp,
         }
 
     @property
@@ -117,18 +120,7 @@ class MonolithicTransitionModel(TransitionBase):
                 f"effects Y has {e} columns, which is not n_objects={self.n_objects} times an "
                 "object's effect size; give every object's effect, object after object."
             )
-        self.components = torch.nn.ModuleDict(
-            {
-                "effect": GPExpert(
-                    d,
-                    e,
-                    max_iter=self.gp_max_iter,
-                    lengthscale_prior=self.lengthscale_prior,
-                    outputscale=self.outputscale,
-                    noise=self.noise,
-                )
-            }
-        )
+        self.components = torch.nn.ModuleDict({"effect": GPExpert(d, e, self.gp)})
         self.n_features, self.n_outputs = d, e
         self.train_X = self.train_Y = None
 
@@ -161,8 +153,7 @@ class MonolithicTransitionModel(TransitionBase):
             The history of the fit.
         """
         expert = self.expert
-        expert.noise_floor.copy_(resolve_noise_floor(self.noise_floor, Y))
-        expert.fit(X, Y)
+        expert.fit(X, Y)  # its noise floor resolved from the targets
         self.train_X, self.train_Y = X, Y
         return TransitionHistory(
             objective={"effect": gp_objective(expert)}, n_samples=int(X.shape[0])

@@ -31,7 +31,6 @@ from probaff.models.transitions.transition_base import (
     component_predict,
     gp_objective,
     predict_moments,
-    resolve_noise_floor,
     sample_effects,
     training_pair,
 )
@@ -44,12 +43,13 @@ class SkillTransitionModel(TransitionBase):
 
     Maps interaction features `X (N, D)` to the object's displacement in the action frame
     `Y (N, E)` (E = 6 in general; any E >= 1, the caller chooses the columns). With
-    ``kind="gp"`` every component is one `GPExpert` (E independent SE-ARD GPs) whose
-    hyperparameters start at the thesis's values, signal variance
-    :math:`\theta_0` = `outputscale` = 0.1 and noise = 0.1 (standardised units); with
-    ``kind="mixture"`` every component is a `MixtureOfGPExperts` of `n_experts` experts,
-    gate and experts on the same inputs, fitted by `fit_em` (from `GPExpert`'s default
-    start values).
+    ``kind="gp"`` every component is one `GPExpert` (E independent SE-ARD GPs) of the
+    settings `gp`, whose hyperparameters start by default at the thesis's values, signal
+    variance :math:`\theta_0` = ``gp.outputscale`` = 0.1 and noise = ``gp.noise`` = 0.1
+    (standardised units, `TRANSITION_GP`); with ``kind="mixture"`` every component is a
+    `MixtureOfGPExperts` of `n_experts` experts, gate and experts on the same inputs, fitted
+    by `fit_em`, whose experts take `gp`'s `max_iter`, `lengthscale_prior` and `noise_floor`
+    and start from `GPOptions`' default start values.
 
     With ``backward=True`` (default) the model has three components (`COMPONENTS`):
     ``"effect"`` (`X -> Y`), ``"reaction"`` (`[X, Y] -> R`, the end-effector's deviation
@@ -63,9 +63,12 @@ class SkillTransitionModel(TransitionBase):
         kind: ``"gp"`` (the thesis) or ``"mixture"``.
         backward: Add the reaction and corrected components.
         n_experts: Experts per mixture component (``kind="mixture"`` only; 3 if ``None``).
-        **gp_settings: The GP settings of every component (`TransitionBase`:
-            ``gp_max_iter``, ``lengthscale_prior``, ``noise_floor``, ``outputscale``,
-            ``noise``).
+        gp: The GP settings of every component (`TransitionBase`); None for
+            `TRANSITION_GP`, e.g. ``gp=GPOptions(max_iter=20, lengthscale_prior=True,
+            noise_floor="auto", outputscale=0.1)``.
+        **unexpected: Refused (`TransitionBase`): the old flat keywords ``gp_max_iter``,
+            ``lengthscale_prior``, ``noise_floor``, ``outputscale`` and ``noise`` with an
+            `InputError` naming the ``gp=GPOptions(...)`` to give.
 
     Attributes:
         components: The fitted components by name (empty before `fit_transition`).
@@ -76,7 +79,7 @@ class SkillTransitionModel(TransitionBase):
 
     Raises:
         InputError: For an unknown skill or kind, a non-integer count, `n_experts` with
-            ``kind="gp"``, or a malformed noise floor or start value.
+            ``kind="gp"``, a `gp` that is not a `GPOptions`, or an old flat GP keyword.
     """
 
     def __init__(
@@ -86,9 +89,10 @@ class SkillTransitionModel(TransitionBase):
         kind: str = "gp",
         backward: bool = True,
         n_experts: int | None = None,
-        **gp_settings: Any,
+        gp: GPOptions | None = None,
+        **unexpected: Any,
     ) -> None:
-        super().__init__(skill, **gp_settings)
+        super().__init__(skill, gp=gp, **unexpected)
         if kind not in KINDS:
             raise InputError(f"unknown kind {kind!r}; known kinds: {', '.join(map(repr, KINDS))}.")
         self.kind = kind
@@ -114,7 +118,7 @@ class SkillTransitionModel(TransitionBase):
             "kind": self.kind,
             "backward": self.backward,
             "n_experts": None if self.kind == "gp" else self.n_experts,
-            **self._gp_config(),
+            "gp": self.gp,
         }
 
     @property
@@ -154,7 +158,7 @@ class SkillTransitionModel(TransitionBase):
         """Create fresh, unfitted components for the data sizes.
 
         Called by `fit_transition` (every fit starts from the same state) and by `load`.
-        GP components start at `outputscale` and `noise`.
+        GP components start at ``gp.outputscale`` and ``gp.noise``.
 
         Args:
             n_features: Features `D`.
@@ -186,19 +190,12 @@ class SkillTransitionModel(TransitionBase):
 
     def _new_component(self, n_inputs: int, n_targets: int) -> Component:
         if self.kind == "gp":
-            return GPExpert(
-                n_inputs,
-                n_targets,
-                max_iter=self.gp_max_iter,
-                lengthscale_prior=self.lengthscale_prior,
-                outputscale=self.outputscale,
-                noise=self.noise,
-            )
+            return GPExpert(n_inputs, n_targets, self.gp)
         # The mixture's experts keep GPOptions' initial variances (not the GP component's).
         gp = GPOptions(
-            max_iter=self.gp_max_iter,
-            lengthscale_prior=self.lengthscale_prior,
-            noise_floor=self.noise_floor,
+            max_iter=self.gp.max_iter,
+            lengthscale_prior=self.gp.lengthscale_prior,
+            noise_floor=self.gp.noise_floor,
         )
         return MixtureOfGPExperts(self.n_experts, gp=gp)
 
@@ -283,8 +280,7 @@ class SkillTransitionModel(TransitionBase):
         for name, inputs, targets in self.component_data(X, Y, R):
             comp = self.component(name)
             if isinstance(comp, GPExpert):
-                comp.noise_floor.copy_(resolve_noise_floor(self.noise_floor, targets))
-                comp.fit(inputs, targets)
+                comp.fit(inputs, targets)  # its noise floor resolved from the targets
                 history.objective[name] = gp_objective(comp)
             else:
                 em = fit_em(comp, inputs, targets, options)

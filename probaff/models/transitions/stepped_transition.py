@@ -31,17 +31,18 @@ and reactions ``(dx, dy)`` are in each step's action frame (y along the actor's 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import torch
 
 from probaff._checks import check_count, check_positive
 from probaff.errors import InputError
-from probaff.models.options import EMOptions
+from probaff.models.options import EMOptions, GPOptions
 from probaff.models.transitions.chain import _overlapping_pairs, planar_poses, wrap_angle
 from probaff.models.transitions.modular import InteractionGeometry
 from probaff.models.transitions.transition import SkillTransitionModel, fit_transition
+from probaff.models.transitions.transition_base import TRANSITION_GP, check_transition_gp
 
 __all__ = [
     "COMPONENT_NAMES",
@@ -312,8 +313,10 @@ class SteppedModelOptions:
     Attributes:
         kind: ``"gp"`` (one GP per component, the thesis) or ``"mixture"``.
         n_experts: Experts of each mixture component (``kind="mixture"``).
-        gp_max_iter: L-BFGS iterations of every GP fit.
-        lengthscale_prior: Put the length-scale prior on every GP.
+        gp: The GP settings of every component (`SkillTransitionModel`'s ``gp``): by
+            default `TRANSITION_GP` with the length-scale prior on, 50 L-BFGS iterations per
+            fit (``GPOptions(max_iter=50, lengthscale_prior=True, noise_floor="auto",
+            outputscale=0.1)``).
         max_rows: Most step rows a component is fitted on (beyond it a seeded random subset),
             bounding the exact GP's cost.
         seed: Seed of the row subsets and of the mixtures' EM.
@@ -323,19 +326,18 @@ class SteppedModelOptions:
 
     kind: str = "gp"
     n_experts: int = 2
-    gp_max_iter: int = 50
-    lengthscale_prior: bool = True
+    gp: GPOptions = field(default=replace(TRANSITION_GP, lengthscale_prior=True))
     max_rows: int = 1500
     seed: int = 0
     em: EMOptions = field(default_factory=lambda: EMOptions(max_iter=10))
     min_action: float = 1e-3
 
     def __post_init__(self) -> None:
-        """Raise `InputError` for an unknown kind, a bad count or a bad minimum action."""
+        """Raise `InputError` for an unknown kind, bad counts, GP settings or minimum action."""
         if self.kind not in ("gp", "mixture"):
             raise InputError(f"kind must be 'gp' or 'mixture', got {self.kind!r}.")
         check_count("n_experts", self.n_experts)
-        check_count("gp_max_iter", self.gp_max_iter)
+        check_transition_gp(self.gp)
         check_count("max_rows", self.max_rows, minimum=2)
         check_count("seed", self.seed, minimum=0)
         if not isinstance(self.em, EMOptions):
@@ -413,8 +415,7 @@ class SteppedPushModel:
             kind=o.kind,
             backward=False,
             n_experts=o.n_experts if o.kind == "mixture" else None,
-            gp_max_iter=o.gp_max_iter,
-            lengthscale_prior=o.lengthscale_prior,
+            gp=o.gp,
         )
         if o.kind == "mixture":
             fit_transition(model, X, Y, options=o.em, seed=o.seed)

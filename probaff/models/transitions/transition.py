@@ -21,11 +21,12 @@ fitted by `fit_transition`.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 from probaff._threads import threads_by_rows
 from probaff.errors import InputError
-from probaff.models.options import EMOptions, resolve_options
+from probaff.models.options import EMOptions, GPOptions, resolve_options
 from probaff.models.registry import Codec, ModelKind, register_model_kind
 from probaff.models.transitions.monolithic import MonolithicTransitionModel
 from probaff.models.transitions.skill_transition import SkillTransitionModel
@@ -33,6 +34,8 @@ from probaff.models.transitions.transition_base import (
     COMPONENTS,
     KINDS,
     SKILLS,
+    TRANSITION_FLAT_GP_KEYWORDS,
+    TRANSITION_GP,
     TransitionHistory,
 )
 
@@ -90,7 +93,7 @@ def fit_transition(
         if given:
             raise InputError(
                 f"a MonolithicTransitionModel takes no fitting options, got {given}; "
-                "set gp_max_iter in its constructor."
+                "give its GP settings as gp=GPOptions(...) in its constructor."
             )
         x, y = model.check_data(X, Y)
         return model.fit_components(x, y)
@@ -102,7 +105,7 @@ def fit_transition(
     if given and model.kind == "gp":
         raise InputError(
             f"the options {given} are fit_em's, for kind='mixture'; a 'gp' model "
-            "takes none (set gp_max_iter in its constructor)."
+            "takes none (give its GP settings as gp=GPOptions(...) in its constructor)."
         )
     opts = resolve_options(EMOptions, options, overrides)
     x, y, r = model.check_data(X, Y, R)
@@ -110,9 +113,36 @@ def fit_transition(
 
 
 # ---------------------------------------- the "transition" and "monolithic" kinds
+def _saved_settings(model: SkillTransitionModel | MonolithicTransitionModel) -> dict[str, Any]:
+    """A model's constructor arguments to save: its `GPOptions` as its fields (builtins)."""
+    return {**model.config(), "gp": dataclasses.asdict(model.gp)}
+
+
+def _saved_config(config: dict[str, Any]) -> dict[str, Any]:
+    """A saved transition model's constructor arguments, its GP settings as one `GPOptions`.
+
+    Files written since the settings were one `GPOptions` hold its fields under ``gp``;
+    older files hold the flat keys ``gp_max_iter``, ``lengthscale_prior``, ``noise_floor``,
+    ``outputscale`` and ``noise`` (`TRANSITION_FLAT_GP_KEYWORDS`; a missing one takes
+    `TRANSITION_GP`'s value).
+    """
+    out = dict(config)
+    flat = {new: out.pop(old) for old, new in TRANSITION_FLAT_GP_KEYWORDS.items() if old in out}
+    saved = out.get("gp")
+    if saved is None:
+        out["gp"] = dataclasses.replace(TRANSITION_GP, **flat)
+    elif isinstance(saved, dict) and not flat:
+        out["gp"] = GPOptions(**saved)
+    else:
+        raise InputError(
+            f"a saved transition model's gp must hold GPOptions' fields, got {saved!r}."
+        )
+    return out
+
+
 def _dump_skill(model: SkillTransitionModel) -> dict[str, Any]:
     return {
-        "config": model.config(),
+        "config": _saved_settings(model),
         "sizes": [model.n_features, model.n_outputs, model.n_reaction],
         "X": model.train_X,
         "Y": model.train_Y,
@@ -123,7 +153,7 @@ def _dump_skill(model: SkillTransitionModel) -> dict[str, Any]:
 
 
 def _restore_skill(payload: dict[str, Any]) -> SkillTransitionModel:
-    model = SkillTransitionModel(**payload["config"])
+    model = SkillTransitionModel(**_saved_config(payload["config"]))
     model.build(*payload["sizes"])
     model.condition(payload["X"], payload["Y"], payload["R"], payload["weights"])
     model.load_state_dict(payload["state_dict"])
@@ -132,7 +162,7 @@ def _restore_skill(payload: dict[str, Any]) -> SkillTransitionModel:
 
 def _dump_monolithic(model: MonolithicTransitionModel) -> dict[str, Any]:
     return {
-        "config": model.config(),
+        "config": _saved_settings(model),
         "sizes": [model.n_features, model.n_outputs],
         "X": model.train_X,
         "Y": model.train_Y,
@@ -141,7 +171,7 @@ def _dump_monolithic(model: MonolithicTransitionModel) -> dict[str, Any]:
 
 
 def _restore_monolithic(payload: dict[str, Any]) -> MonolithicTransitionModel:
-    model = MonolithicTransitionModel(**payload["config"])
+    model = MonolithicTransitionModel(**_saved_config(payload["config"]))
     model.build(*payload["sizes"])
     model.condition(payload["X"], payload["Y"])
     model.load_state_dict(payload["state_dict"])

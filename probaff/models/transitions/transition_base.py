@@ -14,16 +14,14 @@ import torch
 from torch import Tensor
 from torch.distributions import Distribution, Independent, MixtureSameFamily, Normal
 
-from probaff._checks import check_count, check_positive
 from probaff.errors import InputError
 from probaff.models.experts.gp_expert import GPExpert, exact_gp_settings
 from probaff.models.mixture.em import EMHistory
-from probaff.models.mixture.model import MixtureOfGPExperts
-from probaff.models.options import check_lengthscale_prior
+from probaff.models.mixture.model import FLAT_GP_KEYWORDS, MixtureOfGPExperts
+from probaff.models.options import GPOptions, refuse_flat_gp_keywords
 from probaff.models.tensors import training_rows
 
 __all__ = [
-    "AUTO_NOISE_FLOOR",
     "COMPONENTS",
     "DEFAULT_EXPERTS",
     "DEFAULT_SEED",
@@ -31,17 +29,18 @@ __all__ = [
     "MONOLITHIC_NOT_FITTED",
     "PREDICT_ROWS",
     "SKILLS",
+    "TRANSITION_FLAT_GP_KEYWORDS",
+    "TRANSITION_GP",
     "Component",
     "TransitionBase",
     "TransitionHistory",
     "check_asked_skill",
     "check_generator",
-    "check_noise_floor",
     "check_skill",
+    "check_transition_gp",
     "component_predict",
     "gp_objective",
     "predict_moments",
-    "resolve_noise_floor",
     "sample_effects",
     "training_pair",
 ]
@@ -56,9 +55,17 @@ COMPONENTS: tuple[str, ...] = ("effect", "reaction", "corrected")
 """Component names: the effect `X -> Y`, the reaction `[X, Y] -> R` and the corrected
 effect `[X, R] -> Y` (the last two only with a backward component)."""
 
-# Noise floor of `noise_floor="auto"` as a fraction of each target's standard deviation
-# (the value `MixtureOfGPExperts` uses).
-AUTO_NOISE_FLOOR = 0.01
+TRANSITION_GP = GPOptions(noise_floor="auto", outputscale=0.1)
+"""The GP settings of a transition model given no ``gp``: the thesis's.
+
+50 L-BFGS iterations per GP fit, no length-scale prior, a noise floor of 1 % of each target's
+standard deviation over the component's training set (``"auto"``), and the GP components'
+initial signal variance :math:`\\theta_0` = 0.1 and noise variance 0.1 (standardised units)."""
+
+TRANSITION_FLAT_GP_KEYWORDS = {**FLAT_GP_KEYWORDS, "outputscale": "outputscale", "noise": "noise"}
+"""The GP settings a transition model once took one by one, each to its field of `GPOptions`:
+the mixture's (`FLAT_GP_KEYWORDS`) and the start values ``outputscale`` and ``noise``. The
+keywords the constructors now refuse, and the keys of the files saved before ``gp``."""
 
 # Experts of `kind="mixture"` when `n_experts` is not given (chapter 5's best M).
 DEFAULT_EXPERTS = 3
@@ -97,25 +104,25 @@ def check_asked_skill(own: str, skill: Any) -> None:
         raise InputError(f"a {own} model cannot predict {asked}; use the {asked} model.")
 
 
-def check_noise_floor(noise_floor: Any) -> float | str | None:
-    """The noise floor argument as ``"auto"``, ``None`` or a non-negative float."""
-    if noise_floor is None or (isinstance(noise_floor, str) and noise_floor == "auto"):
-        return noise_floor
-    if isinstance(noise_floor, str):
+def check_transition_gp(gp: Any) -> GPOptions:
+    """`gp` if it is a transition model's GP settings; `InputError` for anything else.
+
+    The components of a model have different numbers of outputs (a skill model's effect,
+    reaction and corrected effect), so the noise floor must be ``"auto"``, None or one
+    number; a per-output tuple is refused.
+    """
+    if type(gp) is not GPOptions:
         raise InputError(
-            f"noise_floor must be 'auto', None or a standard deviation >= 0, got {noise_floor!r}."
+            f"gp must be GPOptions (the GP settings, e.g. GPOptions(max_iter=20, "
+            f"lengthscale_prior=True, noise_floor='auto', outputscale=0.1)), got "
+            f"{type(gp).__name__}."
         )
-    check_positive("noise_floor", noise_floor, allow_zero=True)
-    return float(noise_floor)
-
-
-def resolve_noise_floor(noise_floor: float | str | None, targets: Tensor) -> Tensor:
-    """Noise floor of a GP component with training targets `(N, C)`, in their units, `(C,)`."""
-    if noise_floor is None:
-        return torch.zeros(targets.shape[1], dtype=torch.float64)
-    if isinstance(noise_floor, str):
-        return AUTO_NOISE_FLOOR * targets.std(dim=0, correction=0)
-    return torch.full((targets.shape[1],), noise_floor, dtype=torch.float64)
+    if isinstance(gp.noise_floor, tuple):
+        raise InputError(
+            f"a transition model's gp.noise_floor must be 'auto', None or one standard "
+            f"deviation >= 0 (its components have different outputs), got {gp.noise_floor!r}."
+        )
+    return gp
 
 
 def component_predict(component: Component, x: Tensor) -> Distribution:
@@ -224,50 +231,40 @@ class TransitionHistory:
 
 
 class TransitionBase(torch.nn.Module):
-    r"""What both transition models hold: the skill, the GP settings and the training data.
+    """What both transition models hold: the skill, the GP settings and the training data.
 
     Args:
         skill: The skill, one of `SKILLS`.
-        gp_max_iter: L-BFGS iterations of each GP fit.
-        lengthscale_prior: Put `GPExpert`'s dimension-scaled prior on the length scales;
-            True puts it at the default width, a number > 0 at that width (`GPOptions`).
-        noise_floor: Smallest observation-noise standard deviation of every component, in
-            its targets' units: ``"auto"`` (default; 1 % of each target's standard
-            deviation over the training set), ``None`` (no floor) or one number >= 0.
-        outputscale: Initial signal variance :math:`\theta_0` of the GP components.
-        noise: Initial noise variance of the GP components.
+        gp: The GP settings of every component (checked by `check_transition_gp`); None
+            for `TRANSITION_GP`. A GP component is one `GPExpert` of these settings: `max_iter`
+            L-BFGS iterations per fit, the length-scale prior (`lengthscale_prior`), the
+            noise floor in its targets' units (`noise_floor`: ``"auto"``, 1 % of each
+            target's standard deviation over its training set, None or one number >= 0)
+            and the start values `outputscale` and `noise`.
+        **unexpected: Refused: the old flat keywords (`TRANSITION_FLAT_GP_KEYWORDS`) with
+            an `InputError` naming the ``gp=GPOptions(...)`` to give, any other with a
+            `TypeError`.
+
+    Attributes:
+        gp: The GP settings.
 
     Raises:
-        InputError: For an unknown skill, a non-integer count, or a malformed noise floor
-            or start value.
+        InputError: For an unknown skill, a `gp` that is not a `GPOptions` (or one with a
+            noise floor per output), or one of the old flat keywords.
+        TypeError: For any other unknown keyword.
     """
 
-    def __init__(
-        self,
-        skill: str,
-        *,
-        gp_max_iter: int = 50,
-        lengthscale_prior: bool | float = False,
-        noise_floor: float | str | None = "auto",
-        outputscale: float = 0.1,
-        noise: float = 0.1,
-    ) -> None:
+    def __init__(self, skill: str, *, gp: GPOptions | None = None, **unexpected: Any) -> None:
+        name = type(self).__name__
+        what = f"{name} takes its GP settings"
+        refuse_flat_gp_keywords(what, unexpected, TRANSITION_FLAT_GP_KEYWORDS)
+        if unexpected:
+            raise TypeError(f"{name}() got unexpected keyword argument(s) {sorted(unexpected)}.")
         super().__init__()
         self.skill = check_skill("skill", skill)
-        self.gp_max_iter = check_count("gp_max_iter", gp_max_iter)
-        self.lengthscale_prior = check_lengthscale_prior(lengthscale_prior)
-        self.noise_floor = check_noise_floor(noise_floor)
-        # GPExpert validates the start values; build one now so that errors come early.
-        GPExpert(1, 1, outputscale=outputscale, noise=noise)
-        self.outputscale = float(outputscale)
-        self.noise = float(noise)
+        self.gp = TRANSITION_GP if gp is None else check_transition_gp(gp)
         self.components = torch.nn.ModuleDict()
         self.n_features: int | None = None
         self.n_outputs: int | None = None
         self.train_X: Tensor | None = None
         self.train_Y: Tensor | None = None
-
-    def _gp_config(self) -> dict[str, Any]:
-        """The GP settings as constructor arguments."""
-        names = ("gp_max_iter", "lengthscale_prior", "noise_floor", "outputscale", "noise")
-        return {n: getattr(self, n) for n in names}
