@@ -438,7 +438,8 @@ def push_trial(data: TrialData, settings: TrialSettings, keep: int = 2) -> dict[
         record["chains"] = _test_chains(chain, data, settings, keep)
         if settings.stepped:
             t0 = time.perf_counter()
-            record["stepped"] = _stepped_record(data, settings)
+            frames = scenes.T_world_action[t_rows]
+            record["stepped"] = _stepped_record(data, settings, frames, record["two"]["true"])
             seconds["stepped"] = time.perf_counter() - t0
     return record
 
@@ -492,8 +493,17 @@ def stepped_calibration(model: SteppedPushModel, test: StepTrajectories) -> dict
     return out
 
 
-def _stepped_record(data: TrialData, settings: TrialSettings) -> dict[str, Any]:
+def _stepped_record(
+    data: TrialData, settings: TrialSettings, T_a: np.ndarray, true: list[Any]
+) -> dict[str, Any]:
     """The stepped model fitted on the training pushes and rolled out on the test scenes.
+
+    Args:
+        data: The trial's data (`push_trial`'s).
+        settings: Its settings.
+        T_a: (n, 4, 4) the hand's action frames of the test scenes ``data.test_rows``.
+        true: (n, K, 3) their observed displacements in those frames (the record's
+            ``two["true"]``), kept beside the rollouts.
 
     Returns:
         ``{"true", <each of STEPPED_MODELS>: (n, K, 3) displacements (off, along, turn) in the
@@ -513,18 +523,12 @@ def _stepped_record(data: TrialData, settings: TrialSettings) -> dict[str, Any]:
         "stepped_planned": planned.components(),
         "stepped_backward": full,
     }
-    ds = _push_dataset(data.test)
-    rows = np.asarray(data.test_rows)
-    T_a = push_scenes(ds, geometry=geo).T_world_action[rows]
     scenes = test.scenes()
-    record: dict[str, Any] = {
-        "true": scene_effects(ds)[rows].reshape(len(rows), -1, 3).tolist(),
-        "steps": int(test.n_steps),
-    }
+    record: dict[str, Any] = {"true": true, "steps": int(test.n_steps)}
     for name, comps in variants.items():
         d = rollout(comps, geo, scenes).final - test.objects[:, 0]  # (n, K, 3) world
         d[..., 2] = (d[..., 2] + np.pi) % (2 * np.pi) - np.pi  # as scene_effects wraps it
-        record[name] = np.stack([_in_action(T_a[i], d[i]) for i in range(len(rows))]).tolist()
+        record[name] = np.stack([_in_action(T_a[i], d[i]) for i in range(len(d))]).tolist()
     record["calibration"] = stepped_calibration(model, test)
     return record
 
