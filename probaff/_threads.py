@@ -276,7 +276,13 @@ def threads_by_rows(arg: str = "X") -> Callable[[F], F]:
 
 @contextlib.contextmanager
 def torch_threads(n: int) -> Iterator[None]:
-    """Run the block with `torch.set_num_threads(n)`, restoring the previous count after.
+    """Run the block on `n` threads: torch's intra-op pool and the BLAS and OpenMP pools.
+
+    Torch's count (`torch.set_num_threads`) and the pools' (through threadpoolctl) are
+    restored after. The pools matter as much as torch's: the small solves and products of
+    scikit-learn's Gaussian mixtures and scipy's L-BFGS inside a fit run on the BLAS pool,
+    and with torch alone at one thread a small EM fit (`fit_em`, 90 rows, M = 3) cost 3 times
+    the CPU time on a quiet 2-core machine, and more under load.
 
     The block counts as limited: a fit inside it (`fit_threads`) never runs on more than
     `n` threads.
@@ -288,5 +294,5 @@ def torch_threads(n: int) -> Iterator[None]:
         InputError: If `n` is not a positive integer.
     """
     n = check_count("n", n)
-    with _limited(n, pools=False):
+    with _limited(n, pools=True):
         yield

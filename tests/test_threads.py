@@ -42,6 +42,16 @@ def test_small_fit_runs_on_one_thread_and_restores_torch_and_blas():
         assert torch.get_num_threads() == 2 and _blas_threads() == {2}
 
 
+def test_a_torch_threads_block_limits_blas_too_and_a_fit_inside_keeps_it():
+    """A fit inside ``torch_threads(1)`` (every study task) runs its BLAS on one thread."""
+    with threadpool_limits(2, user_api="blas"):
+        with torch_threads(1):
+            assert torch.get_num_threads() == 1 and _blas_threads() == {1}
+            with fit_threads(SMALL) as n:
+                assert n == 1 and _blas_threads() == {1}
+        assert torch.get_num_threads() == 2 and _blas_threads() == {2}
+
+
 def test_large_fit_keeps_torch_count():
     with fit_threads(LARGE) as n:
         assert n == 2 and torch.get_num_threads() == 2
