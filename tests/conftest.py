@@ -11,6 +11,21 @@ import pytest
 import torch
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _one_blas_thread() -> Iterator[None]:
+    """The BLAS and OpenMP pools at one thread, as torch's (the suite runs one worker a core).
+
+    numpy's, scipy's and scikit-learn's libraries are loaded first, so that the limit reaches
+    them; a test that sets its own limit gets this one back after it.
+    """
+    import scipy.linalg  # noqa: F401
+    import sklearn.cluster  # noqa: F401
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        yield
+
+
 @pytest.fixture(autouse=True)
 def _deterministic_threads():
     """Single-threaded torch keeps batched IK bit-reproducible across tests."""
