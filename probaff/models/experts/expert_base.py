@@ -10,7 +10,7 @@ Sizes, settings, the weighted likelihood, the standardisers, the jitter and the 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, Self
+from typing import Any
 
 import torch
 from gpytorch.constraints import Interval
@@ -24,7 +24,7 @@ from probaff.models._scaling import Standardizer
 from probaff.models.experts.kernels import lengthscale_prior
 from probaff.models.experts.likelihood import WeightedGaussianLikelihood
 from probaff.models.options import AUTO_NOISE_FLOOR, NOISE_BOUNDS, GPOptions
-from probaff.models.tensors import as_matrix, as_vector, check_to_device, resolve_device
+from probaff.models.tensors import DeviceCheckedModule, as_matrix, as_vector
 
 __all__ = ["WeightedExpert", "noise_floor_vector", "out_of_sample", "training_noise_floor"]
 
@@ -80,7 +80,7 @@ def training_noise_floor(
     return noise_floor_vector(noise_floor, targets.shape[1])
 
 
-class WeightedExpert(torch.nn.Module):
+class WeightedExpert(DeviceCheckedModule):
     r"""Base of the GP experts: `E` outputs of `D` features with per-sample noise weights.
 
     Sample `i` of weight :math:`w_i > 0` has noise variance :math:`\sigma^2 / w_i`
@@ -138,24 +138,6 @@ class WeightedExpert(torch.nn.Module):
     def device(self) -> torch.device:
         """The device of the expert's parameters, where it fits and predicts."""
         return self.jitter.device
-
-    def to(self, *args: Any, **kwargs: Any) -> Self:
-        """`torch.nn.Module.to`, refusing a device that this machine does not have.
-
-        Raises:
-            InputError: For a malformed device or one that does not exist.
-        """
-        check_to_device(args, kwargs)
-        return super().to(*args, **kwargs)
-
-    def cuda(self, device: int | torch.device | None = None) -> Self:
-        """`torch.nn.Module.cuda`, refusing a CUDA device that this machine does not have.
-
-        Raises:
-            InputError: On a machine without CUDA, or for a CUDA index it does not have.
-        """
-        resolve_device("device", "cuda" if device is None else device)
-        return super().cuda(device)
 
     def weighted_rows(self, X: Any, Y: Any, weights: Any | None) -> tuple[Tensor, Tensor, Tensor]:
         """Validate a weighted training set and set the scalers, noise floor and weights.
