@@ -4,13 +4,14 @@ Sizes, settings, the weighted likelihood, the standardisers, the jitter and the 
 
 `probaff.models.experts.gp_expert.GPExpert` (exact) and
 `probaff.models.experts.sparse_expert.SparseGPExpert` (inducing points) derive from
-`WeightedExpert`; each adds its kernel and its own fit.
+`WeightedExpert`; each adds its kernel, its `condition` and its hyperparameter search, which
+`WeightedExpert.fit` runs after it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Self
 
 import torch
 from gpytorch.constraints import Interval
@@ -19,6 +20,7 @@ from torch import Tensor
 from torch.distributions import Normal
 
 from probaff._checks import check_count, check_finite
+from probaff._threads import threads_by_rows
 from probaff.errors import InputError
 from probaff.models._scaling import Standardizer
 from probaff.models.experts.kernels import lengthscale_prior
@@ -179,6 +181,49 @@ class WeightedExpert(DeviceCheckedModule):
         self.likelihood.noise_covar.floor.copy_(floor[:, None])
         self.likelihood.weights = w
         return x, y, w
+
+    def condition(self, X: Any, Y: Any, weights: Any | None = None) -> Self:
+        """Set the training data without changing the hyperparameters (each subclass's own).
+
+        Args:
+            X: Features, `(N, D)`.
+            Y: Targets, `(N, E)`.
+            weights: Non-negative sample weights, `(N,)`; all 1 if ``None``.
+
+        Returns:
+            This expert.
+
+        Raises:
+            InputError: On malformed inputs or if every weight is zero.
+        """
+        raise NotImplementedError
+
+    @threads_by_rows("X")
+    def fit(
+        self, X: Any, Y: Any, weights: Any | None = None, *, max_iter: int | None = None
+    ) -> Self:
+        """Set the training data (`condition`) and fit the hyperparameters to it.
+
+        `GPExpert` maximises the weighted marginal likelihood; `SparseGPExpert` chooses its
+        inducing inputs, then maximises its bound. Both warm-start from the current
+        hyperparameters.
+
+        Args:
+            X: Features, `(N, D)`.
+            Y: Targets, `(N, E)`.
+            weights: Non-negative sample weights, `(N,)`; all 1 if ``None``.
+            max_iter: L-BFGS iterations; defaults to the constructor's `max_iter`.
+
+        Returns:
+            This expert.
+        """
+        self.condition(X, Y, weights)
+        self._fit_hyperparameters(self.max_iter if max_iter is None else int(max_iter))
+        return self
+
+    def _fit_hyperparameters(self, max_iter: int) -> None:
+        """The search `fit` runs on the data `condition` set (each subclass's own)."""
+        raise NotImplementedError
 
     def predict(self, X: Any, *, include_noise: bool = True) -> Normal:
         """Predictive distribution of the outputs at `X` (each subclass's own).
