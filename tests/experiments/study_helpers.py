@@ -1,4 +1,5 @@
-"""Helpers of the study tests: smoke runs of the study scripts, resumption, saved figures."""
+"""Helpers of the study tests: smoke runs of the study scripts, resumption, saved figures, and
+synthetic records of the affordance-map study."""
 
 from __future__ import annotations
 
@@ -124,3 +125,48 @@ def png_chunks(data: bytes) -> list[tuple[bytes, bytes]]:
         chunks.append((data[i + 4 : i + 8], data[i + 8 : i + 8 + length]))
         i += 12 + length
     return chunks
+
+
+def loop_steps(curve: Sequence[float]) -> list[dict[str, Any]]:
+    """The step records of one affordance-map loop whose map entropy follows `curve`.
+
+    Step 0 is the map before any push; every later step pushes a real box that does not move.
+    """
+    return [
+        {
+            "step": t,
+            "entropy": h,
+            "entropy_mrf": h,
+            "accuracy": 0.8,
+            "distance": float(t),
+            "real_box": True if t else None,
+            "moved": False if t else None,
+            "observed": False if t else None,
+        }
+        for t, h in enumerate(curve)
+    ]
+
+
+def map_result(
+    index: int,
+    ig_curve: Sequence[float],
+    ex_curve: Sequence[float],
+    counts: dict[str, list[int]],
+    boxes: list[list[int]],
+    walls: list[list[int]],
+) -> dict[str, Any]:
+    """One test map's result of the affordance-map study, as its run records it.
+
+    The information-gain loop follows `ig_curve` and stops for lack of gain; the exhaustive
+    loop follows `ex_curve` and stops at its step budget.
+    """
+    curves = {"information_gain": ig_curve, "exhaustive": ex_curve}
+    stop = {"information_gain": "no_gain", "exhaustive": "max_steps"}
+    return {
+        "index": index,
+        "boxes": boxes,
+        "walls": walls,
+        "seconds": 1.0,
+        "classifier": counts,
+        "policies": {p: {"steps": loop_steps(c), "stop": stop[p]} for p, c in curves.items()},
+    }
