@@ -1,8 +1,9 @@
 """Helpers of the study tests: smoke runs of the study scripts, resumption, saved figures, and
-synthetic records of the affordance-map study."""
+synthetic records of the affordance-map study, a Push-T worker that never shows the T."""
 
 from __future__ import annotations
 
+import base64
 import json
 import struct
 import subprocess
@@ -12,6 +13,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any, TypeVar
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -170,3 +172,31 @@ def map_result(
         "classifier": counts,
         "policies": {p: {"steps": loop_steps(c), "stop": stop[p]} for p, c in curves.items()},
     }
+
+
+class BlankPushTWorker:
+    """A Push-T worker whose camera shows an empty floor: no T is ever perceived.
+
+    Attributes:
+        resets: How many times it was reset.
+        steps: Control steps taken since it was made.
+    """
+
+    def __init__(self) -> None:
+        self.resets = 0
+        self.steps = 0
+        self.image = base64.b64encode(np.full((96, 96, 3), 255, np.uint8).tobytes()).decode()
+
+    def ask(self, cmd: str, **fields: Any) -> dict[str, Any]:
+        """Answer a reset or a step call as the worker process would."""
+        state = {"agent": [100.0, 100.0], "agent_vel": [0.0, 0.0], "block": [256.0, 300.0, 0.0]}
+        seen = {"pixels_shape": [96, 96, 3], "obs": [[100.0, 100.0, 256.0, 300.0, 0.0]]}
+        if cmd == "reset":
+            self.resets += 1
+            return {**state, **seen, "pixels": self.image, "agent_pos": [100.0, 100.0],
+                    "obs": seen["obs"][0], "coverage": 0.0, "goal": [0.0, 0.0, 0.0]}  # fmt: skip
+        n = len(fields["actions"])
+        self.steps += n
+        return {**state, **seen, "pixels": [self.image] * n, "agent_pos": [[100.0, 100.0]] * n,
+                "obs": seen["obs"] * n, "coverage": [0.0] * n, "terminated": False,
+                "truncated": False, "steps": self.steps}  # fmt: skip
