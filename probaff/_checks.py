@@ -15,6 +15,7 @@ from probaff.errors import InputError
 
 __all__ = [
     "as_float_array",
+    "check_box_sizes",
     "check_count",
     "check_finite",
     "check_number",
@@ -195,6 +196,29 @@ def check_probability(name: str, x: Any) -> None:
         raise InputError(
             f"{name} must lie in [0, 1]; got values in [{arr.min():.4g}, {arr.max():.4g}]."
         )
+
+
+def check_box_sizes(name: str, sizes: Any, empty_message: str, *, copy: bool = False) -> np.ndarray:
+    """Return box extents `(N, 3)`, `N >= 1`, as floats that are finite and > 0.
+
+    Args:
+        name: What `sizes` is.
+        sizes: Array-like `(N, 3)`: each box's extents along its own x, y, z (m).
+        empty_message: The message of the error for no boxes at all.
+        copy: Always return a new array (see `as_float_array`).
+
+    Raises:
+        InputError: Naming `name`, for another shape, no boxes, or an extent that is not a
+            finite number > 0.
+    """
+    arr = as_float_array(name, sizes, copy=copy)
+    check_shape(name, arr, (None, 3))
+    if arr.shape[0] == 0:
+        raise InputError(empty_message)
+    check_finite(name, arr)
+    if np.any(arr <= 0):
+        raise InputError(f"{name} must be > 0 along every axis; got a zero or negative extent.")
+    return arr
 
 
 def _check_parents(name: str, p: Path, exists: bool) -> None:
