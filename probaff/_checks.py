@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import torch
@@ -24,7 +24,10 @@ __all__ = [
     "check_positive",
     "check_probability",
     "check_shape",
+    "default_or_instance",
 ]
+
+T = TypeVar("T")
 
 
 def _as_array(x: Any) -> np.ndarray:
@@ -219,6 +222,28 @@ def check_box_sizes(name: str, sizes: Any, empty_message: str, *, copy: bool = F
     if np.any(arr <= 0):
         raise InputError(f"{name} must be > 0 along every axis; got a zero or negative extent.")
     return arr
+
+
+def default_or_instance(
+    name: str, value: object, kind: type[T], default: Callable[[], T], what: str
+) -> T:
+    """`value` when it is a `kind`, `default()` when it is None.
+
+    Args:
+        name: What `value` is, as the user wrote it.
+        value: The argument.
+        kind: The type it must have.
+        default: Makes the value of None (called only then).
+        what: How the message names `kind`, e.g. ``"a BPOptions"``.
+
+    Raises:
+        InputError: ``"{name} must be {what} or None, got {type}."`` for anything else.
+    """
+    if value is None:
+        return default()
+    if not isinstance(value, kind):
+        raise InputError(f"{name} must be {what} or None, got {type(value).__name__}.")
+    return value
 
 
 def _check_parents(name: str, p: Path, exists: bool) -> None:
