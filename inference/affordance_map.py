@@ -7,19 +7,10 @@ Tables and figures (Figs. 3.5-3.7) go to results/affordance_map/. Every field of
     python inference/affordance_map.py [--n-maps N] [--workers K | --scheduler ADDR] [--smoke]
 """
 
-import json
 import sys
 
-from probaff._cli_errors import run_cli
 from probaff.experiments.affordance_map import SMOKE, Config, run
-from probaff.experiments.config_cli import parse_study_args
-
-
-def main() -> None:
-    """Parse the command line into a study config and run it."""
-    result = run(parse_study_args(Config, SMOKE, __doc__))
-    print(json.dumps({"files": result["files"], "computed": result["computed"]}, indent=1))
-
+from probaff.experiments.config_cli import run_study_script
 
 if __name__ == "__main__":
-    sys.exit(run_cli(main))  # a bad flag: one line on stderr, exit status 2
+    sys.exit(run_study_script(Config, SMOKE, run, __doc__, shown=("files", "computed")))

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import torch
@@ -15,6 +15,7 @@ from probaff.errors import InputError
 
 __all__ = [
     "as_float_array",
+    "check_box_sizes",
     "check_count",
     "check_finite",
     "check_number",
@@ -23,7 +24,10 @@ __all__ = [
     "check_positive",
     "check_probability",
     "check_shape",
+    "default_or_instance",
 ]
+
+T = TypeVar("T")
 
 
 def _as_array(x: Any) -> np.ndarray:
@@ -195,6 +199,51 @@ def check_probability(name: str, x: Any) -> None:
         raise InputError(
             f"{name} must lie in [0, 1]; got values in [{arr.min():.4g}, {arr.max():.4g}]."
         )
+
+
+def check_box_sizes(name: str, sizes: Any, empty_message: str, *, copy: bool = False) -> np.ndarray:
+    """Return box extents `(N, 3)`, `N >= 1`, as floats that are finite and > 0.
+
+    Args:
+        name: What `sizes` is.
+        sizes: Array-like `(N, 3)`: each box's extents along its own x, y, z (m).
+        empty_message: The message of the error for no boxes at all.
+        copy: Always return a new array (see `as_float_array`).
+
+    Raises:
+        InputError: Naming `name`, for another shape, no boxes, or an extent that is not a
+            finite number > 0.
+    """
+    arr = as_float_array(name, sizes, copy=copy)
+    check_shape(name, arr, (None, 3))
+    if arr.shape[0] == 0:
+        raise InputError(empty_message)
+    check_finite(name, arr)
+    if np.any(arr <= 0):
+        raise InputError(f"{name} must be > 0 along every axis; got a zero or negative extent.")
+    return arr
+
+
+def default_or_instance(
+    name: str, value: object, kind: type[T], default: Callable[[], T], what: str
+) -> T:
+    """`value` when it is a `kind`, `default()` when it is None.
+
+    Args:
+        name: What `value` is, as the user wrote it.
+        value: The argument.
+        kind: The type it must have.
+        default: Makes the value of None (called only then).
+        what: How the message names `kind`, e.g. ``"a BPOptions"``.
+
+    Raises:
+        InputError: ``"{name} must be {what} or None, got {type}."`` for anything else.
+    """
+    if value is None:
+        return default()
+    if not isinstance(value, kind):
+        raise InputError(f"{name} must be {what} or None, got {type(value).__name__}.")
+    return value
 
 
 def _check_parents(name: str, p: Path, exists: bool) -> None:

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
@@ -32,15 +32,30 @@ from probaff._checks import check_count, check_output_dir
 from probaff._dask import check_scheduler, check_workers
 from probaff._io import atomic_write_text
 from probaff.data import GenerateConfig, generate
+from probaff.errors import InputError
 from probaff.eval.fingerprint import settings_fingerprint
 from probaff.eval.tables import write_csv
 from probaff.eval.tasks import ResultStore, run_tasks
 from probaff.experiments.config_cli import field_settings, rebuild, with_smoke
 from probaff.sim.world_files import worlds_dir
 
-__all__ = ["StudyConfig", "StudyRun", "world_digest"]
+__all__ = ["StudyConfig", "StudyRun", "check_planners", "world_digest"]
 
 C = TypeVar("C", bound="StudyConfig")
+
+
+def check_planners(planners: Sequence[str], known: Collection[str]) -> None:
+    """Check a study's ``planners`` field: at least one, each of them among `known` (names).
+
+    Raises:
+        InputError: Naming the unknown planners (or the empty choice) and the known ones.
+    """
+    unknown = [p for p in planners if p not in known]
+    if unknown or not planners:
+        raise InputError(
+            f"planners: unknown or no planners {unknown or list(planners)}; choose from "
+            f"{list(known)}."
+        )
 
 
 def world_digest(names: Sequence[str], length: int = 6) -> str:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import re
 import sys
 import types
@@ -26,6 +27,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from probaff._cli_errors import run_cli
 from probaff.errors import InputError
 
 __all__ = [
@@ -40,6 +42,7 @@ __all__ = [
     "option_flags",
     "parse_study_args",
     "rebuild",
+    "run_study_script",
     "settings_view",
     "study_config",
     "study_parser",
@@ -512,3 +515,34 @@ def parse_study_args(
     """
     args = study_parser(config_cls, doc, prog).parse_args(argv)
     return study_config(config_cls, args, smoke)
+
+
+def run_study_script(
+    config_cls: type,
+    smoke: Mapping[str, Any],
+    run: Callable[[Any], Mapping[str, Any]],
+    doc: str,
+    shown: Sequence[str] = ("files",),
+) -> int:
+    """A study script's whole body: parse its command line, run the study, print a summary.
+
+    Use as ``sys.exit(run_study_script(Config, SMOKE, run, __doc__))`` under
+    ``if __name__ == "__main__":``; a bad flag is one line on stderr and exit status 2
+    (`probaff._cli_errors.run_cli`).
+
+    Args:
+        config_cls: The study's config dataclass.
+        smoke: Its smoke sizes.
+        run: The study's ``run(config)``; it returns a summary with the keys in `shown`.
+        doc: The script's docstring (the description of ``--help``).
+        shown: The keys of the summary printed as JSON on stdout.
+
+    Returns:
+        The exit status: 0 on success, 2 for a probaff error.
+    """
+
+    def main() -> None:
+        summary = run(parse_study_args(config_cls, smoke, doc))
+        print(json.dumps({key: summary[key] for key in shown}, indent=1))
+
+    return run_cli(main)

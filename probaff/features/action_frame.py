@@ -37,7 +37,13 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from probaff._checks import as_float_array, check_finite, check_positive, check_shape
+from probaff._checks import (
+    as_float_array,
+    check_box_sizes,
+    check_finite,
+    check_positive,
+    check_shape,
+)
 from probaff.errors import InputError
 
 __all__ = [
@@ -231,13 +237,7 @@ def box_surface(
         InputError: For malformed sizes or transforms, a spacing that is not positive, or a
             spacing so fine that the points would exceed 50 million in all.
     """
-    s = as_float_array("size", size)
-    check_shape("size", s, (None, 3))
-    if s.shape[0] == 0:
-        raise InputError("size holds no boxes; pass at least one (1, 3) size.")
-    check_finite("size", s)
-    if np.any(s <= 0):
-        raise InputError("size must be > 0 along every axis; got a zero or negative extent.")
+    s = check_box_sizes("size", size, "size holds no boxes; pass at least one (1, 3) size.")
     T = _check_transforms("T_world_box", T_world_box, s.shape[0])
     check_positive("spacing", spacing)
     m = np.maximum(np.ceil(s / float(spacing) - 1e-9), 1.0).astype(np.int64) + 1  # (N, 3)

@@ -15,7 +15,7 @@ from typing import Any
 
 import torch
 
-from probaff._checks import check_count
+from probaff._checks import check_count, default_or_instance
 from probaff.errors import InputError
 
 __all__ = [
@@ -173,9 +173,7 @@ def resolve_bp_options(options: BPOptions | None = None, **overrides: Any) -> BP
     Raises:
         InputError: For an unknown override or a value out of range.
     """
-    base = BPOptions() if options is None else options
-    if not isinstance(base, BPOptions):
-        raise InputError(f"options must be a BPOptions or None, got {type(base).__name__}.")
+    base = default_or_instance("options", options, BPOptions, BPOptions, "a BPOptions")
     names = {f.name for f in dataclasses.fields(BPOptions)}
     unknown = sorted(set(overrides) - names)
     if unknown:

@@ -21,7 +21,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from probaff._checks import check_count, check_finite, check_positive
+from probaff._checks import check_count, check_finite, check_positive, default_or_instance
 from probaff.errors import InputError
 from probaff.models.initialization import check_initialization
 
@@ -83,11 +83,8 @@ def resolve_options(
         InputError: If `options` is of another type, an override names no field, or a value
             is out of range.
     """
-    base = options_type() if options is None else options
-    if not isinstance(base, options_type):
-        raise InputError(
-            f"options must be a {options_type.__name__} or None, got {type(base).__name__}."
-        )
+    what = f"a {options_type.__name__}"
+    base = default_or_instance("options", options, options_type, options_type, what)
     names = {f.name for f in dataclasses.fields(options_type)}  # type: ignore[arg-type]
     unknown = sorted(set(overrides) - names)
     if unknown:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Self
 
 import torch
 from torch import Tensor
@@ -10,7 +10,14 @@ from torch import Tensor
 from probaff._checks import as_float_array, check_finite, check_shape
 from probaff.errors import InputError
 
-__all__ = ["as_matrix", "as_vector", "check_to_device", "resolve_device", "training_rows"]
+__all__ = [
+    "DeviceCheckedModule",
+    "as_matrix",
+    "as_vector",
+    "check_to_device",
+    "resolve_device",
+    "training_rows",
+]
 
 DeviceLike = str | torch.device | int
 
@@ -71,6 +78,28 @@ def check_to_device(args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
         device = first
     if device is not None:
         resolve_device("device", device)
+
+
+class DeviceCheckedModule(torch.nn.Module):
+    """A `torch.nn.Module` whose `to` and `cuda` refuse a device this machine does not have."""
+
+    def to(self, *args: Any, **kwargs: Any) -> Self:
+        """`torch.nn.Module.to`, refusing a device that this machine does not have.
+
+        Raises:
+            InputError: For a malformed device or one that does not exist.
+        """
+        check_to_device(args, kwargs)
+        return super().to(*args, **kwargs)
+
+    def cuda(self, device: int | torch.device | None = None) -> Self:
+        """`torch.nn.Module.cuda`, refusing a CUDA device that this machine does not have.
+
+        Raises:
+            InputError: On a machine without CUDA, or for a CUDA index it does not have.
+        """
+        resolve_device("device", "cuda" if device is None else device)
+        return super().cuda(device)
 
 
 def _as_float64(name: str, x: Any, device: torch.device | None) -> Tensor:

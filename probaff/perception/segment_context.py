@@ -235,6 +235,20 @@ def _contact_groups(pts: np.ndarray, solid: np.ndarray, cube: float) -> np.ndarr
     return group
 
 
+def _box_sides(
+    x: np.ndarray, y: np.ndarray, lo: np.ndarray, hi: np.ndarray
+) -> tuple[tuple[np.ndarray, np.ndarray, float], ...]:
+    """The four sides +x, -x, +y, -y of the box ``[lo, hi]`` seen from points at `x`, `y` (N,).
+
+    Each side is ``(ahead, across, edge)``: each point's coordinate along the side's outward
+    direction, whether it lies within the box's extent across that direction, and the
+    coordinate of the box's face along it.
+    """
+    in_x = (x >= lo[0]) & (x <= hi[0])
+    in_y = (y >= lo[1]) & (y <= hi[1])
+    return ((x, in_y, hi[0]), (-x, in_y, -lo[0]), (y, in_x, hi[1]), (-y, in_x, -lo[1]))
+
+
 def _gaps(
     pts: np.ndarray, others: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_gap: float
 ) -> list[float]:
@@ -243,17 +257,9 @@ def _gaps(
     Only the points of `others` at most ``hi[2]`` high and within the box's extent across a
     direction count; `max_gap` when none lies on a side.
     """
-    x, y = pts[:, 0], pts[:, 1]
     level = others & (pts[:, 2] <= hi[2])
-    in_x = (x >= lo[0]) & (x <= hi[0])
-    in_y = (y >= lo[1]) & (y <= hi[1])
     gaps = []
-    for side, across, edge in (
-        (x, in_y, hi[0]),
-        (-x, in_y, -lo[0]),
-        (y, in_x, hi[1]),
-        (-y, in_x, -lo[1]),
-    ):
+    for side, across, edge in _box_sides(pts[:, 0], pts[:, 1], lo, hi):
         beyond = level & across & (side > edge)
         gap = float(side[beyond].min() - edge) if beyond.any() else max_gap
         gaps.append(min(gap, max_gap))
@@ -269,16 +275,8 @@ def _group_row(
     span = hi - lo
     gaps = _gaps(pts, ~members & solid, lo, hi, opt.max_gap)
     floor = pts[~solid]
-    fx, fy = floor[:, 0], floor[:, 1]
-    in_x = (fx >= lo[0]) & (fx <= hi[0])
-    in_y = (fy >= lo[1]) & (fy <= hi[1])
     seen = []
-    for side, across, edge in (
-        (fx, in_y, hi[0]),
-        (-fx, in_y, -lo[0]),
-        (fy, in_x, hi[1]),
-        (-fy, in_x, -lo[1]),
-    ):
+    for side, across, edge in _box_sides(floor[:, 0], floor[:, 1], lo, hi):
         strip = across & (side > edge) & (side <= edge + opt.clearance)
         seen.append(np.log10(1.0 + np.count_nonzero(strip)))
     return np.array([np.log10(len(own)), *span, hi[2], *gaps, *seen])

@@ -34,7 +34,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from probaff._checks import check_count
+from probaff._checks import check_count, default_or_instance
 from probaff._threads import torch_threads
 from probaff.data.schema import PushDataset
 from probaff.errors import InputError
@@ -324,13 +324,9 @@ def fit_tool_push_model(
 
 def _check_em(em: EMOptions | None) -> EMOptions:
     """`em`, or `EMOptions()` for None; `InputError` naming `em` for anything else."""
-    if em is None:
-        return EMOptions()
-    if not isinstance(em, EMOptions):
-        raise InputError(
-            f"em must be EMOptions (e.g. EMOptions(max_iter=10)) or None, got {type(em).__name__}."
-        )
-    return em
+    return default_or_instance(
+        "em", em, EMOptions, EMOptions, "EMOptions (e.g. EMOptions(max_iter=10))"
+    )
 
 
 def _fit(

@@ -46,19 +46,20 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, fields, replace
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 import pymunk
 
 from probaff._checks import check_finite, check_positive, check_shape
-from probaff.errors import InputError
+from probaff.errors import ConfigError, InputError
 from probaff.sim import world_files as wf
 
 __all__ = [
     "HAND_MODES",
     "HAND_WORLDS",
     "HandSpec",
+    "HandWorldSpec",
     "TrackedPusher",
     "check_hand_world",
     "read_hand",
@@ -172,6 +173,45 @@ class HandSpec:
     def to_dict(self) -> dict[str, Any]:
         """Every field by name (what a dataset's ``meta["hand"]`` records)."""
         return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+class HandWorldSpec:
+    """What the world specs whose arm carries a `TrackedPusher` hand share: their ``hand``.
+
+    A frozen dataclass that derives from it has a `HandSpec` field ``hand`` and calls
+    `check_hand` from its ``__post_init__``.
+    """
+
+    hand: HandSpec
+
+    def check_hand(self, world: str, hand_mass: float, control_rate: float, substeps: int) -> None:
+        """Check that ``hand`` is a `HandSpec` that integrates stably at the physics step.
+
+        Args:
+            world: The world, for the message (e.g. ``"tabletop world"``).
+            hand_mass: The mass (kg) the hand's controller moves.
+            control_rate: The physics' control rate (Hz).
+            substeps: Physics steps per control step.
+
+        Raises:
+            ConfigError: If ``hand`` is not a `HandSpec`.
+            InputError: If the compliant hand would not integrate stably
+                (`HandSpec.check_stable`).
+        """
+        if not isinstance(self.hand, HandSpec):
+            raise ConfigError(
+                f"{type(self).__name__}.hand must be a HandSpec, got {type(self.hand).__name__}."
+            )
+        dt = 1.0 / (control_rate * substeps)
+        self.hand.check_stable(world, hand_mass, dt)
+
+    def with_hand(self, mode: str) -> Self:
+        """This world with its hand in `mode` (``"stiff"`` or ``"compliant"``).
+
+        Raises:
+            InputError: For an unknown mode.
+        """
+        return replace(self, hand=self.hand.with_mode(mode))  # type: ignore[type-var]
 
 
 def read_hand(where: str, raw: Any) -> HandSpec:

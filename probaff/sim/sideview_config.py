@@ -8,13 +8,13 @@ objects are cuboids from their own catalogue (``worlds/cuboids.yaml``, the forma
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
 
 from probaff.errors import ConfigError
 from probaff.sim import world_files as wf
-from probaff.sim.pusher import HandSpec, read_hand
+from probaff.sim.pusher import HandSpec, HandWorldSpec, read_hand
 from probaff.sim.specs import ArmSpec, ObjectSpec, load_arm_spec, load_catalogue
 from probaff.sim.world_files import CheckedSpec, Range
 
@@ -175,7 +175,7 @@ class PlaceSkillSpec(CheckedSpec):
 
 
 @dataclass(frozen=True)
-class SideViewSpec(CheckedSpec):
+class SideViewSpec(CheckedSpec, HandWorldSpec):
     """The whole side-view world (``worlds/sideview.yaml``).
 
     Attributes:
@@ -219,20 +219,12 @@ class SideViewSpec(CheckedSpec):
         super().__post_init__()
         if not math.isfinite(self.plane_y):
             raise ConfigError(f"SideViewSpec.plane_y must be finite, got {self.plane_y!r}.")
-        if not isinstance(self.hand, HandSpec):
-            raise ConfigError(
-                f"SideViewSpec.hand must be a HandSpec, got {type(self.hand).__name__}."
-            )
-        dt = 1.0 / (self.physics.control_rate * self.physics.substeps)
-        self.hand.check_stable("side-view world", self.gripper.hand_mass, dt)
-
-    def with_hand(self, mode: str) -> SideViewSpec:
-        """This world with its hand in `mode` (``"stiff"`` or ``"compliant"``).
-
-        Raises:
-            InputError: For an unknown mode.
-        """
-        return replace(self, hand=self.hand.with_mode(mode))
+        self.check_hand(
+            "side-view world",
+            self.gripper.hand_mass,
+            self.physics.control_rate,
+            self.physics.substeps,
+        )
 
 
 @dataclass(frozen=True)

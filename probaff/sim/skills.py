@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from probaff._checks import check_count
+from probaff._checks import check_count, default_or_instance
 from probaff.errors import ConfigError, InputError, UnreachablePoseError
 from probaff.sim.arm import Arm, load_arm
 from probaff.sim.inputs import check_items, check_rng, check_type
@@ -116,13 +116,9 @@ class SkillOutcome:
 
 def _world(world: object) -> SideViewSpec:
     """`world`, or ``worlds/sideview.yaml`` when None; an `InputError` for another type."""
-    if world is None:
-        return load_sideview()
-    if not isinstance(world, SideViewSpec):
-        raise InputError(
-            f"world must be a SideViewSpec (load_sideview()) or None, got {type(world).__name__}."
-        )
-    return world
+    return default_or_instance(
+        "world", world, SideViewSpec, load_sideview, "a SideViewSpec (load_sideview())"
+    )
 
 
 def _progress(distance: float, world: SideViewSpec) -> np.ndarray:

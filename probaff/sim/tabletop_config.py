@@ -10,13 +10,13 @@ Covered by tests/sim/test_sim_config.py.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
 
 from probaff.errors import ConfigError
 from probaff.sim import world_files as wf
-from probaff.sim.pusher import HandSpec, read_hand
+from probaff.sim.pusher import HandSpec, HandWorldSpec, read_hand
 from probaff.sim.specs import ArmSpec, ObjectSpec, load_arm_spec, load_catalogue
 from probaff.sim.world_files import CheckedSpec, Range
 
@@ -105,7 +105,7 @@ class PhysicsSpec(CheckedSpec):
 
 
 @dataclass(frozen=True)
-class TabletopSpec(CheckedSpec):
+class TabletopSpec(CheckedSpec, HandWorldSpec):
     """The whole top-down tabletop world (``worlds/tabletop.yaml``).
 
     Attributes:
@@ -137,20 +137,9 @@ class TabletopSpec(CheckedSpec):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if not isinstance(self.hand, HandSpec):
-            raise ConfigError(
-                f"TabletopSpec.hand must be a HandSpec, got {type(self.hand).__name__}."
-            )
-        dt = 1.0 / (self.physics.control_rate * self.physics.substeps)
-        self.hand.check_stable("tabletop world", self.gripper.mass, dt)
-
-    def with_hand(self, mode: str) -> TabletopSpec:
-        """This world with its hand in `mode` (``"stiff"`` or ``"compliant"``).
-
-        Raises:
-            InputError: For an unknown mode.
-        """
-        return replace(self, hand=self.hand.with_mode(mode))
+        self.check_hand(
+            "tabletop world", self.gripper.mass, self.physics.control_rate, self.physics.substeps
+        )
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,9 @@
-"""Helpers of the study tests: smoke runs of the study scripts, resumption, saved figures."""
+"""Helpers of the study tests: smoke runs of the study scripts, resumption, saved figures, and
+synthetic records of the affordance-map study, a Push-T worker that never shows the T."""
 
 from __future__ import annotations
 
+import base64
 import json
 import struct
 import subprocess
@@ -11,6 +13,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any, TypeVar
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -124,3 +127,76 @@ def png_chunks(data: bytes) -> list[tuple[bytes, bytes]]:
         chunks.append((data[i + 4 : i + 8], data[i + 8 : i + 8 + length]))
         i += 12 + length
     return chunks
+
+
+def loop_steps(curve: Sequence[float]) -> list[dict[str, Any]]:
+    """The step records of one affordance-map loop whose map entropy follows `curve`.
+
+    Step 0 is the map before any push; every later step pushes a real box that does not move.
+    """
+    return [
+        {
+            "step": t,
+            "entropy": h,
+            "entropy_mrf": h,
+            "accuracy": 0.8,
+            "distance": float(t),
+            "real_box": True if t else None,
+            "moved": False if t else None,
+            "observed": False if t else None,
+        }
+        for t, h in enumerate(curve)
+    ]
+
+
+def map_result(
+    index: int,
+    ig_curve: Sequence[float],
+    ex_curve: Sequence[float],
+    counts: dict[str, list[int]],
+    boxes: list[list[int]],
+    walls: list[list[int]],
+) -> dict[str, Any]:
+    """One test map's result of the affordance-map study, as its run records it.
+
+    The information-gain loop follows `ig_curve` and stops for lack of gain; the exhaustive
+    loop follows `ex_curve` and stops at its step budget.
+    """
+    curves = {"information_gain": ig_curve, "exhaustive": ex_curve}
+    stop = {"information_gain": "no_gain", "exhaustive": "max_steps"}
+    return {
+        "index": index,
+        "boxes": boxes,
+        "walls": walls,
+        "seconds": 1.0,
+        "classifier": counts,
+        "policies": {p: {"steps": loop_steps(c), "stop": stop[p]} for p, c in curves.items()},
+    }
+
+
+class BlankPushTWorker:
+    """A Push-T worker whose camera shows an empty floor: no T is ever perceived.
+
+    Attributes:
+        resets: How many times it was reset.
+        steps: Control steps taken since it was made.
+    """
+
+    def __init__(self) -> None:
+        self.resets = 0
+        self.steps = 0
+        self.image = base64.b64encode(np.full((96, 96, 3), 255, np.uint8).tobytes()).decode()
+
+    def ask(self, cmd: str, **fields: Any) -> dict[str, Any]:
+        """Answer a reset or a step call as the worker process would."""
+        state = {"agent": [100.0, 100.0], "agent_vel": [0.0, 0.0], "block": [256.0, 300.0, 0.0]}
+        seen = {"pixels_shape": [96, 96, 3], "obs": [[100.0, 100.0, 256.0, 300.0, 0.0]]}
+        if cmd == "reset":
+            self.resets += 1
+            return {**state, **seen, "pixels": self.image, "agent_pos": [100.0, 100.0],
+                    "obs": seen["obs"][0], "coverage": 0.0, "goal": [0.0, 0.0, 0.0]}  # fmt: skip
+        n = len(fields["actions"])
+        self.steps += n
+        return {**state, **seen, "pixels": [self.image] * n, "agent_pos": [[100.0, 100.0]] * n,
+                "obs": seen["obs"] * n, "coverage": [0.0] * n, "terminated": False,
+                "truncated": False, "steps": self.steps}  # fmt: skip

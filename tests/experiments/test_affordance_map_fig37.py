@@ -12,6 +12,7 @@ import re
 
 import numpy as np
 import pytest
+from study_helpers import map_result
 
 from probaff.errors import InputError
 from probaff.experiments.affordance_map import SMOKE, AffordanceMapConfig, world
@@ -24,33 +25,8 @@ COUNTS = {"tp": [8, 8, 6, 6], "fp": [2, 2, 2, 2], "fn": [2, 2, 2, 2], "tn": [4, 
 CONFIG = AffordanceMapConfig(max_steps=4, sensor="scanner")
 
 
-def _steps(curve):
-    return [
-        {
-            "step": t,
-            "entropy": h,
-            "entropy_mrf": h,
-            "accuracy": 0.8,
-            "distance": float(t),
-            "real_box": True if t else None,
-            "moved": False if t else None,
-            "observed": False if t else None,
-        }
-        for t, h in enumerate(curve)
-    ]
-
-
 def _result(index, ig_curve, ex_curve):
-    stop = {"information_gain": "no_gain", "exhaustive": "max_steps"}
-    curves = {"information_gain": ig_curve, "exhaustive": ex_curve}
-    return {
-        "index": index,
-        "boxes": [[0, 0], [0, 1]],
-        "walls": [],
-        "seconds": 1.0,
-        "classifier": COUNTS,
-        "policies": {p: {"steps": _steps(c), "stop": stop[p]} for p, c in curves.items()},
-    }
+    return map_result(index, ig_curve, ex_curve, COUNTS, [[0, 0], [0, 1]], [])
 
 
 def _early_stop_maps():

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from study_helpers import map_result
 
 from probaff.experiments.affordance_map import AffordanceMapConfig, world
 from probaff.experiments.affordance_map.demo import demo
@@ -26,37 +27,8 @@ from probaff.sim.world_files import worlds_dir
 PNG = b"\x89PNG\r\n\x1a\n"
 
 
-def _step(step, entropy, push=True):
-    return {
-        "step": step,
-        "entropy": entropy,
-        "entropy_mrf": entropy,
-        "accuracy": 0.8,
-        "distance": float(step),
-        "real_box": True if push else None,
-        "moved": False if push else None,
-        "observed": False if push else None,
-    }
-
-
 def _result(index, ig_curve, ex_curve, counts):
-    return {
-        "index": index,
-        "boxes": [[0, 0], [0, 1], [2, 2]],
-        "walls": [[0, 1]],
-        "seconds": 1.0,
-        "classifier": counts,
-        "policies": {
-            "information_gain": {
-                "steps": [_step(t, h, t > 0) for t, h in enumerate(ig_curve)],
-                "stop": "no_gain",
-            },
-            "exhaustive": {
-                "steps": [_step(t, h, t > 0) for t, h in enumerate(ex_curve)],
-                "stop": "max_steps",
-            },
-        },
-    }
+    return map_result(index, ig_curve, ex_curve, counts, [[0, 0], [0, 1], [2, 2]], [[0, 1]])
 
 
 COUNTS = {"tp": [8, 8, 6, 6], "fp": [2, 2, 2, 2], "fn": [2, 2, 2, 2], "tn": [4, 4, 4, 4]}

@@ -7,11 +7,11 @@ and the block's pose are read off real frames and scored against the state; a fr
 block is hidden is flagged, not planned on; malformed images and observations are refused.
 """
 
-import base64
 import math
 
 import numpy as np
 import pytest
+from study_helpers import BlankPushTWorker
 
 from probaff.errors import InputError
 from probaff.experiments.pusht.env import PushTEnvError, PushTWorker, pixel_observations
@@ -310,33 +310,13 @@ def test_observation_setting_is_checked():
         observer("camera", None)
 
 
-class _Blank:
-    """A worker whose camera shows an empty floor: nothing to perceive, ever."""
-
-    def __init__(self) -> None:
-        self.steps = 0
-        self.image = base64.b64encode(np.full((96, 96, 3), 255, np.uint8).tobytes()).decode()
-
-    def ask(self, cmd, **fields):
-        state = {"agent": [100.0, 100.0], "agent_vel": [0.0, 0.0], "block": [256.0, 300.0, 0.0]}
-        seen = {"pixels_shape": [96, 96, 3], "obs": [[100.0, 100.0, 256.0, 300.0, 0.0]]}
-        if cmd == "reset":
-            return {**state, **seen, "pixels": self.image, "agent_pos": [100.0, 100.0],
-                    "obs": seen["obs"][0], "coverage": 0.0, "goal": [0.0, 0.0, 0.0]}  # fmt: skip
-        n = len(fields["actions"])
-        self.steps += n
-        return {**state, **seen, "pixels": [self.image] * n, "agent_pos": [[100.0, 100.0]] * n,
-                "obs": seen["obs"] * n, "coverage": [0.0] * n, "terminated": False,
-                "truncated": False, "steps": self.steps}  # fmt: skip
-
-
 def test_an_episode_that_never_shows_the_t_ends_lost_without_planning():
     from probaff.experiments.pusht.planner import SearchSettings, run_episode
     from probaff.experiments.pusht.primitives import PrimitiveSettings
 
     spy = _Spy()
     record = run_episode(
-        _Blank(), 0, spy, SearchSettings(), PrimitiveSettings(), observation="pixels"
+        BlankPushTWorker(), 0, spy, SearchSettings(), PrimitiveSettings(), observation="pixels"
     )
     assert record["lost"] and record["pushes"] == 0 and not spy.nodes
     assert record["retreats"] == 3 and record["flagged"] == 1 and record["steps"] == 18

@@ -15,6 +15,7 @@ import importlib
 
 import numpy as np
 import pytest
+from study_helpers import BlankPushTWorker
 
 from probaff.errors import InputError, ProbaffError
 from probaff.experiments.pusht.data import (
@@ -190,30 +191,11 @@ def test_pixel_runs_are_keyed_apart_from_state_runs(recorded, tmp_path):
     assert models["analytic"].observation == "pixels"
 
 
-class _Blank:
-    """A worker whose camera shows an empty floor: no T is ever perceived."""
-
-    def __init__(self) -> None:
-        self.resets = 0
-        self.image = base64.b64encode(np.full((96, 96, 3), 255, np.uint8).tobytes()).decode()
-
-    def ask(self, cmd, **fields):
-        state = {"agent": [100.0, 100.0], "agent_vel": [0.0, 0.0], "block": [256.0, 300.0, 0.0]}
-        if cmd == "reset":
-            self.resets += 1
-            return {**state, "pixels": self.image, "pixels_shape": [96, 96, 3],
-                    "agent_pos": [100.0, 100.0], "coverage": 0.0}  # fmt: skip
-        n = len(fields["actions"])
-        return {**state, "pixels": [self.image] * n, "pixels_shape": [96, 96, 3],
-                "agent_pos": [[100.0, 100.0]] * n, "coverage": [0.0] * n, "terminated": False,
-                "truncated": False, "steps": n}  # fmt: skip
-
-
 def test_episodes_that_never_show_the_t_are_reset_then_given_up(monkeypatch):
     from probaff.experiments.pusht import data
 
     monkeypatch.setattr(data, "_MAX_LOST_RESETS", 2)  # 20 by default; each reset looks 4 times
-    blank = _Blank()
+    blank = BlankPushTWorker()
     with pytest.raises(PushTEnvError, match="2 resets in a row"):
         record_pushes(blank, chunk_rng(0, "train", 0), 1, PrimitiveSettings(), observation="pixels")
     assert blank.resets == 2  # each one looked at again after backing away, never planned on

@@ -45,6 +45,16 @@ def _predicts_as_recorded(model, expected: str) -> torch.Tensor:
     return x
 
 
+def _saved_again_is_the_same(model, expected: str, path) -> None:
+    """Check `model` against `expected`, then that saved again (GPOptions' fields under "gp")
+    it loads to the same settings and predictions."""
+    x = _predicts_as_recorded(model, expected)
+    save(model, path)
+    again = load(path)
+    assert again.gp == model.gp and again.config() == model.config()
+    assert torch.equal(again.predict(x).mean, model.predict(x).mean)
+
+
 def test_a_mixture_saved_before_the_hash_predicts_as_the_old_release_did(tmp_path):
     container = torch.load(OLD, weights_only=True)
     assert "sha256" not in container and "payload" not in container  # the old layout
@@ -85,13 +95,7 @@ def test_a_mixture_saved_with_flat_gp_settings_loads_them_as_one_gp_options(tmp_
     assert {"gp_max_iter", "lengthscale_prior", "noise_floor"}.isdisjoint(model.config())
     for expert in model.experts:
         assert expert.max_iter == 7 and expert.lengthscale_prior == 0.5
-    x = _predicts_as_recorded(model, "mixture_flat_gp_expected.npz")
-    # saved again, the file holds GPOptions' fields under "gp" and loads to the same model
-    path = tmp_path / "again.pt"
-    save(model, path)
-    again = load(path)
-    assert again.gp == model.gp and again.config() == model.config()
-    assert torch.equal(again.predict(x).mean, model.predict(x).mean)
+    _saved_again_is_the_same(model, "mixture_flat_gp_expected.npz", tmp_path / "again.pt")
 
 
 def test_the_old_releases_flat_keys_map_to_gp_options_and_missing_ones_to_the_default():
@@ -117,13 +121,7 @@ def test_a_transition_model_saved_with_flat_gp_settings_loads_them_as_one_gp_opt
         max_iter=7, lengthscale_prior=0.5, noise_floor=0.02, outputscale=0.2, noise=0.05
     )
     assert {"gp_max_iter", "lengthscale_prior", "noise_floor"}.isdisjoint(model.config())
-    x = _predicts_as_recorded(model, "transition_flat_gp_expected.npz")
-    # saved again, the file holds GPOptions' fields under "gp" and loads to the same model
-    path = tmp_path / "again.pt"
-    save(model, path)
-    again = load(path)
-    assert again.gp == model.gp and again.config() == model.config()
-    assert torch.equal(again.predict(x).mean, model.predict(x).mean)
+    _saved_again_is_the_same(model, "transition_flat_gp_expected.npz", tmp_path / "again.pt")
     # a key a file lacks takes TRANSITION_GP's value; flat keys beside "gp" are refused
     config = _saved_transition_config({"skill": "push", "gp_max_iter": 4})
     assert config["gp"] == replace(TRANSITION_GP, max_iter=4) and "gp_max_iter" not in config

@@ -11,7 +11,7 @@ import numpy as np
 
 from probaff._checks import check_count
 from probaff.errors import InputError
-from probaff.experiments.base import StudyConfig
+from probaff.experiments.base import StudyConfig, check_planners
 from probaff.experiments.config_cli import option_flags
 from probaff.models import EMOptions
 from probaff.planning import EDGE_PLANNERS, TOOL_PUSH_PLANNERS
@@ -69,12 +69,7 @@ class PlanningStudyConfig(StudyConfig):
 
     def check(self) -> dict[str, Any]:
         """Raise `InputError` for unknown planners or impossible sizes."""
-        unknown = [p for p in self.planners if p not in EDGE_PLANNERS]
-        if unknown or not self.planners:
-            raise InputError(
-                f"planners: unknown or no planners {unknown or list(self.planners)}; choose from "
-                f"{list(EDGE_PLANNERS)}."
-            )
+        check_planners(self.planners, EDGE_PLANNERS)
         check_count("train_pushes", self.train_pushes)
         if self.train_pushes < 10:
             raise InputError(f"train_pushes must be at least 10, got {self.train_pushes}.")

@@ -9,7 +9,7 @@ from typing import Any, ClassVar
 
 from probaff._checks import check_count
 from probaff.errors import InputError
-from probaff.experiments.base import StudyConfig
+from probaff.experiments.base import StudyConfig, check_planners
 from probaff.experiments.config_cli import option_flags
 from probaff.experiments.pusht.observe import OBSERVATIONS
 from probaff.experiments.pusht.planner import SearchSettings
@@ -140,12 +140,7 @@ class PushTStudyConfig(StudyConfig):
 
     def check(self) -> dict[str, Any]:
         """Raise `InputError` for unknown planners or counts that are not positive integers."""
-        unknown = [p for p in self.planners if p not in PLANNERS]
-        if unknown or not self.planners:
-            raise InputError(
-                f"planners: unknown or no planners {unknown or list(self.planners)}; choose from "
-                f"{list(PLANNERS)}."
-            )
+        check_planners(self.planners, PLANNERS)
         if self.observation not in OBSERVATIONS:
             raise InputError(
                 f"observation must be one of {list(OBSERVATIONS)}, got {self.observation!r}."

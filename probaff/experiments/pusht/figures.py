@@ -17,6 +17,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
 from probaff._io import atomic_save_figure
@@ -29,6 +30,14 @@ from probaff.experiments.pusht.geometry import (
 from probaff.experiments.pusht.scoring import DIFFUSION_POLICY
 
 __all__ = ["plot_episodes", "plot_models", "plot_success_curve"]
+
+
+def _finish(fig: Figure, path: str | Path) -> str:
+    """Lay out, save (atomically, 110 dpi) and close `fig`; return `path` as a string."""
+    fig.tight_layout()
+    atomic_save_figure(fig, path, dpi=110)
+    plt.close(fig)
+    return str(path)
 
 
 def plot_episodes(records: Sequence[dict[str, Any]], path: str | Path, per_planner: int = 3) -> str:
@@ -75,10 +84,7 @@ def plot_episodes(records: Sequence[dict[str, Any]], path: str | Path, per_plann
                 fontsize=7,
             )
     fig.suptitle("Push-T episodes: the T after every push (dark: later) and the goal (green)")
-    fig.tight_layout()
-    atomic_save_figure(fig, path, dpi=110)
-    plt.close(fig)
-    return str(path)
+    return _finish(fig, path)
 
 
 def plot_success_curve(rows: Sequence[dict[str, Any]], path: str | Path) -> str:
@@ -101,10 +107,7 @@ def plot_success_curve(rows: Sequence[dict[str, Any]], path: str | Path) -> str:
     ax.set_ylabel("success rate")
     ax.legend(fontsize=8)
     ax.set_title("Push-T success against training pushes")
-    fig.tight_layout()
-    atomic_save_figure(fig, path, dpi=110)
-    plt.close(fig)
-    return str(path)
+    return _finish(fig, path)
 
 
 def plot_models(rows: Sequence[dict[str, Any]], path: str | Path) -> str:
@@ -121,7 +124,4 @@ def plot_models(rows: Sequence[dict[str, Any]], path: str | Path) -> str:
         ax.set_ylabel(label)
         ax.legend(fontsize=8)
     fig.suptitle("Push-T push models on held-out pushes")
-    fig.tight_layout()
-    atomic_save_figure(fig, path, dpi=110)
-    plt.close(fig)
-    return str(path)
+    return _finish(fig, path)

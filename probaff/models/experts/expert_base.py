@@ -4,7 +4,8 @@ Sizes, settings, the weighted likelihood, the standardisers, the jitter and the 
 
 `probaff.models.experts.gp_expert.GPExpert` (exact) and
 `probaff.models.experts.sparse_expert.SparseGPExpert` (inducing points) derive from
-`WeightedExpert`; each adds its kernel and its own fit.
+`WeightedExpert`; each adds its kernel, its `condition` and its hyperparameter search, which
+`WeightedExpert.fit` runs after it.
 """
 
 from __future__ import annotations
@@ -19,12 +20,13 @@ from torch import Tensor
 from torch.distributions import Normal
 
 from probaff._checks import check_count, check_finite
+from probaff._threads import threads_by_rows
 from probaff.errors import InputError
 from probaff.models._scaling import Standardizer
 from probaff.models.experts.kernels import lengthscale_prior
 from probaff.models.experts.likelihood import WeightedGaussianLikelihood
 from probaff.models.options import AUTO_NOISE_FLOOR, NOISE_BOUNDS, GPOptions
-from probaff.models.tensors import as_matrix, as_vector, check_to_device, resolve_device
+from probaff.models.tensors import DeviceCheckedModule, as_matrix, as_vector
 
 __all__ = ["WeightedExpert", "noise_floor_vector", "out_of_sample", "training_noise_floor"]
 
@@ -80,7 +82,7 @@ def training_noise_floor(
     return noise_floor_vector(noise_floor, targets.shape[1])
 
 
-class WeightedExpert(torch.nn.Module):
+class WeightedExpert(DeviceCheckedModule):
     r"""Base of the GP experts: `E` outputs of `D` features with per-sample noise weights.
 
     Sample `i` of weight :math:`w_i > 0` has noise variance :math:`\sigma^2 / w_i`
@@ -139,24 +141,6 @@ class WeightedExpert(torch.nn.Module):
         """The device of the expert's parameters, where it fits and predicts."""
         return self.jitter.device
 
-    def to(self, *args: Any, **kwargs: Any) -> Self:
-        """`torch.nn.Module.to`, refusing a device that this machine does not have.
-
-        Raises:
-            InputError: For a malformed device or one that does not exist.
-        """
-        check_to_device(args, kwargs)
-        return super().to(*args, **kwargs)
-
-    def cuda(self, device: int | torch.device | None = None) -> Self:
-        """`torch.nn.Module.cuda`, refusing a CUDA device that this machine does not have.
-
-        Raises:
-            InputError: On a machine without CUDA, or for a CUDA index it does not have.
-        """
-        resolve_device("device", "cuda" if device is None else device)
-        return super().cuda(device)
-
     def weighted_rows(self, X: Any, Y: Any, weights: Any | None) -> tuple[Tensor, Tensor, Tensor]:
         """Validate a weighted training set and set the scalers, noise floor and weights.
 
@@ -197,6 +181,49 @@ class WeightedExpert(torch.nn.Module):
         self.likelihood.noise_covar.floor.copy_(floor[:, None])
         self.likelihood.weights = w
         return x, y, w
+
+    def condition(self, X: Any, Y: Any, weights: Any | None = None) -> Self:
+        """Set the training data without changing the hyperparameters (each subclass's own).
+
+        Args:
+            X: Features, `(N, D)`.
+            Y: Targets, `(N, E)`.
+            weights: Non-negative sample weights, `(N,)`; all 1 if ``None``.
+
+        Returns:
+            This expert.
+
+        Raises:
+            InputError: On malformed inputs or if every weight is zero.
+        """
+        raise NotImplementedError
+
+    @threads_by_rows("X")
+    def fit(
+        self, X: Any, Y: Any, weights: Any | None = None, *, max_iter: int | None = None
+    ) -> Self:
+        """Set the training data (`condition`) and fit the hyperparameters to it.
+
+        `GPExpert` maximises the weighted marginal likelihood; `SparseGPExpert` chooses its
+        inducing inputs, then maximises its bound. Both warm-start from the current
+        hyperparameters.
+
+        Args:
+            X: Features, `(N, D)`.
+            Y: Targets, `(N, E)`.
+            weights: Non-negative sample weights, `(N,)`; all 1 if ``None``.
+            max_iter: L-BFGS iterations; defaults to the constructor's `max_iter`.
+
+        Returns:
+            This expert.
+        """
+        self.condition(X, Y, weights)
+        self._fit_hyperparameters(self.max_iter if max_iter is None else int(max_iter))
+        return self
+
+    def _fit_hyperparameters(self, max_iter: int) -> None:
+        """The search `fit` runs on the data `condition` set (each subclass's own)."""
+        raise NotImplementedError
 
     def predict(self, X: Any, *, include_noise: bool = True) -> Normal:
         """Predictive distribution of the outputs at `X` (each subclass's own).

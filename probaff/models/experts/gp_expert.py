@@ -6,7 +6,7 @@ import contextlib
 import math
 import warnings
 from collections.abc import Generator, Iterator
-from typing import Any, TypeAlias
+from typing import Any, Self, TypeAlias
 
 import gpytorch
 import numpy as np
@@ -18,7 +18,6 @@ from linear_operator.utils.errors import NanError, NotPSDError
 from torch import Tensor
 from torch.distributions import Normal
 
-from probaff._threads import threads_by_rows
 from probaff.errors import NotFittedError
 from probaff.models.experts.expert_base import WeightedExpert, noise_floor_vector
 from probaff.models.experts.gaussian_density import gaussian_log_density, loo_moments, psd_cholesky
@@ -169,49 +168,25 @@ class GPExpert(WeightedExpert):
         """Number of training samples with non-zero weight held by the GP."""
         return 0 if self.gp.train_targets is None else int(self.gp.train_targets.shape[-1])
 
-    def condition(self, X: Any, Y: Any, weights: Any | None = None) -> GPExpert:
+    def condition(self, X: Any, Y: Any, weights: Any | None = None) -> Self:
         """Set the training data without changing the hyperparameters.
 
-        Args:
-            X: Features, `(N, D)`.
-            Y: Targets, `(N, E)`.
-            weights: Non-negative sample weights, `(N,)`; all 1 if ``None``.
-
-        Returns:
-            This expert.
-
-        Raises:
-            InputError: On malformed inputs or if every weight is zero.
+        The arguments, result and errors are those of `WeightedExpert.condition`.
         """
         x, y, _ = self.weighted_rows(X, Y, weights)
         self.gp.set_train_data(self.x_scaler(x), self.y_scaler(y).T.contiguous(), strict=False)
         return self
 
     # ---------------------------------------------------------------- fitting
-    @threads_by_rows("X")
-    def fit(
-        self, X: Any, Y: Any, weights: Any | None = None, *, max_iter: int | None = None
-    ) -> GPExpert:
-        """Set the training data and maximise the weighted marginal likelihood.
-
-        Args:
-            X: Features, `(N, D)`.
-            Y: Targets, `(N, E)`.
-            weights: Non-negative sample weights, `(N,)`; all 1 if ``None``.
-            max_iter: L-BFGS iterations; defaults to the constructor's `max_iter`.
-
-        Returns:
-            This expert.
-        """
-        self.condition(X, Y, weights)
-        if not self.optimise(self.max_iter if max_iter is None else int(max_iter)):
+    def _fit_hyperparameters(self, max_iter: int) -> None:
+        """`fit`'s search: `optimise`, with a warning if every jitter level failed."""
+        if not self.optimise(max_iter):
             warnings.warn(
                 "GP hyperparameter optimisation failed at every jitter level; the previous "
                 "hyperparameters are kept.",
                 RuntimeWarning,
-                stacklevel=2,
+                stacklevel=3,  # the caller of `fit`, as when `fit` itself warned
             )
-        return self
 
     def optimise(self, max_iter: int) -> bool:
         """Maximise the weighted marginal likelihood from the current hyperparameters.

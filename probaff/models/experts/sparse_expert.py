@@ -23,13 +23,12 @@ import os
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, Self
 
 import torch
 from torch import Tensor
 from torch.distributions import Normal
 
-from probaff._threads import threads_by_rows
 from probaff.errors import InputError, NotFittedError
 from probaff.models.experts.expert_base import WeightedExpert
 from probaff.models.experts.kernels import ard_se_kernel
@@ -346,23 +345,13 @@ class SparseGPExpert(WeightedExpert):
         g = torch.Generator().manual_seed(n)
         return torch.randperm(n, generator=g)[:k].sort().values.to(self.train_x.device)
 
-    def condition(self, X: Any, Y: Any, weights: Any | None = None) -> SparseGPExpert:
+    def condition(self, X: Any, Y: Any, weights: Any | None = None) -> Self:
         """Set the training data without changing the hyperparameters.
 
         The inducing inputs are kept when their number is still ``min(n_inducing, n)`` for
         the `n` samples of non-zero weight, and chosen by `select_inducing` otherwise (e.g.
-        on the first call).
-
-        Args:
-            X: Features, `(N, D)`.
-            Y: Targets, `(N, E)`.
-            weights: Non-negative sample weights, `(N,)`; all 1 if ``None``.
-
-        Returns:
-            This expert.
-
-        Raises:
-            InputError: On malformed inputs or if every weight is zero.
+        on the first call). The arguments, result and errors are those of
+        `WeightedExpert.condition`.
         """
         x, y, _ = self.weighted_rows(X, Y, weights)
         m = self._target_inducing(x.shape[0])
@@ -388,26 +377,11 @@ class SparseGPExpert(WeightedExpert):
             self.inducing.data = z
 
     # ---------------------------------------------------------------- fitting
-    @threads_by_rows("X")
-    def fit(
-        self, X: Any, Y: Any, weights: Any | None = None, *, max_iter: int | None = None
-    ) -> SparseGPExpert:
-        """Set the training data, choose the inducing inputs and maximise the bound.
-
-        Args:
-            X: Features, `(N, D)`.
-            Y: Targets, `(N, E)`.
-            weights: Non-negative sample weights, `(N,)`; all 1 if ``None``.
-            max_iter: L-BFGS iterations; defaults to the constructor's `max_iter`.
-
-        Returns:
-            This expert.
-        """
-        self.condition(X, Y, weights)
+    def _fit_hyperparameters(self, max_iter: int) -> None:
+        """`fit`'s search: choose the inducing inputs, then maximise the bound."""
         rows = self._hyper_subset()
         self._select(self._target_inducing(self.n_train), rows)
-        self._optimise(self.max_iter if max_iter is None else int(max_iter), rows)
-        return self
+        self._optimise(max_iter, rows)
 
     def _kernel_parts(self) -> tuple[Tensor, Tensor, Tensor]:
         """`1 / l^2` `(E, 1, D)`, the signal variances `(E,)` and `K_uu + jitter` `(E, m, m)`."""
@@ -484,7 +458,7 @@ class SparseGPExpert(WeightedExpert):
             "sparse GP hyperparameter optimisation failed at every jitter level; the previous "
             "hyperparameters are kept.",
             RuntimeWarning,
-            stacklevel=3,
+            stacklevel=4,  # the caller of `fit`
         )
 
     def _lbfgs(

@@ -204,10 +204,7 @@ class SoftmaxGate(torch.nn.Module):
         Raises:
             NotFittedError: If ``l2="cv"`` and the gate was never fitted.
         """
-        if self.l2 != "cv":
-            return float(self.l2)
-        self._check_chosen("l2")
-        return float(self.chosen_l2)
+        return self._penalty("l2")
 
     @property
     def l1_(self) -> float:
@@ -216,16 +213,18 @@ class SoftmaxGate(torch.nn.Module):
         Raises:
             NotFittedError: If ``l1="cv"`` and the gate was never fitted.
         """
-        if self.l1 != "cv":
-            return float(self.l1)
-        self._check_chosen("l1")
-        return float(self.chosen_l1)
+        return self._penalty("l1")
 
-    def _check_chosen(self, name: str) -> None:
+    def _penalty(self, name: str) -> float:
+        """The penalty `name` (``"l1"`` or ``"l2"``), or the one cross-validation chose."""
+        value = getattr(self, name)
+        if value != "cv":
+            return float(value)
         if not bool(self.fitted):
             raise NotFittedError(
                 f"{type(self).__name__} chooses {name} by cross-validation in fit; call fit first."
             )
+        return float(getattr(self, f"chosen_{name}"))
 
     def basis(self, x: Tensor) -> Tensor:
         r"""Differentiable basis :math:`\phi(z)` of raw gate features.

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import abc
 from collections.abc import Iterable, Iterator
-from typing import Any, ClassVar, Generic, Self, TypeVar, cast, overload
+from typing import Any, ClassVar, Generic, TypeVar, cast, overload
 
 import torch
 from torch import Tensor
@@ -26,7 +26,7 @@ from probaff.models.columns import (
     resolve_groups,
 )
 from probaff.models.gates.gate import SoftmaxGate
-from probaff.models.tensors import as_matrix, check_to_device, resolve_device
+from probaff.models.tensors import DeviceCheckedModule, as_matrix
 
 __all__ = [
     "ExpertList",
@@ -137,7 +137,7 @@ class ExpertList(torch.nn.ModuleList, Generic[ExpertT]):
         return iter(cast("list[ExpertT]", list(self._modules.values())))
 
 
-class GatedMixture(torch.nn.Module, Generic[ExpertT], metaclass=abc.ABCMeta):
+class GatedMixture(DeviceCheckedModule, Generic[ExpertT], metaclass=abc.ABCMeta):
     r"""A softmax-gated mixture of `M` experts, the base of the mixtures of GP experts.
 
     :math:`p(e \mid f) = \sum_j g_j(f_g)\, p_j(e \mid f_e)`.
@@ -145,6 +145,10 @@ class GatedMixture(torch.nn.Module, Generic[ExpertT], metaclass=abc.ABCMeta):
     chosen by index or by the names of column groups (see `probaff.models.columns`).
     Subclasses create `gate` and `experts` when they are fitted, and implement `is_fitted`
     and `expert_predictions`; `gate_probs` and `predict` are built on them.
+
+    `to` and `cuda` refuse a device that this machine does not have. A fit runs on the device
+    of its training data, so after ``model.to(device)`` fit with data on that device;
+    predictions move their inputs to the mixture's device.
 
     Args:
         n_experts: Number of experts `M`.
@@ -235,27 +239,6 @@ class GatedMixture(torch.nn.Module, Generic[ExpertT], metaclass=abc.ABCMeta):
         for buffer in self.buffers():
             return buffer.device
         return torch.device("cpu")
-
-    def to(self, *args: Any, **kwargs: Any) -> Self:
-        """`torch.nn.Module.to`, refusing a device that this machine does not have.
-
-        A fit runs on the device of its training data, so after ``model.to(device)`` fit
-        with data on that device; predictions move their inputs to the mixture's device.
-
-        Raises:
-            InputError: For a malformed device or one that does not exist.
-        """
-        check_to_device(args, kwargs)
-        return super().to(*args, **kwargs)
-
-    def cuda(self, device: int | torch.device | None = None) -> Self:
-        """`torch.nn.Module.cuda`, refusing a CUDA device that this machine does not have.
-
-        Raises:
-            InputError: On a machine without CUDA, or for a CUDA index it does not have.
-        """
-        resolve_device("device", "cuda" if device is None else device)
-        return super().cuda(device)
 
     # ---------------------------------------------------------------- fitted
     @property

@@ -21,7 +21,13 @@ import numpy as np
 import torch
 from torch.distributions import MultivariateNormal
 
-from probaff._checks import as_float_array, check_count, check_finite, check_shape
+from probaff._checks import (
+    as_float_array,
+    check_box_sizes,
+    check_count,
+    check_finite,
+    check_shape,
+)
 from probaff.errors import InputError
 from probaff.models.transitions.transition_base import SKILLS
 
@@ -164,13 +170,12 @@ class ChainScene:
     order: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
-        sizes = as_float_array("sizes", self.sizes, copy=True)
-        check_shape("sizes", sizes, (None, 3))
-        if sizes.shape[0] == 0:
-            raise InputError("sizes holds no objects; give at least one (1, 3) box size.")
-        check_finite("sizes", sizes)
-        if np.any(sizes <= 0):
-            raise InputError("sizes must be > 0 along every axis; got a zero or negative extent.")
+        sizes = check_box_sizes(
+            "sizes",
+            self.sizes,
+            "sizes holds no objects; give at least one (1, 3) box size.",
+            copy=True,
+        )
         k = sizes.shape[0]
         T_obj = _rigid("T_world_obj", self.T_world_obj, (k, 4, 4))
         points = _points("hand_points", self.hand_points)

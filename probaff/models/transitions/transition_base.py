@@ -14,6 +14,7 @@ import torch
 from torch import Tensor
 from torch.distributions import Distribution, Independent, MixtureSameFamily, Normal
 
+from probaff._checks import default_or_instance
 from probaff.errors import InputError
 from probaff.models.experts.gp_expert import GPExpert, exact_gp_settings
 from probaff.models.mixture.em import EMHistory
@@ -202,13 +203,13 @@ def training_pair(X: Any, Y: Any) -> tuple[Tensor, Tensor]:
 
 def check_generator(generator: Any) -> torch.Generator:
     """`generator`, or a fresh one seeded with `DEFAULT_SEED` when it is ``None``."""
-    if generator is None:
-        return torch.Generator().manual_seed(DEFAULT_SEED)
-    if not isinstance(generator, torch.Generator):
-        raise InputError(
-            f"generator must be a torch.Generator or None, got {type(generator).__name__}."
-        )
-    return generator
+    return default_or_instance(
+        "generator",
+        generator,
+        torch.Generator,
+        lambda: torch.Generator().manual_seed(DEFAULT_SEED),
+        "a torch.Generator",
+    )
 
 
 # ------------------------------------------------------------------ history
