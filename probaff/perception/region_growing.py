@@ -17,9 +17,18 @@ follows PCL's algorithm:
    and it is counted in `Segmentation.n_small`.
 
 One region is grown to completion before the next one starts, so the set of points a region
-takes does not depend on the order its seeds are expanded in. Growth goes one breadth-first
-level at a time: a small level point by point over Python lists (cheap for the many tiny
-regions of a noisy scan), a large one in one numpy step.
+takes does not depend on the order its seeds are expanded in. When every point may seed (the
+default curvature threshold, above every surface variation), the regions follow from the
+directed graph of smooth links (point -> each neighbour that passes the smoothness test) without
+growing them one by one: a point ends in the region of the first point, in curvature order,
+among the points it can be reached from (that point starts a region, since no earlier start
+reaches it, and no earlier start reaches the point). The graph's strongly connected components
+(``scipy.sparse.csgraph``) share their reachers, so this first reacher is a minimum propagated
+over the few links between components. With a lower threshold, points that may not seed end
+the growth, and the regions are grown one at a time (as they are for given neighbour lists that
+name one neighbour twice, on which scipy's components do not return): one breadth-first level
+at a time, a small level point by point over Python lists (cheap for the many tiny regions of
+a noisy scan), a large one in one numpy step. Both give the same segments.
 
 Frames and units: points in the robot frame (x forward, z up), metres; normals unit vectors in
 that frame; curvature is PCL's surface variation (`probaff.perception.normals`).
@@ -42,6 +51,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from probaff._checks import as_float_array, check_count, check_positive, check_shape
@@ -129,9 +140,13 @@ def _given_neighbours(
             f"neighbours has {arr.shape[1]} column(s), fewer than k={k}; estimate the normals "
             "with at least k neighbours or lower k."
         )
-    sub = arr[keep, :k].astype(np.int64)
-    if sub.size and (sub.min() < -1 or sub.max() >= n):
+    every = len(keep) == n
+    sub = np.asarray(arr[:, :k] if every else arr[keep, :k], dtype=np.int64)
+    low = int(sub.min()) if sub.size else 0
+    if sub.size and (low < -1 or sub.max() >= n):
         raise InputError(f"neighbours must index rows 0..{n - 1} of points (or be -1).")
+    if every and low >= 0:  # every row usable and linked: the indices are the points' own
+        return sub, np.ones(sub.shape, dtype=bool)
     position = np.full(n + 1, -1, dtype=np.int64)  # the last slot answers index -1
     position[keep] = np.arange(len(keep))
     mapped = position[sub]
@@ -189,6 +204,67 @@ def _grow(
             frontier = cand[can_seed[cand]].tolist()
         sizes.append(size)
     return region, sizes
+
+
+def _distinct(nbrs: np.ndarray, linked: np.ndarray) -> bool:
+    """Whether no point lists one neighbour twice among its (M, k) linked `nbrs`.
+
+    ``scipy.sparse.csgraph``'s strongly connected components do not return on a graph with a
+    repeated link, so given neighbour lists with repeats are grown one region at a time.
+    """
+    if not linked.all():
+        nbrs = np.where(linked, nbrs, -1 - np.arange(nbrs.shape[1]))  # distinct fillers
+    ordered = np.sort(nbrs, axis=1)
+    return not bool(np.any(ordered[:, 1:] == ordered[:, :-1]))
+
+
+def _grow_all_seeds(
+    nbrs: np.ndarray, smooth: np.ndarray, order: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Grow regions when every point may seed, from the graph of smooth links.
+
+    The region of a point is the one started by the first point in `order` among those it
+    can be reached from (itself included) along smooth links, as the module docstring shows;
+    the points of a strongly connected component share that first reacher, which is then
+    passed down the links between components until it no longer changes. The result is the
+    one of `_grow` with every point a seed.
+
+    Args:
+        nbrs: (M, k) neighbour indices of each point.
+        smooth: (M, k) whether each neighbour passes the smoothness test with its point.
+        order: (M,) points in the order they may start a region.
+
+    Returns:
+        (M,) region index of every point, regions numbered in the order their first point
+        comes in `order`, and the (R,) size of each region.
+    """
+    m = len(nbrs)
+    rank = np.empty(m, dtype=np.int64)
+    rank[order] = np.arange(m)
+    counts = np.count_nonzero(smooth, axis=1)
+    indptr = np.zeros(m + 1, dtype=np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    targets = nbrs[smooth]
+    index = np.int32 if m < np.iinfo(np.int32).max else np.int64  # csgraph's own index type
+    graph = csr_matrix(  # float64 links: the type csgraph works in, so it copies nothing
+        (np.ones(len(targets)), targets.astype(index), indptr.astype(index)), shape=(m, m)
+    )
+    n_comp, comp = connected_components(graph, directed=True, connection="strong")
+    first = np.full(n_comp, m, dtype=np.int64)
+    np.minimum.at(first, comp, rank)
+    src, dst = np.repeat(comp, counts), comp[targets]
+    across = src != dst
+    src, dst = src[across], dst[across]
+    while src.size:  # at most as many passes as the longest chain of components
+        passed = first.copy()
+        np.minimum.at(passed, dst, first[src])
+        if np.array_equal(passed, first):
+            break
+        first = passed
+    start = np.zeros(m, dtype=bool)  # by rank: whether that point starts a region
+    start[first] = True
+    region = (np.cumsum(start) - 1)[first[comp]]
+    return region, np.bincount(region, minlength=int(np.count_nonzero(start)))
 
 
 def region_growing(
@@ -253,13 +329,22 @@ def region_growing(
     else:
         nbrs, linked = _given_neighbours(neighbours, valid, keep, k)
     cos_thr = math.cos(math.radians(angle))
-    nv32 = nv.astype(np.float32)  # halves the (M, k, 3) gather; ample for an angle test
-    smooth = np.abs(np.einsum("ij,ikj->ik", nv32, nv32[nbrs])) >= np.float32(cos_thr)
+    # float32 halves the gathers and is ample for an angle test; one (M, k) gather per axis
+    # beats one (M, k, 3) gather and an einsum
+    nv32 = nv.astype(np.float32)
+    dot = np.zeros(nbrs.shape, dtype=np.float32)
+    for axis in range(3):
+        column = np.ascontiguousarray(nv32[:, axis])
+        dot += column[nbrs] * column[:, None]
+    smooth = np.abs(dot) >= np.float32(cos_thr)
     smooth &= linked
     can_seed = cv <= float(curvature_threshold)
     order = np.argsort(cv, kind="stable")
-    region, sizes = _grow(nbrs, smooth, can_seed, order)
-    size_arr = np.asarray(sizes, dtype=np.int64)
+    if can_seed.all() and (neighbours is None or _distinct(nbrs, linked)):
+        region, size_arr = _grow_all_seeds(nbrs, smooth, order)
+    else:
+        region, sizes = _grow(nbrs, smooth, can_seed, order)
+        size_arr = np.asarray(sizes, dtype=np.int64)
     kept = size_arr >= min_size
     remap = np.full(len(size_arr), -1, dtype=np.int64)
     remap[kept] = np.arange(int(kept.sum()))

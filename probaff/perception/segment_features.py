@@ -156,12 +156,34 @@ def _orient(normals: np.ndarray, cent: np.ndarray, viewpoint: np.ndarray | None)
     return out
 
 
+_BY_X = 4096  # segments of more points are sorted by x once, so a box cuts a slice of them
+
+
+def _within(points: np.ndarray, lo: np.ndarray, hi: np.ndarray, limit: float) -> np.ndarray:
+    """The points of (n, 3) `points` inside the box ``[lo - limit, hi + limit]``, as (m, 3).
+
+    `points` of more than `_BY_X` rows must be sorted by x: only the slice of them in the
+    box's x range is tested.
+    """
+    low, high = lo - limit, hi + limit
+    if len(points) > _BY_X:
+        x = points[:, 0]
+        points = points[np.searchsorted(x, low[0]) : np.searchsorted(x, high[0], side="right")]
+    inside = np.all((points >= low) & (points <= high), axis=1)
+    return points[inside]
+
+
 def _shortest_distances(
     groups: list[np.ndarray], lo: np.ndarray, hi: np.ndarray, limit: float
 ) -> np.ndarray:
     """Shortest point-to-point distance between every pair of segments, up to `limit`.
 
-    Pairs whose bounding boxes lie further apart than `limit` are not searched.
+    Pairs whose bounding boxes lie further apart than `limit` are not searched. For the others,
+    only points that can lie within `limit` of the other segment are searched: those of the
+    smaller segment inside the larger one's box widened by `limit`, and those of the larger
+    inside the box of the former widened by `limit` (a segment of more than `_BY_X` points is
+    sorted by x once, so each box cuts a slice of it). A KD-tree of the larger of these two sets
+    is queried with the other; the distances are the tree's, the same whichever side it holds.
 
     Args:
         groups: S arrays (n_s, 3) of each segment's points.
@@ -178,16 +200,18 @@ def _shortest_distances(
     )
     near = np.linalg.norm(gap, axis=2) <= limit
     dist = np.full((s, s), np.inf)
-    trees: dict[int, cKDTree] = {}
+    ready = [g[np.argsort(g[:, 0], kind="stable")] if len(g) > _BY_X else g for g in groups]
     for i, j in zip(*np.nonzero(np.triu(near, 1)), strict=True):
         a, b = (int(i), int(j)) if len(groups[i]) <= len(groups[j]) else (int(j), int(i))
-        query = groups[a]
-        inside = np.all((query >= lo[b] - limit) & (query <= hi[b] + limit), axis=1)
-        if not inside.any():
+        query = _within(ready[a], lo[b], hi[b], limit)
+        if not len(query):
             continue
-        if b not in trees:
-            trees[b] = cKDTree(groups[b])
-        d, _ = trees[b].query(query[inside], k=1, distance_upper_bound=limit)
+        found = _within(ready[b], query.min(axis=0), query.max(axis=0), limit)
+        if not len(found):
+            continue
+        if len(found) < len(query):
+            query, found = found, query
+        d, _ = cKDTree(found).query(query, k=1, distance_upper_bound=limit)
         best = float(np.min(d))
         if best <= limit:
             dist[a, b] = dist[b, a] = best
