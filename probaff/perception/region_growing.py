@@ -83,8 +83,13 @@ class Segmentation:
 
 def _validate(
     points: ArrayLike, normals: ArrayLike, curvature: ArrayLike
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Check the inputs and return them as float arrays with the (N,) mask of usable rows."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Check the inputs.
+
+    Returns:
+        The (N, 3) points, (N, 3) normals and (N,) curvature as float arrays, the (N,) mask of
+        usable rows (no NaN) and the (N,) lengths of the normals.
+    """
     pts = as_float_array("points", points)
     nrm = as_float_array("normals", normals)
     cur = as_float_array("curvature", curvature)
@@ -94,22 +99,26 @@ def _validate(
         raise InputError("points is an empty cloud; give at least one point of shape (N, 3).")
     check_shape("normals", nrm, (n, 3))
     check_shape("curvature", cur, (n,))
-    for name, arr in (("points", pts), ("normals", nrm), ("curvature", cur)):
-        if np.isinf(arr).any():
+    arrays = (("points", pts), ("normals", nrm), ("curvature", cur))
+    finite = [np.isfinite(arr) for _, arr in arrays]
+    for (name, arr), fin in zip(arrays, finite, strict=True):
+        if not fin.all() and np.isinf(arr).any():
             raise InputError(f"{name} contains infinite values; replace them with NaN or remove.")
-    valid = ~(np.isnan(pts).any(axis=1) | np.isnan(nrm).any(axis=1) | np.isnan(cur))
+    fp, fn, fc = finite  # without infinities, finite means without NaN
+    valid = fp[:, 0] & fp[:, 1] & fp[:, 2] & fn[:, 0] & fn[:, 1] & fn[:, 2] & fc
     if not valid.any():
         raise InputError(
             "points, normals and curvature have no row without NaN; give finite points and "
             "their normals from estimate_normals."
         )
-    flat = np.flatnonzero(valid & (np.linalg.norm(np.nan_to_num(nrm), axis=1) < 1e-9))
+    length = np.linalg.norm(nrm, axis=1)
+    flat = np.flatnonzero(valid & (length < 1e-9))
     if flat.size:
         raise InputError(
             f"normals has {flat.size} row(s) of zero length (the first is row {flat[0]}); give "
             "unit normals, e.g. from estimate_normals, or NaN for a point without one."
         )
-    return pts, nrm, cur, valid
+    return pts, nrm, cur, valid, length
 
 
 def _given_neighbours(
@@ -316,11 +325,13 @@ def region_growing(
             "default is 3."
         )
     check_positive("curvature_threshold", curvature_threshold)
-    pts, nrm, cur, valid = _validate(points, normals, curvature)
+    pts, nrm, cur, valid, length = _validate(points, normals, curvature)
     keep = np.flatnonzero(valid)
-    p, nv, cv = pts[keep], nrm[keep], cur[keep]
-    norm = np.linalg.norm(nv, axis=1, keepdims=True)
-    nv = nv / np.where(norm > 0, norm, 1.0)
+    if len(keep) == len(pts):  # every row usable: no copies
+        p, nv, cv, norm = pts, nrm, cur, length
+    else:
+        p, nv, cv, norm = pts[keep], nrm[keep], cur[keep], length[keep]
+    nv = nv / np.where(norm > 0, norm, 1.0)[:, None]
     if neighbours is None:
         kk = min(k, len(p))
         _, idx = cKDTree(p).query(p, k=kk)
