@@ -61,6 +61,7 @@ from probaff.errors import InputError
 __all__ = ["Segmentation", "region_growing"]
 
 _SMALL_FRONTIER = 32  # frontiers smaller than this are expanded in Python, larger in numpy
+_MAX_PASSES = 64  # passes of the first reacher between components before `_grow` takes over
 
 
 @dataclass(frozen=True)
@@ -229,14 +230,16 @@ def _distinct(nbrs: np.ndarray, linked: np.ndarray) -> bool:
 
 def _grow_all_seeds(
     nbrs: np.ndarray, smooth: np.ndarray, order: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray] | None:
     """Grow regions when every point may seed, from the graph of smooth links.
 
     The region of a point is the one started by the first point in `order` among those it
     can be reached from (itself included) along smooth links, as the module docstring shows;
     the points of a strongly connected component share that first reacher, which is then
     passed down the links between components until it no longer changes. The result is the
-    one of `_grow` with every point a seed.
+    one of `_grow` with every point a seed. Each pass moves it one link further, so a graph
+    whose components form a chain longer than `_MAX_PASSES` links (none does on a scan: at
+    most 16 passes on office scans) is left to `_grow`, which is linear in the points.
 
     Args:
         nbrs: (M, k) neighbour indices of each point.
@@ -245,7 +248,7 @@ def _grow_all_seeds(
 
     Returns:
         (M,) region index of every point, regions numbered in the order their first point
-        comes in `order`, and the (R,) size of each region.
+        comes in `order`, and the (R,) size of each region; None after `_MAX_PASSES` passes.
     """
     m = len(nbrs)
     rank = np.empty(m, dtype=np.int64)
@@ -264,12 +267,16 @@ def _grow_all_seeds(
     src, dst = np.repeat(comp, counts), comp[targets]
     across = src != dst
     src, dst = src[across], dst[across]
-    while src.size:  # at most as many passes as the longest chain of components
+    for _ in range(_MAX_PASSES + 1):  # as many passes as the longest chain of components
+        if not src.size:
+            break
         passed = first.copy()
         np.minimum.at(passed, dst, first[src])
         if np.array_equal(passed, first):
             break
         first = passed
+    else:
+        return None
     start = np.zeros(m, dtype=bool)  # by rank: whether that point starts a region
     start[first] = True
     region = (np.cumsum(start) - 1)[first[comp]]
@@ -351,11 +358,14 @@ def region_growing(
     smooth &= linked
     can_seed = cv <= float(curvature_threshold)
     order = np.argsort(cv, kind="stable")
+    grown = None
     if can_seed.all() and (neighbours is None or _distinct(nbrs, linked)):
-        region, size_arr = _grow_all_seeds(nbrs, smooth, order)
-    else:
+        grown = _grow_all_seeds(nbrs, smooth, order)
+    if grown is None:
         region, sizes = _grow(nbrs, smooth, can_seed, order)
         size_arr = np.asarray(sizes, dtype=np.int64)
+    else:
+        region, size_arr = grown
     kept = size_arr >= min_size
     remap = np.full(len(size_arr), -1, dtype=np.int64)
     remap[kept] = np.arange(int(kept.sum()))

@@ -203,10 +203,26 @@ def test_graph_growth_gives_the_regions_of_growing_one_at_a_time(seed):
     nbrs = (np.arange(m)[:, None] + np.c_[np.zeros(m, int), offsets[pick[:, : k - 1]]]) % m
     smooth = rng.random((m, k)) < (0.35 + 0.1 * seed)  # asymmetric links, many tiny regions
     order = rng.permutation(m)
-    region, sizes = _RG._grow_all_seeds(nbrs, smooth, order)
+    grown = _RG._grow_all_seeds(nbrs, smooth, order)
+    assert grown is not None
+    region, sizes = grown
     expected, expected_sizes = _RG._grow(nbrs, smooth, np.ones(m, dtype=bool), order)
     assert np.array_equal(region, expected)
     assert sizes.tolist() == expected_sizes
+
+
+def test_a_long_one_way_chain_of_links_is_grown_one_region_at_a_time():
+    m = 400  # each point links only to the next: m components in one chain
+    pts = np.column_stack([np.arange(m) * 0.01, np.zeros(m), np.zeros(m)])
+    normals = np.tile([0.0, 0.0, 1.0], (m, 1))
+    curvature = np.linspace(0.1, 0.2, m)  # the chain's first point comes first, reaches all
+    nbrs = np.column_stack([np.arange(m), np.minimum(np.arange(m) + 1, m - 1)])
+    smooth = np.ones((m, 2), dtype=bool)
+    order = np.argsort(curvature, kind="stable")
+    assert _RG._grow_all_seeds(nbrs, smooth, order) is None  # past _MAX_PASSES
+    seg = region_growing(pts, normals, curvature, k=2, min_size=1, neighbours=nbrs)
+    expected, sizes = _RG._grow(nbrs, smooth, np.ones(m, dtype=bool), order)
+    assert np.array_equal(seg.labels, expected) and seg.n_segments == len(sizes) == 1
 
 
 def test_neighbour_lists_with_repeats_grow_the_same_regions():
