@@ -238,8 +238,9 @@ def _grow_all_seeds(
     the points of a strongly connected component share that first reacher, which is then
     passed down the links between components until it no longer changes. The result is the
     one of `_grow` with every point a seed. Each pass moves it one link further, so a graph
-    whose components form a chain longer than `_MAX_PASSES` links (none does on a scan: at
-    most 16 passes on office scans) is left to `_grow`, which is linear in the points.
+    whose components form a chain longer than `_MAX_PASSES` links (the office scans measured,
+    with and without noise, at 3 to 15 degrees, needed at most 16 passes) is left to `_grow`,
+    which is linear in the points.
 
     Args:
         nbrs: (M, k) neighbour indices of each point.
