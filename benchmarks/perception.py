@@ -9,7 +9,9 @@ The returned points then go through the stages of `scan_segments`: k-NN normals
 segments of `--train` other scenes. Each stage is timed alone, after one warm-up run, best of
 `--repeats` runs, in wall-clock and CPU seconds of this process, on one thread (threadpoolctl);
 the ray caster's rays per second come from the best `render` time. The last line compares the
-four stages' total wall-clock time with the goal of 1 s.
+four stages' total wall-clock time with the goal of 0.5 s (issue 40: one scan to labels in at
+most 0.5 s on one core) and gives their total CPU time beside it: on a machine shared with other
+work the wall-clock time also counts the waits for the core.
 
 Usage: python benchmarks/perception.py [--repeats 3] [--seed 0] [--train 4]
     [--width 320] [--height 240]
@@ -41,7 +43,7 @@ from probaff.sim.camera import DepthCamera, DepthImage, head_views, load_camera
 
 T = TypeVar("T")
 
-GOAL = 1.0  # s, the most normals + segmentation + features + classification may take
+GOAL = 0.5  # s, the most normals + segmentation + features + classification may take
 
 
 def _best(fn: Callable[[], T], repeats: int) -> tuple[float, float, T]:
@@ -130,13 +132,14 @@ def main() -> None:
     for name, wall, cpu in stages:
         print(f"{name:24s}{wall:10.4f}{cpu:10.4f}")
     total = sum(w for _, w, _ in stages)
-    print(f"{'total':24s}{total:10.4f}{sum(c for _, _, c in stages):10.4f}")
+    total_cpu = sum(c for _, _, c in stages)
+    print(f"{'total':24s}{total:10.4f}{total_cpu:10.4f}")
     print(
         f"ray caster (render, noise): {render_wall:.4f} s wall, {render_cpu:.4f} s cpu, "
         f"{rays / render_wall:.3g} rays/s"
     )
     verdict = "meets" if total <= GOAL else "misses"
-    print(f"total {total:.3f} s {verdict} the goal of <= {GOAL:.1f} s")
+    print(f"total {total:.3f} s ({total_cpu:.3f} s cpu) {verdict} the goal of <= {GOAL:.1f} s")
 
 
 if __name__ == "__main__":

@@ -14,25 +14,30 @@ the four with the hand-written functions' inputs and outputs, so that
 * `o3d_cast`: the primitives of a `PrimitiveScene` tessellated into triangle meshes and cast
   with ``RaycastingScene``, against `probaff.sim.camera.DepthCamera.cast`.
 
-Open3D is an optional dependency, measured but not adopted. On 10 office scans (centre view,
-one thread, ``benchmarks/open3d_perception.py``) its ray caster, neighbour search and normals
-agree with the hand-written ones (the same object at every pixel and a median depth difference
-below 0.001 mm; the same 30 neighbours for 99.7 % of the points; a median normal angle below
-0.001 degrees) and take 0.3, 0.6 and 0.4 times as long; its DBSCAN (eps 0.03 m) is as pure as
-region growing (0.997 and 0.996, point-weighted) and more complete (0.75 and 0.69), but
-cuts by distance alone, not by surface smoothness, and the thesis's logistic regressions label
-its segments worse (mean precision / recall 70.6 / 52.6 % against 72.2 / 65.0 %). The pipeline
-keeps the hand-written pieces because Open3D cannot be a dependency of the project's install:
-``pip download open3d-cpu==0.20.0`` fetches the 105 MB wheel, but ``import open3d`` then fails
-with ``ImportError: libusb-1.0.so.0: cannot open shared object file: No such file or
-directory`` (a system library, absent from a bare Linux image) and, installed without its
-dependencies, with ``ModuleNotFoundError: No module named 'plotly'`` and then ``'dash'``
-(imported at start-up by its visualisation package), neither of which the project's install
-carries; and a pipeline whose numbers change with an optional library would make the study's
-results depend on the machine. The speed-ups are recorded here for a future install that can
-carry it. Each function raises `InputError` for a cloud of the wrong dtype or shape before
-Open3D is imported, and `require_open3d` an `ImportError` saying how to install it when it is
-missing.
+Open3D is an optional dependency, measured but not adopted. On 30 office scans (centre view,
+one thread, ``benchmarks/open3d_perception.py --scenes 30``, on a machine shared with other
+work) its ray caster, neighbour search and normals agree with the hand-written ones (the same
+object at every pixel and a median depth difference below 0.001 mm; the same 30 neighbours for
+99.7 % of the points; a median normal angle below 0.001 degrees) and take 0.4, 0.8 and 0.55
+times as long (0.019 against 0.048 s, 0.27 against 0.33 s and 0.23 against 0.41 s per scan).
+The 0.3 % of neighbour lists that differ are ties broken otherwise, so its normals would change
+the segments. Its DBSCAN (eps 0.03 m) takes 2.3 times as long as region growing (0.24 against
+0.11 s), is as pure (0.997 for both, point-weighted) and more complete (0.75 and 0.68) but
+leaves more points in no segment (0.17 and 0.12); it cuts by distance alone, not by surface
+smoothness, and the thesis's logistic regressions label its segments worse (mean precision /
+recall 73.4 / 55.8 % against 77.4 / 73.9 %, 4-fold CV by scene). The pipeline keeps the
+hand-written pieces because Open3D cannot be a dependency of the project's install: ``pip
+install open3d-cpu`` (0.20.0, a 105 MB wheel, and 17 packages the project does not carry:
+dash, plotly, flask, ipywidgets and theirs) succeeds, but ``import open3d`` then fails with
+``ImportError: libusb-1.0.so.0: cannot open shared object file: No such file or directory`` (a
+system library, absent from a bare Linux image; the 30-scene run above loaded it from Debian's
+``libusb-1.0-0`` through ``LD_LIBRARY_PATH``) and, installed without its dependencies, with
+``ModuleNotFoundError: No module named 'plotly'`` and then ``'dash'`` (imported at start-up by
+its visualisation package), neither of which the project's install carries; and a pipeline
+whose numbers change with an optional library would make the study's results depend on the
+machine. The speed-ups are recorded here for a future install that can carry it. Each function
+raises `InputError` for a cloud of the wrong dtype or shape before Open3D is imported, and
+`require_open3d` an `ImportError` saying how to install it when it is missing.
 
 Frames and units: points in any one frame (the robot frame in the study), metres.
 """

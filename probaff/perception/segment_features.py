@@ -156,12 +156,63 @@ def _orient(normals: np.ndarray, cent: np.ndarray, viewpoint: np.ndarray | None)
     return out
 
 
+_BY_X = 4096  # segments of more points, near at least `_BY_X_PAIRS` others, are sorted by x
+_BY_X_PAIRS = 4  # once, so that each box cuts a slice of them
+
+
+def _within(
+    points: np.ndarray, lo: np.ndarray, hi: np.ndarray, limit: float, by_x: bool
+) -> np.ndarray:
+    """The points of (n, 3) `points` inside the box ``[lo - limit, hi + limit]``, as (m, 3).
+
+    With `by_x`, `points` are sorted by x and only the slice of them in the box's x range is
+    tested.
+    """
+    low, high = lo - limit, hi + limit
+    if by_x:
+        x = points[:, 0]
+        points = points[np.searchsorted(x, low[0]) : np.searchsorted(x, high[0], side="right")]
+    box = (points >= low) & (points <= high)
+    return points[box[:, 0] & box[:, 1] & box[:, 2]]  # cheaper than all(axis=1) on 3 columns
+
+
+_BATCH = 256  # query points per KD-tree call of `_nearest`, each bounded by the best so far
+
+
+def _nearest(tree: cKDTree, query: np.ndarray, limit: float) -> float:
+    """Shortest distance from the (n, 3) `query` points to those of `tree` below `limit`.
+
+    The points are queried in batches of `_BATCH`, each bounded by the shortest distance found
+    so far (one ulp above it, so no point at that distance is missed): a bound that tight
+    prunes most of the tree. The result is the tree's distance of the closest pair, as one
+    query of every point bounded by `limit` gives it.
+
+    Returns:
+        The shortest distance (m), ``inf`` when no pair lies closer than `limit`.
+    """
+    best = np.inf
+    bound = limit
+    for start in range(0, len(query), _BATCH):
+        d, _ = tree.query(query[start : start + _BATCH], k=1, distance_upper_bound=bound)
+        low = float(np.min(d))
+        if low < best:
+            best = low
+            bound = float(np.nextafter(low, np.inf))
+    return best
+
+
 def _shortest_distances(
     groups: list[np.ndarray], lo: np.ndarray, hi: np.ndarray, limit: float
 ) -> np.ndarray:
     """Shortest point-to-point distance between every pair of segments, up to `limit`.
 
-    Pairs whose bounding boxes lie further apart than `limit` are not searched.
+    Pairs whose bounding boxes lie further apart than `limit` are not searched. For the others,
+    only points that can lie within `limit` of the other segment are searched: those of the
+    smaller segment inside the larger one's box widened by `limit`, and those of the larger
+    inside the box of the former widened by `limit` (a segment of more than `_BY_X` points near
+    at least `_BY_X_PAIRS` others is sorted by x once, so each box cuts a slice of it). A KD-tree
+    of the larger of these two sets is queried with the other (`_nearest`); the distances are
+    the tree's, the same whichever side it holds.
 
     Args:
         groups: S arrays (n_s, 3) of each segment's points.
@@ -178,17 +229,24 @@ def _shortest_distances(
     )
     near = np.linalg.norm(gap, axis=2) <= limit
     dist = np.full((s, s), np.inf)
-    trees: dict[int, cKDTree] = {}
+    np.fill_diagonal(near, False)
+    by_x = [
+        len(g) > _BY_X and n >= _BY_X_PAIRS for g, n in zip(groups, near.sum(axis=1), strict=True)
+    ]
+    ready = [
+        g[np.argsort(g[:, 0], kind="stable")] if x else g for g, x in zip(groups, by_x, strict=True)
+    ]
     for i, j in zip(*np.nonzero(np.triu(near, 1)), strict=True):
         a, b = (int(i), int(j)) if len(groups[i]) <= len(groups[j]) else (int(j), int(i))
-        query = groups[a]
-        inside = np.all((query >= lo[b] - limit) & (query <= hi[b] + limit), axis=1)
-        if not inside.any():
+        query = _within(ready[a], lo[b], hi[b], limit, by_x[a])
+        if not len(query):
             continue
-        if b not in trees:
-            trees[b] = cKDTree(groups[b])
-        d, _ = trees[b].query(query[inside], k=1, distance_upper_bound=limit)
-        best = float(np.min(d))
+        found = _within(ready[b], query.min(axis=0), query.max(axis=0), limit, by_x[b])
+        if not len(found):
+            continue
+        if len(found) < len(query):
+            query, found = found, query
+        best = _nearest(cKDTree(found), query, limit)
         if best <= limit:
             dist[a, b] = dist[b, a] = best
     return dist

@@ -1,11 +1,13 @@
 """Normals, PCL-style region growing and the 25 segment features on synthetic clouds."""
 
+import importlib
 import math
 from typing import Any
 
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
+from scipy.spatial.distance import cdist
 
 from probaff.errors import InputError, ProbaffError
 from probaff.perception.normals import estimate_normals
@@ -13,6 +15,8 @@ from probaff.perception.region_growing import region_growing
 from probaff.perception.segment_features import FEATURE_NAMES, segment_features
 
 _HALF: Any = 2.5  # a count that is not an integer
+_RG = importlib.import_module("probaff.perception.region_growing")
+_SF = importlib.import_module("probaff.perception.segment_features")
 
 
 def _grid(a, b, step):
@@ -186,6 +190,72 @@ def test_min_size_drops_small_regions_and_counts_them():
     keep = region_growing(pts, *res, k=10, min_size=10)
     assert keep.n_segments == 2 and keep.n_small == 0
     assert np.unique(keep.labels[len(big) :]).size == 1
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_graph_growth_gives_the_regions_of_growing_one_at_a_time(seed):
+    rng = np.random.default_rng(seed)
+    m, k = 3000, 8
+    # k distinct neighbours per point, the point itself first (as a k-NN query gives them):
+    # mostly nearby in index, as on a surface, a few far away
+    offsets = np.r_[np.arange(-12, 0), np.arange(1, 13), 500, -900]
+    pick = np.argsort(rng.random((m, len(offsets))) + 0.9 * (np.abs(offsets) > 12), axis=1)
+    nbrs = (np.arange(m)[:, None] + np.c_[np.zeros(m, int), offsets[pick[:, : k - 1]]]) % m
+    smooth = rng.random((m, k)) < (0.35 + 0.1 * seed)  # asymmetric links, many tiny regions
+    order = rng.permutation(m)
+    grown = _RG._grow_all_seeds(nbrs, smooth, order)
+    assert grown is not None
+    region, sizes = grown
+    expected, expected_sizes = _RG._grow(nbrs, smooth, np.ones(m, dtype=bool), order)
+    assert np.array_equal(region, expected)
+    assert sizes.tolist() == expected_sizes
+
+
+def test_a_long_one_way_chain_of_links_is_grown_one_region_at_a_time():
+    m = 400  # each point links only to the next: m components in one chain
+    pts = np.column_stack([np.arange(m) * 0.01, np.zeros(m), np.zeros(m)])
+    normals = np.tile([0.0, 0.0, 1.0], (m, 1))
+    curvature = np.linspace(0.1, 0.2, m)  # the chain's first point comes first, reaches all
+    nbrs = np.column_stack([np.arange(m), np.minimum(np.arange(m) + 1, m - 1)])
+    smooth = np.ones((m, 2), dtype=bool)
+    order = np.argsort(curvature, kind="stable")
+    assert _RG._grow_all_seeds(nbrs, smooth, order) is None  # past _MAX_PASSES
+    seg = region_growing(pts, normals, curvature, k=2, min_size=1, neighbours=nbrs)
+    expected, sizes = _RG._grow(nbrs, smooth, np.ones(m, dtype=bool), order)
+    assert np.array_equal(seg.labels, expected) and seg.n_segments == len(sizes) == 1
+
+
+def test_neighbour_lists_with_repeats_grow_the_same_regions():
+    pts, _ = _floor_and_wall(0.04)
+    res = estimate_normals(pts, k=10, viewpoint=[0.0, 0.0, 2.0])
+    repeated = res.neighbours.copy()
+    repeated[:, -1] = repeated[:, 1]  # the nearest other point listed twice
+    dropped = res.neighbours.copy()
+    dropped[:, -1] = -1
+    a = region_growing(pts, *res, k=10, min_size=5, neighbours=repeated)
+    b = region_growing(pts, *res, k=10, min_size=5, neighbours=dropped)
+    assert a.n_segments == b.n_segments == 2 and np.array_equal(a.labels, b.labels)
+
+
+def test_shortest_distances_between_segments_match_brute_force():
+    rng = np.random.default_rng(3)
+    floor = np.column_stack([rng.uniform(0, 3, (5000, 2)), rng.normal(0, 0.002, 5000)])
+    wall = np.column_stack([np.full(4500, 3.05), rng.uniform(0, 3, 4500), rng.uniform(0, 1, 4500)])
+    offset = np.array([1.0, 1.0, 0.0])
+    boxes = [rng.uniform(0, 0.3, (n, 3)) + rng.uniform(0, 2.8) * offset for n in (40, 300)]
+    lid = rng.uniform(0, 0.1, (20, 3)) + np.array([0.5, 0.5, 0.12])
+    groups = [floor, wall, *boxes, lid]
+    lo = np.array([g.min(axis=0) for g in groups])
+    hi = np.array([g.max(axis=0) for g in groups])
+    assert len(floor) > _SF._BY_X and len(wall) > _SF._BY_X  # the sorted path is taken
+    s = len(groups)
+    best = np.array([[cdist(a, b).min() for b in groups] for a in groups])
+    best[np.arange(s), np.arange(s)] = np.inf
+    for limit in (0.01, 0.06, 0.15, 1.0):
+        dist = _SF._shortest_distances(groups, lo, hi, limit)
+        expected = np.where(best <= limit, best, np.inf)
+        assert np.isfinite(expected).sum() > (2 if limit > 0.01 else 0)
+        assert dist == pytest.approx(expected, rel=1e-12), limit
 
 
 def _discrete_uniform_variance(n, step):
