@@ -32,6 +32,11 @@ def test_verdicts_read_the_interval_against_the_thesis_sign():
     assert verdict(-0.5, 1.0, -1, 3) == "not shown"
     assert verdict(2.0, 1.0, +1, 3) == "holds"
     assert verdict(-5.0, 0.0, -1, 1) == "too few folds"  # one fold: no interval
+    # the interval [-4, 6] % holds 0 but not the thesis's -11.8 %: its size is ruled out
+    assert verdict(1.0, 5.0, -1, 5, (-11.8, -11.8)) == "below the thesis's size"
+    assert verdict(1.0, 5.0, -1, 5, (-6.5, -5.9)) == "below the thesis's size"
+    assert verdict(-1.0, 5.0, -1, 5, (-6.5, -5.9)) == "not shown"  # [-6, 4] meets the range
+    assert verdict(-2.0, 1.0, -1, 3, (-11.8, -11.8)) == "holds"  # holds, if smaller
 
 
 def test_claims_pair_folds_and_judge_each_comparison():
@@ -52,9 +57,10 @@ def test_claims_pair_folds_and_judge_each_comparison():
     o2 = by["context features help o2", "ocx, M=3", "o, M=3"]
     assert o2["folds"] == 3 and o2["mean"] == pytest.approx(-10.0) and o2["ci95"] < 1e-9
     assert o2["verdict"] == "holds"
-    # M = 3 against M = 1 on all six effects: o2 unchanged between M, so 0 %: not shown
+    # M = 3 against M = 1 on all six effects: o2 unchanged between M, so 0 % with no spread:
+    # no effect, and the thesis's -5.9 to -6.5 % ruled out
     more = by["M > 1 beats M = 1 on RMSE", "ocx, M=3", "ocx, M=1"]
-    assert more["mean"] == pytest.approx(0.0) and more["verdict"] == "not shown"
+    assert more["mean"] == pytest.approx(0.0) and more["verdict"] == "below the thesis's size"
     best = by["M = 3 is best", "ocx, M=3", "ocx, M=1"]
     assert best["mean"] == pytest.approx(-3.0) and best["verdict"] == "holds"
     # no gx-eoc cells were run: that claim's comparisons are left out

@@ -9,7 +9,10 @@ Student-t interval, and the verdict reads the interval against the thesis's dire
 
 * ``holds``: the whole interval lies on the thesis's side of 0;
 * ``refuted``: the whole interval lies on the other side;
-* ``not shown``: the interval holds 0;
+* ``below the thesis's size``: the interval holds 0 but none of the thesis's published effect
+  (a number, or a range), so the effect the thesis reports is ruled out while no effect is
+  not: the claim as published is refuted, its direction neither shown nor refuted;
+* ``not shown``: the interval holds 0 (and, where the thesis gives a number, that number too);
 * ``too few folds``: fewer than two folds, so no interval.
 
 The claims (thesis section 5.4): context features help o2 (f_o & f_c & f_x against f_o, o2's
@@ -44,22 +47,34 @@ CLAIM_COLUMNS = [
 ]
 """Columns of the claims table (``ch5_claims.csv``)."""
 
-VERDICTS = ("holds", "refuted", "not shown", "too few folds")
+VERDICTS = ("holds", "refuted", "below the thesis's size", "not shown", "too few folds")
 """What a comparison can find: see the module docstring; fewer than two folds give no
 interval."""
+
+_THESIS_SIZES = {"-11.8 %": (-11.8, -11.8), "-4.37 %": (-4.37, -4.37)}
+_THESIS_SIZES["-5.9 to -6.5 %"] = (-6.5, -5.9)
+"""The published effects (low, high) of the claims that give a number (section 5.4)."""
 
 _O1_DZ = ("o1.dz",)
 _O2 = CH5_EFFECTS[3:]
 
 
-def verdict(mean: float, halfwidth: float, direction: int, folds: int) -> str:
-    """One of `VERDICTS` for an interval over folds and the thesis's sign.
+def verdict(
+    mean: float,
+    halfwidth: float,
+    direction: int,
+    folds: int,
+    thesis: tuple[float, float] | None = None,
+) -> str:
+    """One of `VERDICTS` for an interval over folds and the thesis's sign (and size).
 
     Args:
         mean: Mean paired difference over folds.
         halfwidth: Half-width of its 95 % interval.
         direction: The thesis's sign of the difference, -1 or +1.
         folds: Folds the interval is over.
+        thesis: The thesis's published difference as ``(low, high)`` in the units of
+            `mean`, or None where it gives no number.
     """
     if folds < 2:
         return "too few folds"
@@ -68,6 +83,8 @@ def verdict(mean: float, halfwidth: float, direction: int, folds: int) -> str:
         return "holds"
     if hi < 0:
         return "refuted"
+    if thesis is not None and (mean - halfwidth > thesis[1] or mean + halfwidth < thesis[0]):
+        return "below the thesis's size"
     return "not shown"
 
 
@@ -119,7 +136,7 @@ def _row(
         "folds": len(folds),
         "mean": mean,
         "ci95": hw,
-        "verdict": verdict(mean, hw, direction, len(folds)),
+        "verdict": verdict(mean, hw, direction, len(folds), _THESIS_SIZES.get(thesis)),
     }
 
 
