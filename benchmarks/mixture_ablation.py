@@ -96,7 +96,7 @@ from torch.distributions import Distribution, Independent, Normal
 
 from probaff._cli_errors import run_cli
 from probaff._io import atomic_save_figure, atomic_write_text
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.errors import InputError
 from probaff.eval.metrics import mean_halfwidth, nlpd, rmse
 from probaff.eval.tasks import ResultStore, run_tasks
@@ -318,7 +318,7 @@ def score_fold(task: dict[str, Any]) -> dict[str, Any]:
     """Fit every model on one fold and score it on the held-out rows."""
     y = torch.as_tensor(task["Y"][task["test"]], dtype=torch.float64)
     y_std = np.asarray(task["y_std"])
-    with torch_threads(1), warnings.catch_warnings():
+    with limit_threads(1), warnings.catch_warnings():
         warnings.simplefilter("ignore")
         predictions = fold_predictions(task)
     rows = []

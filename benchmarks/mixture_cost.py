@@ -56,7 +56,7 @@ from threadpoolctl import threadpool_limits
 
 from probaff._cli_errors import run_cli
 from probaff._io import atomic_write_text
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.errors import InputError
 from probaff.eval.metrics import mean_halfwidth, nlpd, rmse
 from probaff.models import MixtureOfGPExperts, fit_em
@@ -221,7 +221,7 @@ def main(argv: list[str] | None = None) -> int:
         raise InputError(f"--folds must be an integer >= 2, got {args.folds}.")
     out = Path(args.out)
     cells: list[dict[str, Any]] = []
-    with torch_threads(1), threadpool_limits(1):
+    with limit_threads(1), threadpool_limits(1):
         for name in datasets:
             ds = DATASETS[name](out / "data", 400 if name == "synthetic" else None, False)
             splits = KFold(args.folds, shuffle=True, random_state=0).split(ds.X)

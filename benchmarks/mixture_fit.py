@@ -49,7 +49,7 @@ from sklearn.preprocessing import StandardScaler
 from threadpoolctl import threadpool_limits
 
 from probaff._cli_errors import run_cli
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.errors import InputError
 from probaff.models import MIXTURE_GP, GPOptions, MixtureOfGPExperts, fit_em
 from probaff.models.experts.expert_batch import per_expert_fits
@@ -261,7 +261,7 @@ def main() -> None:
     if args.repeats < 1:
         raise InputError(f"--repeats must be a positive integer, got {args.repeats}.")
     if args.batched_vs_reference:
-        with torch_threads(args.threads), threadpool_limits(args.threads):
+        with limit_threads(args.threads), threadpool_limits(args.threads):
             batched_vs_reference(args)
         return
 
@@ -272,10 +272,10 @@ def main() -> None:
     print(f"data: N={args.n} D={args.d} E={args.e}, {args.n_test} held-out samples")
 
     if device.type != "cpu":
-        with torch_threads(args.threads), threadpool_limits(args.threads):
+        with limit_threads(args.threads), threadpool_limits(args.threads):
             cpu_vs_device(args, (x_tr, y_tr, x_te, y_te), device)
         return
-    with torch_threads(args.threads), threadpool_limits(args.threads):
+    with limit_threads(args.threads), threadpool_limits(args.threads):
         model, em_time = time_em(args, x_tr, y_tr, labels[: args.n].numpy())
         print(f"  held-out NLPD {-float(model.predict(x_te).log_prob(y_te).mean()):.3f}")
         if args.skip_sklearn:

@@ -136,7 +136,7 @@ from torch.distributions import Distribution, Independent, Normal
 
 from probaff._checks import check_output_file
 from probaff._io import atomic_save_figure, atomic_write_text, read_user_text
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.errors import InputError
 from probaff.eval.metrics import interval_coverage, nlpd, rmse
 from probaff.eval.tasks import ResultStore, run_tasks
@@ -578,7 +578,7 @@ def fit_and_score(task: dict[str, Any]) -> dict[str, Any]:
     }
     fn = MODELS[task["model"]]
     budget = Budget(**task["budget"])
-    with torch_threads(1), threadpool_limits(1), warnings.catch_warnings(record=True) as caught:
+    with limit_threads(1), threadpool_limits(1), warnings.catch_warnings(record=True) as caught:
         _warm_up(task["model"])
         warnings.simplefilter("always")
         start = time.perf_counter()

@@ -102,7 +102,7 @@ from torch.distributions import Distribution, Independent, Normal
 
 from probaff._cli_errors import report_error, run_cli
 from probaff._io import atomic_save_figure, atomic_write_text
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.eval.metrics import nlpd, rmse
 from probaff.models import MixtureOfGPExperts, VariationalMixtureOfGPExperts, fit_em, fit_svi
 from probaff.models._scaling import Standardizer
@@ -449,7 +449,7 @@ def run_cell(name: str, n: int, data: Data, args: argparse.Namespace) -> dict[st
     if n > SKIP_ABOVE.get(name, math.inf):
         return {**record, "skipped": f"too large: {name} runs up to N = {SKIP_ABOVE[name]}"}
     start, cpu_start = time.perf_counter(), time.process_time()
-    with torch_threads(args.threads), threadpool_limits(args.threads):
+    with limit_threads(args.threads), threadpool_limits(args.threads):
         em = _em_options(args, labels)
         options = {k: v for k, v in _settings(args).items() if k in _METHOD_OPTIONS}
         model = METHODS[name](x, y, args.seed, args.n_experts, em=em, x_test=data.x_test, **options)

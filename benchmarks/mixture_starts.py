@@ -45,7 +45,7 @@ from threadpoolctl import threadpool_limits
 
 from probaff._cli_errors import report_error, run_cli
 from probaff._io import atomic_save_figure, atomic_write_text
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.eval.metrics import nlpd, rmse
 from probaff.models import MixtureOfGPExperts, fit_em
 
@@ -66,7 +66,7 @@ def run_cell(split: int, seed: int, n_init: int, args: argparse.Namespace) -> di
     em: dict[str, Any] = {"seed": seed, "n_init": n_init}
     if args.max_iter is not None:
         em["max_iter"] = args.max_iter
-    with torch_threads(1), threadpool_limits(1):
+    with limit_threads(1), threadpool_limits(1):
         start = time.process_time()
         model = MixtureOfGPExperts(args.n_experts)
         history = fit_em(model, data.x, data.y, **em)

@@ -31,7 +31,7 @@ from typing import Any
 from probaff._checks import check_count
 from probaff._cli_errors import run_cli
 from probaff._io import atomic_write_text
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.eval.tables import markdown_table
 from probaff.experiments.pusht.active import STRATEGIES, ActiveOptions, collect_pushes
 from probaff.experiments.pusht.data import push_dataset, record_chunk, with_worker
@@ -98,7 +98,7 @@ def main() -> None:
     for n in sizes:
         for strategy in STRATEGIES:
             ds = push_dataset([_first(collected[strategy]["rows"], n)], seed)
-            with torch_threads(1):
+            with limit_threads(1):
                 model, _ = fit_learned(
                     "moe", push_features(ds), push_effects(ds), experts=args.experts, em=em
                 )
@@ -108,7 +108,7 @@ def main() -> None:
                 search = SearchSettings()
 
                 def play(w: Any, model: Any = model, search: Any = search) -> list[dict[str, Any]]:
-                    with torch_threads(1):
+                    with limit_threads(1):
                         return [
                             run_episode(
                                 w, args.episode_seed + i, ModelTransition(model), search, settings

@@ -37,7 +37,7 @@ import numpy as np
 from probaff._checks import check_count
 from probaff._cli_errors import run_cli
 from probaff._io import atomic_write_text
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.eval.tables import markdown_table
 from probaff.experiments.pusht.data import (
     dataset_observation,
@@ -124,7 +124,7 @@ def main() -> None:
     scores = []
     for obs in OBSERVATIONS:
         ds = push_dataset([records["train", obs]], seed)
-        with torch_threads(1):
+        with limit_threads(1):
             models[obs], _ = fit_learned(
                 "moe",
                 push_features(ds),
@@ -149,7 +149,7 @@ def main() -> None:
         for i in range(len(done), episodes):
 
             def play(w: Any, i: int = i, transition: Any = transition) -> dict[str, Any]:
-                with torch_threads(1):
+                with limit_threads(1):
                     return run_episode(
                         w,
                         args.episode_seed + i,

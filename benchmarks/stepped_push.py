@@ -45,7 +45,7 @@ import numpy as np
 from tqdm import tqdm
 
 from probaff._cli_errors import run_cli
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.data.generation import GenerateConfig, generate
 from probaff.data.schema import PushDataset
 from probaff.data.store import load_dataset
@@ -264,7 +264,7 @@ def main(argv: list[str] | None = None) -> int:
     train, test = np.arange(args.train), np.arange(n - args.test, n)
     yaw, true = ds["push_yaw"][test], ds["state_after"][test]
     t0 = time.perf_counter()
-    with torch_threads(1):
+    with limit_threads(1):
         options = SteppedModelOptions(gp=_gp(args), max_rows=args.max_rows, seed=args.seed)
         print("fitting the stepped model ...", file=sys.stderr)
         model = fit_stepped(steps.subset(train), geo, options, backward=True)

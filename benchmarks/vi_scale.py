@@ -22,7 +22,7 @@ from collections.abc import Callable
 from functools import partial
 from typing import Any
 
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.eval.metrics import nlpd, rmse
 from probaff.models import MixtureOfGPExperts, VariationalMixtureOfGPExperts, fit_em, fit_svi
 from probaff.models.synthetic import regime_features
@@ -74,7 +74,7 @@ def main() -> None:
     print(f"VI: {a.inducing} inducing points per expert, {a.steps} SVI steps\n")
     print("| N | method | seconds | NLPD | RMSE | NLPD - EM | RMSE / EM |")
     print("|---|---|---|---|---|---|---|")
-    with torch_threads(a.threads):
+    with limit_threads(a.threads):
         for n in a.n:
             x, y, _ = regime_features(n + a.test, a.d, a.e, seed=a.seed)
             xtr, ytr, xte, yte = x[:n], y[:n], x[n:], y[n:]

@@ -15,7 +15,7 @@ number of threads of every fit from code, and the environment variable
 ``PROBAFF_FIT_THREADS`` (a positive integer, or ``auto``) does so for a whole process. The
 automatic choice never raises torch's count, so a program that called
 ``torch.set_num_threads(1)`` keeps one thread. A fit inside another fit, or inside a
-`torch_threads` block, never runs on more threads than that block, whatever the setting.
+`limit_threads` block, never runs on more threads than that block, whatever the setting.
 """
 
 from __future__ import annotations
@@ -40,11 +40,11 @@ __all__ = [
     "ONE_THREAD_MAX_ROWS",
     "fit_threads",
     "fit_threads_setting",
+    "limit_threads",
     "rows_of",
     "set_fit_threads",
     "threads_by_rows",
     "threads_for_rows",
-    "torch_threads",
 ]
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -222,7 +222,7 @@ def fit_threads(n_rows: int) -> Iterator[int]:
     """Run a fit on `n_rows` training rows with the threads that pay (`threads_for_rows`).
 
     Torch's intra-op threads and the BLAS and OpenMP pools (through threadpoolctl) are set
-    to that count and restored after. Inside another `fit_threads` or a `torch_threads`
+    to that count and restored after. Inside another `fit_threads` or a `limit_threads`
     block the count is never raised above the block's; there, a fit that wants what it
     already has changes nothing.
 
@@ -275,14 +275,14 @@ def threads_by_rows(arg: str = "X") -> Callable[[F], F]:
 
 
 @contextlib.contextmanager
-def torch_threads(n: int) -> Iterator[None]:
+def limit_threads(n: int) -> Iterator[None]:
     """Run the block on `n` threads: torch's intra-op pool and the BLAS and OpenMP pools.
 
     Torch's count (`torch.set_num_threads`) and the pools' (through threadpoolctl) are
     restored after. The pools matter as much as torch's: the small solves and products of
     scikit-learn's Gaussian mixtures and scipy's L-BFGS inside a fit run on the BLAS pool,
     and with torch alone at one thread a small EM fit (`fit_em`, 90 rows, M = 3) cost 3 times
-    the CPU time on a quiet 2-core machine, and more under load.
+    the CPU time on a 2-core machine shared with other jobs.
 
     The block counts as limited: a fit inside it (`fit_threads`) never runs on more than
     `n` threads.

@@ -42,7 +42,7 @@ from torch.distributions import Normal
 from tqdm.auto import tqdm
 
 from probaff._checks import check_count
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.data import GenerateConfig, generate
 from probaff.data.noise import PoseNoise
 from probaff.data.schema import PushDataset
@@ -393,7 +393,7 @@ def _compare_models(
     floor = PoseNoise().effect_std(2) if ds.has_pose_noise else "auto"
     scores: dict[str, dict[str, float]] = {}
     preds = {}
-    with torch_threads(1):
+    with limit_threads(1):
         for name, m in (("single GP", 1), ("mixture M=3", 3)):
             model = MixtureOfGPExperts(
                 m,

@@ -10,7 +10,7 @@ import yaml
 from torch.distributions import Normal
 
 from probaff._dask import check_workers
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.data import GenerateConfig, generate
 from probaff.errors import ConfigError, InputError
 from probaff.eval.metrics import interval_coverage
@@ -50,7 +50,7 @@ def _gen(tmp: Path, **kw):
 
 
 def _threads(v):
-    with torch_threads(v):
+    with limit_threads(v):
         pass
 
 
@@ -76,7 +76,7 @@ def _map_task(**kw):
 
 WRITES = ("generate.", "affordance_map.demo.")  # entry points that take an output folder
 ENTRY_POINTS = {
-    "torch_threads.n": _threads,
+    "limit_threads.n": _threads,
     "check_workers": check_workers,
     "generate.n": lambda v, tmp: _gen(tmp, n=v),
     "generate.seed": lambda v, tmp: _gen(tmp, seed=v),

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from threadpoolctl import threadpool_limits
 
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 
 ENTRY_POINTS = (
     "probaff.data.observation_dataset",
@@ -45,7 +45,7 @@ def test_docstring_example_runs(name):
     tests = _examples(name)
     assert tests, f"{name}'s docstring has no >>> example"
     runner = doctest.DocTestRunner(optionflags=FLAGS)
-    with torch_threads(1), threadpool_limits(limits=1):
+    with limit_threads(1), threadpool_limits(limits=1):
         for test in tests:
             runner.run(test)
     result = runner.summarize(verbose=False)
@@ -57,7 +57,7 @@ def test_getting_started_worked_example_runs():
     section = text.split("### A worked example", 1)[1]
     code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
     out = io.StringIO()
-    with torch_threads(1), threadpool_limits(limits=1), contextlib.redirect_stdout(out):
+    with limit_threads(1), threadpool_limits(limits=1), contextlib.redirect_stdout(out):
         exec(compile(code, str(GETTING_STARTED), "exec"), {"__name__": "getting_started"})
     error = float(re.search(r"along the push: ([\d.]+) mm", out.getvalue()).group(1))
     assert error < 5.0, out.getvalue()  # the pushes moved the block 0 to 6 cm

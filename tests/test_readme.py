@@ -32,28 +32,28 @@ def test_ci_runs_the_readme_test_command():
 
 
 def test_push_model_example(capsys):
-    from probaff._threads import torch_threads
+    from probaff._threads import limit_threads
 
-    with torch_threads(1):
+    with limit_threads(1):
         exec(compile(_block("Push models"), "README.md", "exec"), {})
     assert capsys.readouterr().out.split()[0] in ("grow", "grow-copy", "joint", "effects")
 
 
 def test_modular_model_example(tmp_path, monkeypatch):
-    from probaff._threads import torch_threads
+    from probaff._threads import limit_threads
 
     monkeypatch.chdir(tmp_path)
     text = README.read_text().split("## Push models", 1)[1]
     block = re.findall(r"```python\n(.*?)```", text, re.S)[1]
     scope: dict = {}
-    with torch_threads(1):
+    with limit_threads(1):
         exec(compile(block, "README.md", "exec"), scope)
     assert scope["push"].is_fitted and (tmp_path / "results" / "ch6_example").is_dir()
 
 
 def test_scikit_learn_example(capsys):
-    from probaff._threads import torch_threads
+    from probaff._threads import limit_threads
 
-    with torch_threads(1):
+    with limit_threads(1):
         exec(compile(_block("scikit-learn"), "README.md", "exec"), {})
     assert capsys.readouterr().out.startswith("{'n_experts': 3}")

@@ -10,11 +10,11 @@ from probaff._threads import (
     ONE_THREAD_MAX_ROWS,
     fit_threads,
     fit_threads_setting,
+    limit_threads,
     rows_of,
     set_fit_threads,
     threads_by_rows,
     threads_for_rows,
-    torch_threads,
 )
 from probaff.errors import InputError
 
@@ -42,10 +42,10 @@ def test_small_fit_runs_on_one_thread_and_restores_torch_and_blas():
         assert torch.get_num_threads() == 2 and _blas_threads() == {2}
 
 
-def test_a_torch_threads_block_limits_blas_too_and_a_fit_inside_keeps_it():
-    """A fit inside ``torch_threads(1)`` (every study task) runs its BLAS on one thread."""
+def test_a_limit_threads_block_limits_blas_too_and_a_fit_inside_keeps_it():
+    """A fit inside ``limit_threads(1)`` (every study task) runs its BLAS on one thread."""
     with threadpool_limits(2, user_api="blas"):
-        with torch_threads(1):
+        with limit_threads(1):
             assert torch.get_num_threads() == 1 and _blas_threads() == {1}
             with fit_threads(SMALL) as n:
                 assert n == 1 and _blas_threads() == {1}
@@ -102,7 +102,7 @@ def test_nested_fits_never_raise_the_count():
             assert inner == 1 and torch.get_num_threads() == 1
         assert torch.get_num_threads() == 2
     set_fit_threads(4)  # a setting does not raise the count inside a limited block either
-    with torch_threads(1), fit_threads(SMALL) as n:
+    with limit_threads(1), fit_threads(SMALL) as n:
         assert n == 1 and torch.get_num_threads() == 1
     assert torch.get_num_threads() == 2
 
@@ -168,7 +168,7 @@ def test_rows_of_anything():
 def test_bad_counts_are_input_errors_naming_them(bad):
     with pytest.raises(InputError, match=r"set_fit_threads: n must be a positive integer"):
         set_fit_threads(bad)
-    with pytest.raises(InputError, match="n must be a positive integer"), torch_threads(bad):
+    with pytest.raises(InputError, match="n must be a positive integer"), limit_threads(bad):
         pass
 
 

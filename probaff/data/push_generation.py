@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.data.config import GenerateConfig, base_plan
 from probaff.data.kinds import DatasetKind, register_dataset_kind
 from probaff.data.noise import PoseNoise, observe_poses
@@ -181,7 +181,7 @@ def make_push_shard(
     """
     # spawn(3)'s first two children equal spawn(2)'s, so the noise stream leaves them unchanged
     sim_rng, sense_rng, noise_rng = (np.random.default_rng(s) for s in seeds.spawn(3))
-    with torch_threads(1):
+    with limit_threads(1):
         sim = PushSimulator(config.scene, push_world(config))
         samples = list(sim.run(rows, sim_rng))
     arrays = samples_to_arrays(

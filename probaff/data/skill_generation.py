@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from probaff._checks import check_count, check_positive
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.data.config import GenerateConfig, base_plan
 from probaff.data.kinds import DatasetKind, register_dataset_kind
 from probaff.data.skill_schema import NO_OBJECT, SKILL_SCHEMA_VERSION, SkillDataset
@@ -339,7 +339,7 @@ def make_skill_shard(
     spec = load_sideview_scene(scene)
     rate = world.physics.record_rate if record_rate is None else float(record_rate)
     dims = skill_dimensions(spec, world, rate)
-    with torch_threads(1):
+    with limit_threads(1):
         samples = run_sampled(spec, rows, rng, world)
     return outcomes_to_arrays(samples, skill_object_names(world), dims, world, rate, trajectories)
 

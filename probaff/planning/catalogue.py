@@ -35,7 +35,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from probaff._checks import check_count, default_or_instance
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.data.schema import PushDataset
 from probaff.errors import InputError
 from probaff.features.ch4 import chapter4_features
@@ -350,6 +350,6 @@ def _fit(
         offsets[g] = slice(start, start + width)
         start += width
     settings = replace(settings, groups=offsets)
-    with torch_threads(1):
+    with limit_threads(1):
         model = model_kind(kind).fit_new(fs.select(*groups), Y, settings)
     return FeaturePushModel.for_dataset(model, features, groups, ds)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import torch
 
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.data import (
     SKILL_OBSERVATION_ARRAYS,
     GenerateConfig,
@@ -167,7 +167,7 @@ def test_another_programs_file_imports_and_fits(pushes, tmp_path):
     assert np.array_equal(chapter5_features(robot).values, chapter5_features(ds).values)
     f = chapter4_features(robot)
     model = MixtureOfGPExperts(1, groups=f.groups, gate_features=("f_o",), expert_features=("f_o",))
-    with torch_threads(1):
+    with limit_threads(1):
         fit_em(model, f.values, robot["effect"][:, 0], max_iter=2, n_restarts=1, gp_max_iter=10)
         prediction = model.predict(f.values)
     assert prediction.mean.shape == (10, 3) and torch.isfinite(prediction.mean).all()

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import torch
 
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.data import (
     OBSERVATION_ARRAYS,
     SIMULATOR_ARRAYS,
@@ -111,7 +111,7 @@ def test_reduced_pushes_give_identical_features_fit_and_predictions(chain):
         model = MixtureOfGPExperts(
             2, groups=f.groups, gate_features=("f_o",), expert_features=("f_o", "f_c")
         )
-        with torch_threads(1):
+        with limit_threads(1):
             history = fit_em(model, f.values, y, max_iter=2, n_restarts=1, seed=3, gp_max_iter=10)
             return history, model.predict(f.values)
 

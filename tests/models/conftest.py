@@ -4,7 +4,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 
 
 @pytest.fixture(scope="module")
@@ -14,5 +14,5 @@ def single_thread() -> Iterator[None]:
     A module takes it with ``pytestmark = pytest.mark.usefixtures("single_thread")``: it is
     then set up before the module's other fixtures.
     """
-    with torch_threads(1):
+    with limit_threads(1):
         yield

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import torch
 
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.data.generation import GenerateConfig, generate
 from probaff.errors import InputError
 from probaff.features import chapter5_features
@@ -32,7 +32,7 @@ FAST = {"max_iter": 4, "warm_max_iter": 8, "gp_max_iter": 25}
 
 @pytest.fixture(autouse=True, scope="module")
 def _single_thread():
-    with torch_threads(1):
+    with limit_threads(1):
         yield
 
 

@@ -22,7 +22,7 @@ import torch
 
 import probaff.models.transitions.chain as chain_module
 import probaff.models.transitions.modular as modular
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.errors import InputError, NotFittedError
 from probaff.features import (
     INTERACTION_GROUPS,
@@ -122,7 +122,7 @@ def push_model():
     X = np.concatenate([p[0] for p in parts])
     Y = np.concatenate([p[1] for p in parts])
     model = SkillTransitionModel("push", backward=False)
-    with torch_threads(1):
+    with limit_threads(1):
         fit_transition(model, X, Y)
     return model
 

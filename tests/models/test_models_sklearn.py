@@ -15,7 +15,7 @@ from sklearn.preprocessing import StandardScaler
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
 import probaff.errors
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.errors import InputError
 from probaff.models import MIXTURE_GP, EMOptions, MixtureOfGPExperts, fit_em
 from probaff.models.sklearn import (
@@ -62,7 +62,7 @@ def fitted(data):
 
 @pytest.fixture(autouse=True, scope="module")
 def _single_thread():
-    with torch_threads(1):
+    with limit_threads(1):
         yield
 
 

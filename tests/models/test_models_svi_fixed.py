@@ -5,7 +5,7 @@ import pytest
 import torch
 from pyro.infer import TraceEnum_ELBO
 
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.models import MixtureOfGPExperts, fit_em
 from probaff.models.synthetic import softmax_regimes
 from probaff.models.variational import svi_fixed
@@ -16,7 +16,7 @@ from probaff.models.variational.vi import VariationalMixtureOfGPExperts, Whitene
 
 @pytest.fixture(autouse=True, scope="module")
 def _single_thread():
-    with torch_threads(1):
+    with limit_threads(1):
         yield
 
 

@@ -10,7 +10,7 @@ from dataclasses import replace
 import pytest
 import torch
 
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.errors import InputError, NotFittedError
 from probaff.models import (
     TRANSITION_GP,
@@ -30,7 +30,7 @@ N_TRAIN, N_TEST = 60, 40
 
 @pytest.fixture(autouse=True, scope="module")
 def _single_thread():
-    with torch_threads(1):
+    with limit_threads(1):
         yield
 
 
@@ -64,7 +64,7 @@ def data():
 @pytest.fixture(scope="module")
 def backward_model(data):
     (x, y, r), _ = data
-    with torch_threads(1):
+    with limit_threads(1):
         model = SkillTransitionModel("push")
         history = fit_transition(model, x, y, r)
     return model, history
@@ -73,7 +73,7 @@ def backward_model(data):
 @pytest.fixture(scope="module")
 def forward_model(data):
     (x, y, _), _ = data
-    with torch_threads(1):
+    with limit_threads(1):
         model = SkillTransitionModel("push", backward=False)
         fit_transition(model, x, y)
     return model

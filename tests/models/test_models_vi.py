@@ -6,7 +6,7 @@ import torch
 from pyro.infer import TraceEnum_ELBO
 from torch.distributions import MixtureSameFamily
 
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.errors import InputError
 from probaff.models import MixtureOfGPExperts, NotFittedError, fit_em
 from probaff.models.synthetic import piecewise_1d, regime_features
@@ -16,7 +16,7 @@ from probaff.models.variational.vi import SVGPExpert, VariationalMixtureOfGPExpe
 
 @pytest.fixture(autouse=True, scope="module")
 def _single_thread():
-    with torch_threads(1):
+    with limit_threads(1):
         yield
 
 

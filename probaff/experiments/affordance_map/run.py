@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from probaff._checks import check_count
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.eval.tasks import ResultStore
 from probaff.experiments.affordance_map.config import AffordanceMapConfig, world
 from probaff.experiments.affordance_map.figures import study_figures
@@ -159,7 +159,7 @@ def map_task(
             if settings.get(f.name) is not None
         }
     )
-    with torch_threads(1):  # one core per task, and reproducible reductions
+    with limit_threads(1):  # one core per task, and reproducible reductions
         t0 = time.perf_counter()
         rng = np.random.default_rng((seed, STREAM_TEST, index))
         m = generate_map(spec, rng)

@@ -33,7 +33,7 @@ import torch
 from torch.distributions import Distribution
 
 from probaff._checks import check_count
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.data.schema import PushDataset
 from probaff.data.skill_schema import SkillDataset
 from probaff.data.store import load_dataset, load_skill_dataset
@@ -385,7 +385,7 @@ def push_trial(data: TrialData, settings: TrialSettings, keep: int = 2) -> dict[
     """
     train, test, train_rows, test_rows = data.train, data.test, data.train_rows, data.test_rows
     seed = data.seed
-    with torch_threads(1):
+    with limit_threads(1):
         X, Y, R = _push_training_rows(train, train_rows, settings)
         hand, objects = _push_rows(train, settings.push_groups, settings.reaction)
         use = np.isin(hand.push, train_rows)
@@ -551,7 +551,7 @@ def skill_trial(skill: str, data: TrialData, settings: TrialSettings) -> dict[st
     if skill not in ("pick", "place"):
         raise InputError(f"skill must be 'pick' or 'place', got {skill!r}.")
     train, test, train_rows, test_rows = data.train, data.test, data.train_rows, data.test_rows
-    with torch_threads(1):
+    with limit_threads(1):
         rows = skill_rows(train, skill, settings.skill_groups)
         use = np.asarray(train_rows)
         cols = list(SIDEVIEW_EFFECT_COLUMNS)
@@ -611,7 +611,7 @@ def chain_trained_trial(data: TrialData, settings: TrialSettings) -> dict[str, A
         ``{"chains": per K the truth and the modular means and intervals, "n_rows"}``.
     """
     train, extra, train_rows = data.train, data.test, data.train_rows
-    with torch_threads(1):
+    with limit_threads(1):
         parts = [
             _push_training_rows(train, train_rows, settings),
             _push_training_rows(extra, None, settings),

@@ -33,7 +33,7 @@ from functools import cache, partial
 from pathlib import Path
 from typing import Any, cast
 
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.data import GenerateConfig
 from probaff.experiments.base import StudyRun
 from probaff.experiments.planning.config import PlanningStudyConfig, trial_seed
@@ -110,7 +110,7 @@ def edge_trial(
     """
     spec = EDGE_PLANNERS[planner]
     task, sim, reach = _episode_tools()
-    with torch_threads(1):
+    with limit_threads(1):
         episode = run_edge_episode(
             task,
             edge_transition(spec, task, models, seed),

@@ -25,7 +25,7 @@ import numpy as np
 import torch
 from sklearn.model_selection import KFold
 
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.data import GenerateConfig
 from probaff.data.noise import PoseNoise
 from probaff.eval.metrics import interval_coverage, nlpd, rmse
@@ -169,7 +169,7 @@ def _fit_path(task: FoldTask, X: np.ndarray, Y: np.ndarray) -> dict[str, Any]:
     train, test, study = task.train, task.test, task.study
     y = torch.as_tensor(Y[test])
     rows: list[dict[str, Any]] = []
-    with torch_threads(1):
+    with limit_threads(1):
         template = MixtureOfGPExperts(
             1,
             groups=task.slices,
@@ -213,7 +213,7 @@ def _fit_clustered(task: FoldTask, X: np.ndarray, Y: np.ndarray) -> dict[str, An
     # the study's GP settings with the task's floor (none where the mixtures' is "auto")
     gp = dataclasses.replace(task.study.gp, noise_floor=None if isinstance(floor, str) else floor)
     start = time.perf_counter()
-    with torch_threads(1):
+    with limit_threads(1):
         model = ClusteredGPModel(task.M, seed=task.study.seed, gp=gp)
         model_kind("clustered").fit(model, X[train][:, cols], Y[train])
         pred = model.predict(X[test][:, cols])

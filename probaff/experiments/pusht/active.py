@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from probaff._checks import check_count
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.errors import InputError
 from probaff.experiments.pusht.data import Chooser, push_dataset, record_pushes, with_worker
 from probaff.experiments.pusht.env import PushTWorker
@@ -147,7 +147,7 @@ def variance_chooser(model: PushModel, pool: int, settings: PrimitiveSettings) -
 def _fit(rows: dict[str, list[Any]], options: ActiveOptions, seed: int) -> PushModel:
     ds = push_dataset([rows], seed)
     em = dataclasses.replace(options.em, seed=seed)
-    with torch_threads(1):
+    with limit_threads(1):
         model, _ = fit_learned(
             "moe", push_features(ds), push_effects(ds), experts=options.experts, em=em
         )

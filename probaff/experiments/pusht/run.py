@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.data import save_dataset
 from probaff.errors import DatasetError
 from probaff.experiments.base import StudyRun
@@ -130,7 +130,7 @@ def episode_task(
             settings = dataclasses.replace(env_search, depth=spec.depth, risk=spec.risk)
         elif spec.model:
             transition = ModelTransition(models[spec.model])
-        with torch_threads(1):
+        with limit_threads(1):
             return run_episode(
                 worker,
                 env_seed,
@@ -195,7 +195,7 @@ def _learned(study: StudyRun[PushTStudyConfig], name: str, ds: Any, n: int) -> L
     em = dataclasses.replace(c.em, seed=c.seed)
     experts = c.experts if name == "moe" else 1
     X, Y = push_features(ds), push_effects(ds)
-    with torch_threads(1):
+    with limit_threads(1):
         fitted, _ = fit_learned(name, X, Y, experts=experts, em=em, observation=observation)
     path.parent.mkdir(parents=True, exist_ok=True)
     save_model(fitted.model, path)

@@ -27,7 +27,7 @@ import numpy as np
 import torch
 
 from probaff._checks import check_count
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.errors import ConfigError, InputError, UnreachablePoseError
 from probaff.planning.learned import FeaturePushModel
 from probaff.planning.tool_push.config import N_OBJECTS, ToolPushConfig, check_config
@@ -227,7 +227,7 @@ def run_tool_push_trial(
         )
     seed = check_count("seed", seed, minimum=0)
     ctx = tool_push_context(config)
-    with torch_threads(1):
+    with limit_threads(1):
         episode = draw_tool_push_episode(seed, config)
         state = ToolPushState(episode.objects, episode.poses)
         rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(2)[1])

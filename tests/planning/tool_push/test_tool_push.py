@@ -14,7 +14,7 @@ import pytest
 import torch
 from torch.distributions import Independent, Normal
 
-from probaff._threads import torch_threads
+from probaff._threads import limit_threads
 from probaff.data.generation import GenerateConfig, generate
 from probaff.errors import InputError
 from probaff.models import MIXTURE_GP, EMOptions
@@ -140,14 +140,14 @@ def test_planner_calls_the_model_once_per_step_with_every_candidate(model):
     counting = CountingModel(model)
     transition = LearnedTransition(counting, load_tabletop())
     config = ToolPushConfig()  # the thesis's 100, then 10 x 100
-    with torch_threads(1):
+    with limit_threads(1):
         plan = plan_tool_push(transition, _state(0), np.random.default_rng(0), config)
     assert counting.batches == [100, 1000]
     assert plan.transition_calls == 2 and plan.n_candidates == (100, 1000)
     assert plan.push_origin.shape == (2, 2) and plan.predicted.shape == (2, 2, 3)
     assert np.isfinite(plan.predicted).all() and np.isfinite(plan.predicted_depth)
     counting.batches.clear()
-    with torch_threads(1):
+    with limit_threads(1):
         single = plan_single_push(transition, _state(0), np.random.default_rng(0), config)
     assert counting.batches == [100] and single.push_yaw.shape == (1,)
 
@@ -387,7 +387,7 @@ def test_a_new_model_kind_module_is_found_and_plans_the_tool_push(dataset, kind_
     fitted = fit_tool_push_model(dataset, n_experts=1, kind=kind_module)
     assert type(fitted.model).__name__ == "ToolMeanModel" and fitted.model.n_outputs == 6
     transition = LearnedTransition(fitted, load_tabletop())
-    with torch_threads(1):
+    with limit_threads(1):
         plan = plan_tool_push(transition, _state(0), np.random.default_rng(0), SMALL)
     assert plan.push_origin.shape == (2, 2) and np.isfinite(plan.predicted).all()
     with pytest.raises(InputError, match="unknown model kind 'lstm'"):
@@ -440,7 +440,7 @@ def test_a_model_of_the_tool_alone_is_refused_naming_model_and_task(dataset, mod
 
     fs = chapter5_features(dataset)
     tool_only = MixtureOfGPExperts(1, gp=dataclasses.replace(MIXTURE_GP, max_iter=5))
-    with torch_threads(1):
+    with limit_threads(1):
         fit_em(
             tool_only,
             fs.select("f_o", "f_c"),
