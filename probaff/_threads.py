@@ -201,15 +201,14 @@ def _controller() -> ThreadpoolController:
 
 
 @contextlib.contextmanager
-def _limited(n: int | None, *, pools: bool) -> Iterator[None]:
-    """A block marked as limited; with `n`, torch (and with `pools`, BLAS and OpenMP) at `n`."""
+def _limited(n: int | None) -> Iterator[None]:
+    """A block marked as limited; with `n`, torch, BLAS and OpenMP at `n` threads."""
     previous = torch.get_num_threads()
     _local.depth = _depth() + 1
     try:
         with contextlib.ExitStack() as stack:
             if n is not None:
-                if pools:
-                    stack.enter_context(_controller().limit(limits=n))
+                stack.enter_context(_controller().limit(limits=n))
                 torch.set_num_threads(n)
                 stack.callback(torch.set_num_threads, previous)
             yield
@@ -238,10 +237,10 @@ def fit_threads(n_rows: int) -> Iterator[int]:
     want = threads_for_rows(n_rows)
     current = torch.get_num_threads()
     if _depth() > 0 and want >= current:
-        with _limited(None, pools=False):
+        with _limited(None):
             yield current
     else:
-        with _limited(want, pools=True):
+        with _limited(want):
             yield want
 
 
@@ -294,5 +293,5 @@ def limit_threads(n: int) -> Iterator[None]:
         InputError: If `n` is not a positive integer.
     """
     n = check_count("n", n)
-    with _limited(n, pools=True):
+    with _limited(n):
         yield
