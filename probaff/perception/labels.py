@@ -29,7 +29,7 @@ hundred segments, waking a thread pool costs more than the solver.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any, NamedTuple, Protocol
@@ -63,6 +63,7 @@ __all__ = [
     "SegmentClassifier",
     "check_segment_features",
     "check_segment_labels",
+    "column_probabilities",
     "cross_validate_labels",
     "label_index",
     "reliability",
@@ -122,6 +123,23 @@ def check_segment_labels(name: str, y: Any, n: int) -> np.ndarray:
     return arr.astype(bool)
 
 
+def column_probabilities(models: Sequence[Any], x: np.ndarray) -> np.ndarray:
+    """Probability of each column at checked features, from one fitted model per column.
+
+    Args:
+        models: `K` binary classifiers with ``predict_proba``, or a float each for a column
+            that was constant in training (that constant, 0.0 or 1.0, for every row).
+        x: (N, D) checked features.
+
+    Returns:
+        (N, K) probability that each column is true.
+    """
+    out = np.empty((x.shape[0], len(models)))
+    for k, model in enumerate(models):
+        out[:, k] = model if isinstance(model, float) else model.predict_proba(x)[:, 1]
+    return out
+
+
 class PerColumnLogistic:
     """One standardised logistic regression per column of a bool target, over feature rows.
 
@@ -173,10 +191,7 @@ class PerColumnLogistic:
         """(N, K) probability of each column at checked features `x` (N, D)."""
         if self._models is None:
             raise NotFittedError("the classifier is not trained; call fit first.")
-        out = np.empty((x.shape[0], len(self._models)))
-        for k, model in enumerate(self._models):
-            out[:, k] = model if isinstance(model, float) else model.predict_proba(x)[:, 1]
-        return out
+        return column_probabilities(self._models, x)
 
 
 class LabelClassifier(PerColumnLogistic):
