@@ -19,7 +19,7 @@ from torch import Tensor
 from torch.distributions import Normal
 
 from probaff.errors import NotFittedError
-from probaff.models.experts.expert_base import WeightedExpert, noise_floor_vector
+from probaff.models.experts.expert_base import MIN_VARIANCE, WeightedExpert, noise_floor_vector
 from probaff.models.experts.gaussian_density import gaussian_log_density, loo_moments, psd_cholesky
 from probaff.models.experts.kernels import ard_se_kernel
 from probaff.models.experts.likelihood import WeightedGaussianLikelihood
@@ -36,8 +36,6 @@ FitRequest: TypeAlias = tuple[float, np.ndarray]
 _JITTERS = (1e-8, 1e-6, 1e-4, 1e-2)
 # Box constraints (standardised units) that keep every hyperparameter finite and positive.
 _LENGTHSCALE_BOUNDS = (1e-3, 1e4)
-# Floor on predictive variances (in standardised output units).
-_MIN_VARIANCE = 1e-12
 
 
 @contextlib.contextmanager
@@ -318,14 +316,10 @@ class GPExpert(WeightedExpert):
         self.eval()
         with torch.no_grad(), exact_gp_settings(float(self.jitter)):
             post = self.gp(self.x_scaler(x))
-            mean = post.mean.T
-            var = post.variance.T
+            var = post.variance  # (E, N)
             if include_noise:
-                var = var + self.likelihood.noise[..., 0]
-        var = var.clamp_min(_MIN_VARIANCE)
-        mean = mean * self.y_scaler.std + self.y_scaler.mean
-        std = var.sqrt() * self.y_scaler.std
-        return Normal(mean, std)
+                var = var + self.likelihood.noise  # (E, 1)
+        return self.output_normal(post.mean, var)
 
     def loo_predict(self) -> Normal:
         r"""Leave-one-out predictive distribution of every training sample.
@@ -361,10 +355,8 @@ class GPExpert(WeightedExpert):
             resid = y - self.gp.mean_module.constant[:, None]
             alpha = torch.cholesky_solve(resid[..., None], chol)[..., 0]
             mean, latent = loo_moments(chol, y, alpha, own)  # (E, n) each
-            var = latent.clamp_min(_MIN_VARIANCE) + noise
-        mean = mean.T * self.y_scaler.std + self.y_scaler.mean
-        std = var.T.sqrt() * self.y_scaler.std
-        return Normal(mean, std)
+            var = latent.clamp_min(MIN_VARIANCE) + noise
+        return self.output_normal(mean, var)
 
     # ------------------------------------------------------------ relevances
     @property

@@ -30,7 +30,7 @@ from torch import Tensor
 from torch.distributions import Normal
 
 from probaff.errors import InputError, NotFittedError
-from probaff.models.experts.expert_base import WeightedExpert
+from probaff.models.experts.expert_base import MIN_VARIANCE, WeightedExpert
 from probaff.models.experts.kernels import ard_se_kernel
 from probaff.models.experts.likelihood import weight_correction
 from probaff.models.options import (
@@ -55,8 +55,6 @@ __all__ = [
 _JITTERS = (1e-6, 1e-4, 1e-2)
 # Box constraints (standardised units) that keep every length scale finite and positive.
 _LENGTHSCALE_BOUNDS = (1e-3, 1e4)
-# Floor on predictive variances (in standardised output units).
-_MIN_VARIANCE = 1e-12
 # Rows per block in the no-gradient passes (prediction, leave-one-out), bounding memory.
 _BLOCK = 4096
 # Working copies of the (E, m, N) cross-covariance that one bound evaluation and its
@@ -535,12 +533,6 @@ class SparseGPExpert(WeightedExpert):
                 proj += a_w @ r[:, rows, None]
             return _factors(lu, gram, proj, self.likelihood.noise[..., 0]), inv_l2, s
 
-    def _to_output_units(self, mean: Tensor, var: Tensor) -> Normal:
-        """Standardised `(E, n)` mean and variance as normals `(n, E)` in output units."""
-        var = var.clamp_min(_MIN_VARIANCE)
-        loc = mean.T * self.y_scaler.std + self.y_scaler.mean
-        return Normal(loc, var.T.sqrt() * self.y_scaler.std)
-
     def predict(self, X: Any, *, include_noise: bool = True) -> Normal:
         """Predictive distribution of the outputs at `X` (the SGPR predictive).
 
@@ -568,7 +560,7 @@ class SparseGPExpert(WeightedExpert):
             mean, var = torch.cat(means, -1), torch.cat(variances, -1)
             if include_noise:
                 var = var.clamp_min(0.0) + self.likelihood.noise
-        return self._to_output_units(mean, var)
+        return self.output_normal(mean, var)
 
     def loo_predict(self) -> Normal:
         r"""Leave-one-out predictive distribution of every training sample.
@@ -607,8 +599,8 @@ class SparseGPExpert(WeightedExpert):
                 h = (g.square().sum(-2) / lam[:, rows]).clamp_max(1.0 - 1e-12)
                 means.append(y - (r - (g * f.v).sum(-2)) / (1.0 - h))
                 latent = lam[:, rows] * h / (1.0 - h) + s[:, None] - a.square().sum(-2)
-                variances.append(latent.clamp_min(_MIN_VARIANCE) + noise)
-        return self._to_output_units(torch.cat(means, -1), torch.cat(variances, -1))
+                variances.append(latent.clamp_min(MIN_VARIANCE) + noise)
+        return self.output_normal(torch.cat(means, -1), torch.cat(variances, -1))
 
     # ------------------------------------------------------------ relevances
     @property
