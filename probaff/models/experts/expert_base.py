@@ -239,10 +239,13 @@ class WeightedExpert(DeviceCheckedModule):
 
         Args:
             X: Features, `(N, D)`.
-            include_noise: Add the observation noise variance to the latent one.
+            include_noise: Add the observation noise variance (weight 1) to the latent one.
 
         Returns:
             Independent normals with loc and scale `(N, E)`.
+
+        Raises:
+            NotFittedError: If the expert has no training data yet.
         """
         raise NotImplementedError
 

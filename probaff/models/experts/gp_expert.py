@@ -300,15 +300,7 @@ class GPExpert(WeightedExpert):
     def predict(self, X: Any, *, include_noise: bool = True) -> Normal:
         """Predictive distribution of the outputs at `X`.
 
-        Args:
-            X: Features, `(N, D)`.
-            include_noise: Add the observation noise variance (weight 1) to the latent one.
-
-        Returns:
-            Independent normals with loc and scale `(N, E)`.
-
-        Raises:
-            NotFittedError: If the expert has no training data yet.
+        The arguments, result and errors are those of `WeightedExpert.predict`.
         """
         if not self.is_fitted:
             raise NotFittedError("GPExpert has no training data; call fit first.")

@@ -536,15 +536,7 @@ class SparseGPExpert(WeightedExpert):
     def predict(self, X: Any, *, include_noise: bool = True) -> Normal:
         """Predictive distribution of the outputs at `X` (the SGPR predictive).
 
-        Args:
-            X: Features, `(N, D)`.
-            include_noise: Add the observation noise variance (weight 1) to the latent one.
-
-        Returns:
-            Independent normals with loc and scale `(N, E)`.
-
-        Raises:
-            NotFittedError: If the expert has no training data yet.
+        The arguments, result and errors are those of `WeightedExpert.predict`.
         """
         f, inv_l2, s = self._posterior()
         x = self.x_scaler(as_matrix("features X", X, n_cols=self.n_features)).to(self.jitter)
