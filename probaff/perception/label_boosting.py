@@ -327,15 +327,8 @@ class BoostedLabelClassifier:
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
         """Calibrated label probabilities of segments (independent of the thresholds).
 
-        Args:
-            X: (S, D) segment features, D as in training.
-
-        Returns:
-            (S, 6) probability of each label, columns in `LABELS` order.
-
-        Raises:
-            NotFittedError: Before `fit`.
-            InputError: For features of the wrong width, empty or non-finite.
+        The arguments, result and errors are those of
+        `probaff.perception.labels.SegmentClassifier.predict_proba`.
         """
         if self._models is None:
             raise NotFittedError("the classifier is not trained; call fit(X, Y) first.")

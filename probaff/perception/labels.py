@@ -91,7 +91,18 @@ class SegmentClassifier(Protocol):
         """Train on (S, D) features and (S, 6) bool labels."""
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
-        """(S, 6) label probabilities of (S, D) features."""
+        """Label probabilities of segments.
+
+        Args:
+            X: (S, D) segment features, D as in training.
+
+        Returns:
+            (S, 6) probability of each label, columns in `LABELS` order.
+
+        Raises:
+            NotFittedError: Before `fit`.
+            InputError: For features of the wrong width, empty or non-finite.
+        """
 
 
 def check_segment_features(name: str, x: Any, width: int | None = None) -> np.ndarray:
@@ -231,15 +242,7 @@ class LabelClassifier(PerColumnLogistic):
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
         """Label probabilities of segments.
 
-        Args:
-            X: (S, D) segment features, D as in training.
-
-        Returns:
-            (S, 6) probability of each label, columns in `LABELS` order.
-
-        Raises:
-            NotFittedError: Before `fit`.
-            InputError: For features of the wrong width, empty or non-finite.
+        The arguments, result and errors are those of `SegmentClassifier.predict_proba`.
         """
         if self._models is None:
             raise NotFittedError("the classifier is not trained; call fit(X, Y) first.")
