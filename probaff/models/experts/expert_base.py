@@ -268,7 +268,26 @@ class WeightedExpert(DeviceCheckedModule):
         """Leave-one-out predictive distribution of every training row (each subclass's own).
 
         Returns:
-            Independent normals with loc and scale `(n, E)`, in training-row order.
+            Independent normals with loc and scale `(n_train, E)`, in output units, one row
+            per training sample with non-zero weight, in the order given to `fit`.
+
+        Raises:
+            NotFittedError: If the expert has no training data yet.
+        """
+        raise NotImplementedError
+
+    def marginal_log_likelihood(self, jitter: float | None = None) -> Tensor:
+        """The hyperparameters' objective per output, divided by `n` (each subclass's own).
+
+        Args:
+            jitter: Diagonal jitter of the training factorisation (each subclass says how it
+                is used); defaults to the expert's current jitter.
+
+        Returns:
+            One value per output, `(E,)`, differentiable in the hyperparameters.
+
+        Raises:
+            NotFittedError: If the expert has no training data yet.
         """
         raise NotImplementedError
 

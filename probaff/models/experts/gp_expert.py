@@ -270,15 +270,11 @@ class GPExpert(WeightedExpert):
         `gaussian_log_density` instead of back-propagation through a Cholesky
         factorisation, which makes each L-BFGS evaluation about twice as fast.
 
+        The result and errors are those of `WeightedExpert.marginal_log_likelihood`.
+
         Args:
             jitter: First diagonal jitter tried when the kernel matrix is singular;
                 defaults to the expert's current jitter.
-
-        Returns:
-            One value per output, `(E,)`, differentiable in the hyperparameters.
-
-        Raises:
-            NotFittedError: If the expert has no training data yet.
         """
         if not self.is_fitted:
             raise NotFittedError("GPExpert has no training data; call fit first.")
@@ -321,14 +317,10 @@ class GPExpert(WeightedExpert):
         closed form of Rasmussen & Williams (2006, eq. 5.12): with
         :math:`A = K + \sigma^2 W^{-1}` and :math:`\alpha = A^{-1}(y - m)`,
         :math:`\mu_{-i} = y_i - \alpha_i / [A^{-1}]_{ii}` and the latent variance
-        :math:`1/[A^{-1}]_{ii} - \sigma^2 / w_i`. It costs one Cholesky factorisation.
-
-        Returns:
-            Independent normals with loc and scale `(n_train, E)`, in output units, one row
-            per training sample with non-zero weight, in the order given to `fit`.
+        :math:`1/[A^{-1}]_{ii} - \sigma^2 / w_i`. It costs one Cholesky factorisation. The
+        result and errors are those of `WeightedExpert.loo_predict`, and one more:
 
         Raises:
-            NotFittedError: If the expert has no training data yet.
             NotPSDError: If the training covariance cannot be factorised even with jitter
                 (the policy of the marginal likelihood: as it is, then with the expert's
                 jitter times 1, 10, 100).

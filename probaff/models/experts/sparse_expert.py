@@ -398,15 +398,11 @@ class SparseGPExpert(WeightedExpert):
         `GPExpert.marginal_log_likelihood`, which it equals when the inducing inputs are the
         training inputs (up to the jitter) and bounds from below otherwise.
 
+        The result and errors are those of `WeightedExpert.marginal_log_likelihood`.
+
         Args:
             jitter: Diagonal jitter of :math:`K_{uu}`, relative to the signal variance;
                 defaults to the expert's current jitter.
-
-        Returns:
-            One value per output, `(E,)`, differentiable in the hyperparameters.
-
-        Raises:
-            NotFittedError: If the expert has no training data yet.
         """
         if not self.is_fitted:
             raise NotFittedError("SparseGPExpert has no training data; call fit first.")
@@ -567,14 +563,8 @@ class SparseGPExpert(WeightedExpert):
         :math:`h_i = \lVert g_i \rVert^2 / \lambda_i`, :math:`\mu_{-i} = y_i - (r_i -
         g_i^\top v) / (1 - h_i)` and :math:`1/[A^{-1}]_{ii} = \lambda_i / (1 - h_i)`. It costs
         :math:`O(N m^2)`, like one bound evaluation. (The inducing inputs were chosen with
-        sample `i` among the candidates; that choice is not undone.)
-
-        Returns:
-            Independent normals with loc and scale `(n_train, E)`, in output units, one row
-            per training sample with non-zero weight, in the order given to `fit`.
-
-        Raises:
-            NotFittedError: If the expert has no training data yet.
+        sample `i` among the candidates; that choice is not undone.) The result and errors are
+        those of `WeightedExpert.loo_predict`.
         """
         f, inv_l2, s = self._posterior()
         noise = self.likelihood.noise  # (E, 1)
