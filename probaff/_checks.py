@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -15,6 +15,7 @@ from probaff.errors import InputError
 
 __all__ = [
     "as_float_array",
+    "check_array_fields",
     "check_box_sizes",
     "check_count",
     "check_finite",
@@ -199,6 +200,24 @@ def check_probability(name: str, x: Any) -> None:
         raise InputError(
             f"{name} must lie in [0, 1]; got values in [{arr.min():.4g}, {arr.max():.4g}]."
         )
+
+
+def check_array_fields(owner: object, label: str, shapes: Mapping[str, Sequence[int]]) -> None:
+    """Set the named fields of a frozen dataclass to float arrays of the shapes given.
+
+    Args:
+        owner: The dataclass instance, in its ``__post_init__``.
+        label: How errors name it, e.g. ``"PushBatch"`` (a field is ``"PushBatch.poses"``).
+        shapes: Field name -> its expected shape.
+
+    Raises:
+        InputError: Naming the field, for another shape or a NaN or infinite value.
+    """
+    for name, shape in shapes.items():
+        arr = np.asarray(getattr(owner, name), dtype=float)
+        check_shape(f"{label}.{name}", arr, shape)
+        check_finite(f"{label}.{name}", arr)
+        object.__setattr__(owner, name, arr)
 
 
 def check_box_sizes(name: str, sizes: Any, empty_message: str, *, copy: bool = False) -> np.ndarray:
