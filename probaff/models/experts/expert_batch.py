@@ -569,19 +569,13 @@ def predict_exact_experts_out_of_sample(
     Where expert `j` holds row `i` (``held[i, j]``) it is `GPExpert.loo_predict`'s
     leave-one-out normal; elsewhere `GPExpert.predict`'s (noise included), which is already
     out of sample. Both come from one factorisation of each expert's training covariance
-    (batched), and each expert predicts only the rows it does not hold.
+    (batched), and each expert predicts only the rows it does not hold. The result and errors
+    are those of `predict_exact_experts`.
 
     Args:
         experts: `M` fitted experts with the same `D`, `E` and options.
         X: Expert features of the training rows, `(N, D)`, on the experts' device.
         held: Whether each expert holds each row (its training rows, in order), `(N, M)`.
-
-    Returns:
-        Normals with loc and scale `(N, M, E)`, in output units.
-
-    Raises:
-        NotFittedError: If an expert has no training data.
-        NotPSDError: If a training covariance cannot be factorised at any jitter.
     """
     if not batching_enabled():
         return out_of_sample(experts, X, held)
