@@ -57,6 +57,7 @@ from probaff.maps import (
 )
 from probaff.maps.grid_bp import GRID_BYTES_PER_CELL
 from probaff.maps.options import DEFAULT_COUPLING
+from probaff.maps.synthetic import drop_shelves
 
 COUPLING = DEFAULT_COUPLING
 GIB = 1024**3
@@ -232,13 +233,7 @@ def bench_grid(n: int, device: torch.device) -> None:
 
 def warehouse_map(rng: np.random.Generator, size: int, boxes: int) -> np.ndarray:
     """Shelves of 1- or 2-deep boxes until exactly `boxes` cells are occupied."""
-    occ = np.zeros((size, size), dtype=bool)
-    while occ.sum() < boxes:
-        h, w = int(rng.integers(1, 3)), int(rng.integers(2, 6))
-        if rng.random() < 0.5:
-            h, w = w, h
-        r, c = int(rng.integers(0, size - h + 1)), int(rng.integers(0, size - w + 1))
-        occ[r : r + h, c : c + w] = True
+    occ = drop_shelves(rng, size, boxes)
     extra = np.flatnonzero(occ)[rng.permutation(int(occ.sum()))[: int(occ.sum()) - boxes]]
     occ.flat[extra] = False
     return occ

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -15,6 +15,7 @@ from probaff.errors import InputError
 
 __all__ = [
     "as_float_array",
+    "check_array_fields",
     "check_box_sizes",
     "check_count",
     "check_finite",
@@ -23,6 +24,7 @@ __all__ = [
     "check_output_file",
     "check_positive",
     "check_probability",
+    "check_rows",
     "check_shape",
     "default_or_instance",
 ]
@@ -201,6 +203,48 @@ def check_probability(name: str, x: Any) -> None:
         )
 
 
+def check_array_fields(owner: object, label: str, shapes: Mapping[str, Sequence[int]]) -> None:
+    """Set the named fields of a frozen dataclass to float arrays of the shapes given.
+
+    Args:
+        owner: The dataclass instance, in its ``__post_init__``.
+        label: How errors name it, e.g. ``"PushBatch"`` (a field is ``"PushBatch.poses"``).
+        shapes: Field name -> its expected shape.
+
+    Raises:
+        InputError: Naming the field, for another shape or a NaN or infinite value.
+    """
+    for name, shape in shapes.items():
+        arr = np.asarray(getattr(owner, name), dtype=float)
+        check_shape(f"{label}.{name}", arr, shape)
+        check_finite(f"{label}.{name}", arr)
+        object.__setattr__(owner, name, arr)
+
+
+def check_rows(
+    name: str, x: Any, columns: int, empty_message: str, *, copy: bool = False
+) -> np.ndarray:
+    """Return `x` as `N >= 1` rows of `columns` finite floats, `(N, columns)`.
+
+    Args:
+        name: What `x` is.
+        x: Array-like `(N, columns)`.
+        columns: How many numbers a row holds.
+        empty_message: The message of the error for no rows at all.
+        copy: Always return a new array (see `as_float_array`).
+
+    Raises:
+        InputError: Naming `name`, for another shape or a NaN or infinite value; with
+            `empty_message` for no rows.
+    """
+    arr = as_float_array(name, x, copy=copy)
+    check_shape(name, arr, (None, columns))
+    if arr.shape[0] == 0:
+        raise InputError(empty_message)
+    check_finite(name, arr)
+    return arr
+
+
 def check_box_sizes(name: str, sizes: Any, empty_message: str, *, copy: bool = False) -> np.ndarray:
     """Return box extents `(N, 3)`, `N >= 1`, as floats that are finite and > 0.
 
@@ -214,11 +258,7 @@ def check_box_sizes(name: str, sizes: Any, empty_message: str, *, copy: bool = F
         InputError: Naming `name`, for another shape, no boxes, or an extent that is not a
             finite number > 0.
     """
-    arr = as_float_array(name, sizes, copy=copy)
-    check_shape(name, arr, (None, 3))
-    if arr.shape[0] == 0:
-        raise InputError(empty_message)
-    check_finite(name, arr)
+    arr = check_rows(name, sizes, 3, empty_message, copy=copy)
     if np.any(arr <= 0):
         raise InputError(f"{name} must be > 0 along every axis; got a zero or negative extent.")
     return arr

@@ -6,7 +6,7 @@ import pytest
 from probaff._checks import check_output_file
 from probaff._io import atomic_write_bytes
 from probaff.errors import InputError
-from probaff.eval.tables import write_csv
+from probaff.eval.tables import group_rows, write_csv
 from probaff.experiments.affordance_map.figures import plot_step_curves
 
 
@@ -39,3 +39,10 @@ def test_writers_refuse_a_path_under_a_file(tmp_path):
     with pytest.raises(OSError):  # the low-level writer raises; public writers check first
         atomic_write_bytes(regular / "x.bin", b"data")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "somefile.txt"]
+
+
+def test_group_rows_keeps_the_first_seen_order_of_values_and_of_rows():
+    rows = [{"p": "b", "i": 0}, {"p": "a", "i": 1}, {"p": "b", "i": 2}]
+    groups = group_rows(rows, "p")
+    assert list(groups) == ["b", "a"]
+    assert [r["i"] for r in groups["b"]] == [0, 2] and groups["a"] == [rows[1]]

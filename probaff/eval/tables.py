@@ -5,13 +5,13 @@ from __future__ import annotations
 import csv
 import io
 import os
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 from probaff._checks import check_output_file
 from probaff._io import atomic_write_text
 
-__all__ = ["csv_table", "markdown_table", "write_csv"]
+__all__ = ["csv_table", "group_rows", "markdown_table", "write_csv"]
 
 
 def csv_table(rows: Sequence[dict[str, Any]]) -> str:
@@ -33,6 +33,22 @@ def csv_table(rows: Sequence[dict[str, Any]]) -> str:
     writer.writeheader()
     writer.writerows(rows)
     return buf.getvalue()
+
+
+def group_rows(rows: Iterable[dict[str, Any]], key: str) -> dict[Any, list[dict[str, Any]]]:
+    """The rows of each value of column `key`, values in the order they first appear.
+
+    Args:
+        rows: Rows that all hold `key`.
+        key: The column to group by.
+
+    Returns:
+        Value of `key` -> its rows, in their order in `rows`.
+    """
+    out: dict[Any, list[dict[str, Any]]] = {}
+    for r in rows:
+        out.setdefault(r[key], []).append(r)
+    return out
 
 
 def markdown_table(rows: Sequence[dict[str, Any]], columns: Sequence[str], digits: int = 4) -> str:

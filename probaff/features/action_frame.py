@@ -42,6 +42,7 @@ from probaff._checks import (
     check_box_sizes,
     check_finite,
     check_positive,
+    check_rows,
     check_shape,
 )
 from probaff.errors import InputError
@@ -273,12 +274,7 @@ def box_surface(
 
 
 def _planar(name: str, pose: Any) -> np.ndarray:
-    arr = as_float_array(name, pose)
-    check_shape(name, arr, (None, 3))
-    if arr.shape[0] == 0:
-        raise InputError(f"{name} holds no poses; pass at least one (1, 3) pose.")
-    check_finite(name, arr)
-    return arr
+    return check_rows(name, pose, 3, f"{name} holds no poses; pass at least one (1, 3) pose.")
 
 
 def tabletop_transform(pose: Any, height: Any) -> np.ndarray:

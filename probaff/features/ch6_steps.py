@@ -40,7 +40,7 @@ from probaff.errors import InputError
 from probaff.features._common import FINGER_LENGTH, meta_float
 from probaff.features.action_frame import effect_in_action_frame, tabletop_transform
 from probaff.features.ch6_push import PLANAR_EFFECT_COLUMNS, box_sizes
-from probaff.features.chain_geometry import Ch6Geometry, resolve_geometry
+from probaff.features.chain_geometry import Ch6Geometry, InteractionRows, resolve_geometry
 from probaff.models.transitions.stepped_transition import SteppedScenes
 
 __all__ = [
@@ -380,7 +380,7 @@ def step_trajectories(
 
 
 @dataclass(frozen=True)
-class LinkSteps:
+class LinkSteps(InteractionRows):
     """Step rows of one kind of link (the hand on o1, or object k on object k + 1).
 
     Attributes:
@@ -395,17 +395,9 @@ class LinkSteps:
         actor: (n,) the acting object's index, -1 for the hand.
     """
 
-    features: np.ndarray
-    touches: np.ndarray
-    T_world_action: np.ndarray
-    effect: np.ndarray
-    reaction: np.ndarray
     push: np.ndarray
     step: np.ndarray
     actor: np.ndarray
-
-    def __len__(self) -> int:
-        return int(self.features.shape[0])
 
     def select(self, keep: np.ndarray) -> LinkSteps:
         """The rows where `keep (n,)` is true (or the indices `keep`)."""

@@ -146,14 +146,9 @@ class Ch6Geometry:
         return len(self.columns) + (len(MOTION_COLUMNS) if self.motion else 0)
 
     def surface(self, size: np.ndarray, T_world_box: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Points and outward unit normals on the faces of boxes (`box_surface`).
+        """See `probaff.models.transitions.modular.InteractionGeometry.surface`.
 
-        Args:
-            size: (N, 3) box extents along their own axes (m).
-            T_world_box: (N, 4, 4) poses of the box centres in the world.
-
-        Returns:
-            ``(points, normals)``, each (N, P, 3) in the world.
+        The points are `box_surface` grids at this geometry's `spacing`.
         """
         return box_surface(size, T_world_box, self.spacing)
 
@@ -166,20 +161,11 @@ class Ch6Geometry:
         T_world_actor_start: np.ndarray,
         T_world_actor_end: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Selected interaction features and motion columns of N actor motions.
+        """See `probaff.models.transitions.modular.InteractionGeometry.features`.
 
-        Args:
-            target_points: (N, P, 3) world points of the target.
-            target_normals: (N, P, 3) their outward unit normals.
-            actor_points: (N, Q, 3) world points of the actor at its start pose.
-            actor_normals: (N, Q, 3) their outward unit normals.
-            T_world_actor_start: (N, 4, 4) the actor's start pose.
-            T_world_actor_end: (N, 4, 4) its end pose.
-
-        Returns:
-            ``(X, touches, T_world_action)``: features (N, D) (the chosen columns, then
-            ``action_length`` and ``travel``), whether the actor touches the target (N,)
-            bool, and the action frames A_t (N, 4, 4).
+        The features `X` (N, D) are the chosen `columns` of `interaction_features`, then
+        ``action_length`` and ``travel`` (`MOTION_COLUMNS`) when `motion` is set; the action
+        frames are A_t.
 
         Raises:
             InputError: As `interaction_features`, e.g. for a zero-length action.
@@ -205,15 +191,9 @@ class Ch6Geometry:
     def apply_effect(
         self, T_world_action: np.ndarray, T_world_before: np.ndarray, effect: np.ndarray
     ) -> np.ndarray:
-        """The target's pose after an effect given in the action frame (`apply_effect`).
+        """See `probaff.models.transitions.modular.InteractionGeometry.apply_effect`.
 
-        Args:
-            T_world_action: (N, 4, 4) action frames.
-            T_world_before: (N, 4, 4) the target's pose before the action.
-            effect: (N, 6) ``(dx, dy, dz, rx, ry, rz)`` in the action frame (m, rad).
-
-        Returns:
-            (N, 4, 4) the target's pose after the action.
+        The effect is applied by `probaff.features.action_frame.apply_effect`.
         """
         return apply_effect(T_world_action, T_world_before, effect)
 

@@ -15,6 +15,7 @@ Modules:
     inference: enumeration, gtsam or BP per component (the grid solver on full rectangles).
     entropy: per-variable and whole-map entropies.
     components: connected components of a map's variables.
+    synthetic: random shelved-box grids to test and benchmark the solvers.
 
 The package exports what a user calls: the graph and its parameters, the solvers and the
 evidence helpers; defaults, limits and checks stay in their modules (e.g.

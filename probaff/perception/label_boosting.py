@@ -50,7 +50,11 @@ from threadpoolctl import threadpool_limits
 
 from probaff._checks import check_count, check_number, check_shape
 from probaff.errors import InputError, NotFittedError
-from probaff.perception.labels import check_segment_features, check_segment_labels
+from probaff.perception.labels import (
+    check_segment_features,
+    check_segment_labels,
+    column_probabilities,
+)
 
 __all__ = ["THRESHOLD_RULES", "BoostedLabelClassifier", "BoostingOptions", "best_threshold"]
 
@@ -258,13 +262,6 @@ class BoostedLabelClassifier:
                 models.append(model.fit(x, column))
         return models
 
-    @staticmethod
-    def _proba(models: list[Any], x: np.ndarray) -> np.ndarray:
-        out = np.empty((x.shape[0], len(models)))
-        for k, model in enumerate(models):
-            out[:, k] = model if isinstance(model, float) else model.predict_proba(x)[:, 1]
-        return out
-
     def _inner_splits(self, n: int, groups: np.ndarray | None) -> list[tuple[Any, Any]]:
         """The inner folds that choose the thresholds: by scene when `groups` has two or more."""
         want, seed = self.options.threshold_folds, self.options.seed
@@ -291,7 +288,7 @@ class BoostedLabelClassifier:
             return np.full(y.shape[1], 0.5)
         held_out = np.empty(y.shape)
         for train, test in splits:
-            held_out[test] = self._proba(self._fit_models(x[train], y[train]), x[test])
+            held_out[test] = column_probabilities(self._fit_models(x[train], y[train]), x[test])
         return np.array([best_threshold(y[:, k], held_out[:, k], rule) for k in range(y.shape[1])])
 
     def fit(
@@ -330,21 +327,14 @@ class BoostedLabelClassifier:
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
         """Calibrated label probabilities of segments (independent of the thresholds).
 
-        Args:
-            X: (S, D) segment features, D as in training.
-
-        Returns:
-            (S, 6) probability of each label, columns in `LABELS` order.
-
-        Raises:
-            NotFittedError: Before `fit`.
-            InputError: For features of the wrong width, empty or non-finite.
+        The arguments, result and errors are those of
+        `probaff.perception.labels.SegmentClassifier.predict_proba`.
         """
         if self._models is None:
             raise NotFittedError("the classifier is not trained; call fit(X, Y) first.")
         x = check_segment_features("X", X, self._width)
         with threadpool_limits(limits=1):
-            return self._proba(self._models, x)
+            return column_probabilities(self._models, x)
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         """Label decisions of segments: ``predict_proba(X) >= thresholds``.

@@ -29,7 +29,7 @@ hundred segments, waking a thread pool costs more than the solver.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any, NamedTuple, Protocol
@@ -63,6 +63,7 @@ __all__ = [
     "SegmentClassifier",
     "check_segment_features",
     "check_segment_labels",
+    "column_probabilities",
     "cross_validate_labels",
     "label_index",
     "reliability",
@@ -90,7 +91,18 @@ class SegmentClassifier(Protocol):
         """Train on (S, D) features and (S, 6) bool labels."""
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
-        """(S, 6) label probabilities of (S, D) features."""
+        """Label probabilities of segments.
+
+        Args:
+            X: (S, D) segment features, D as in training.
+
+        Returns:
+            (S, 6) probability of each label, columns in `LABELS` order.
+
+        Raises:
+            NotFittedError: Before `fit`.
+            InputError: For features of the wrong width, empty or non-finite.
+        """
 
 
 def check_segment_features(name: str, x: Any, width: int | None = None) -> np.ndarray:
@@ -120,6 +132,23 @@ def check_segment_labels(name: str, y: Any, n: int) -> np.ndarray:
         if not np.all((arr == 0) | (arr == 1)):
             raise InputError(f"{name} must be bool or 0/1, one column per label in LABELS.")
     return arr.astype(bool)
+
+
+def column_probabilities(models: Sequence[Any], x: np.ndarray) -> np.ndarray:
+    """Probability of each column at checked features, from one fitted model per column.
+
+    Args:
+        models: `K` binary classifiers with ``predict_proba``, or a float each for a column
+            that was constant in training (that constant, 0.0 or 1.0, for every row).
+        x: (N, D) checked features.
+
+    Returns:
+        (N, K) probability that each column is true.
+    """
+    out = np.empty((x.shape[0], len(models)))
+    for k, model in enumerate(models):
+        out[:, k] = model if isinstance(model, float) else model.predict_proba(x)[:, 1]
+    return out
 
 
 class PerColumnLogistic:
@@ -173,10 +202,7 @@ class PerColumnLogistic:
         """(N, K) probability of each column at checked features `x` (N, D)."""
         if self._models is None:
             raise NotFittedError("the classifier is not trained; call fit first.")
-        out = np.empty((x.shape[0], len(self._models)))
-        for k, model in enumerate(self._models):
-            out[:, k] = model if isinstance(model, float) else model.predict_proba(x)[:, 1]
-        return out
+        return column_probabilities(self._models, x)
 
 
 class LabelClassifier(PerColumnLogistic):
@@ -216,15 +242,7 @@ class LabelClassifier(PerColumnLogistic):
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
         """Label probabilities of segments.
 
-        Args:
-            X: (S, D) segment features, D as in training.
-
-        Returns:
-            (S, 6) probability of each label, columns in `LABELS` order.
-
-        Raises:
-            NotFittedError: Before `fit`.
-            InputError: For features of the wrong width, empty or non-finite.
+        The arguments, result and errors are those of `SegmentClassifier.predict_proba`.
         """
         if self._models is None:
             raise NotFittedError("the classifier is not trained; call fit(X, Y) first.")

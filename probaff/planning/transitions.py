@@ -44,7 +44,11 @@ import numpy as np
 import torch
 from torch.distributions import Distribution
 
-from probaff._checks import check_count, check_finite, check_positive, check_shape
+from probaff._checks import (
+    check_array_fields,
+    check_count,
+    check_positive,
+)
 from probaff.data.queries import PushQueries
 from probaff.errors import InputError
 from probaff.planning._checks import check_instance
@@ -124,11 +128,7 @@ class PushBatch:
             )
         n = len(np.asarray(self.poses))
         shapes = {"poses": (n, len(objects), 3), "origins": (n, 2), "yaws": (n,)}
-        for name, shape in shapes.items():
-            arr = np.asarray(getattr(self, name), dtype=float)
-            check_shape(f"PushBatch.{name}", arr, shape)
-            check_finite(f"PushBatch.{name}", arr)
-            object.__setattr__(self, name, arr)
+        check_array_fields(self, "PushBatch", shapes)
         check_positive("PushBatch.distance (m)", self.distance)
         object.__setattr__(self, "objects", objects)
         object.__setattr__(self, "distance", float(self.distance))

@@ -13,10 +13,19 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from probaff._checks import check_finite, check_shape
 from probaff.errors import InputError
 from probaff.sim.specs import ObjectSpec
 
-__all__ = ["check_items", "check_objects", "check_rng", "check_type", "floats", "numeric_fields"]
+__all__ = [
+    "check_items",
+    "check_objects",
+    "check_rng",
+    "check_type",
+    "float_rows",
+    "floats",
+    "numeric_fields",
+]
 
 _T = TypeVar("_T")
 
@@ -31,6 +40,19 @@ def floats(name: str, value: object) -> np.ndarray:
         return np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
         raise InputError(f"{name} must hold numbers, got {value!r}.") from None
+
+
+def float_rows(name: str, arr: np.ndarray, columns: int) -> np.ndarray:
+    """`arr` as rows of `columns` finite numbers, `(N, columns)`; an empty array is no rows.
+
+    Raises:
+        InputError: Naming `name`, for another shape or a NaN or infinite value.
+    """
+    if arr.size == 0:
+        arr = arr.reshape(0, columns)
+    check_shape(name, arr, (None, columns))
+    check_finite(name, arr)
+    return arr
 
 
 def check_type(name: str, value: object, cls: type[_T], how: str = "") -> _T:

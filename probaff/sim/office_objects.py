@@ -15,10 +15,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from probaff._checks import check_count, check_finite, check_positive, check_shape
+from probaff._checks import check_count, check_positive
 from probaff.errors import InputError
 from probaff.sim.geometry import convex_penetration, rect_disc_penetration
-from probaff.sim.inputs import floats
+from probaff.sim.inputs import float_rows, floats
 
 __all__ = ["KINDS", "OfficeObject", "check_objects", "footprint_corners", "xy_points"]
 
@@ -30,12 +30,7 @@ _REST_TOL = 1e-3  # m; an object rests on a surface whose height is this close t
 
 
 def _parts(name: str, value: object, columns: int) -> np.ndarray:
-    arr = floats(name, value)
-    if arr.size == 0:
-        arr = arr.reshape(0, columns)
-    check_shape(name, arr, (None, columns))
-    check_finite(name, arr)
-    return arr
+    return float_rows(name, floats(name, value), columns)
 
 
 @dataclass(frozen=True, eq=False)

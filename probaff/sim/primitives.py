@@ -15,8 +15,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from probaff._checks import check_finite, check_shape
+from probaff._checks import check_shape
 from probaff.errors import InputError
+from probaff.sim.inputs import float_rows
 
 __all__ = ["PrimitiveScene"]
 
@@ -32,12 +33,7 @@ def _numbers(name: str, value: object, columns: int) -> np.ndarray:
 
 
 def _array(name: str, value: object, columns: int) -> np.ndarray:
-    arr = _numbers(name, value, columns)
-    if arr.size == 0:
-        arr = arr.reshape(0, columns)
-    check_shape(name, arr, (None, columns))
-    check_finite(name, arr)
-    return arr
+    return float_rows(name, _numbers(name, value, columns), columns)
 
 
 def _ids(name: str, value: object, n: int) -> np.ndarray:

@@ -5,10 +5,10 @@ probaff.data.store and probaff.data.schema.
 """
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
+from data_helpers import folder_files
 
 import probaff.data.generation as gen_mod
 from probaff.data import GenerateConfig, generate, load_dataset, summarize
@@ -16,12 +16,6 @@ from probaff.data.schema import SCHEMA_VERSION, PushDataset
 from probaff.errors import DatasetError, InputError
 
 CFG = GenerateConfig(scene="two_objects", n=20, seed=4, shard_size=8, cloud_points=32)
-
-
-def _files(root: Path) -> dict[str, bytes]:
-    return {
-        str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()
-    }
 
 
 @pytest.fixture(scope="module")
@@ -47,12 +41,12 @@ def test_schema_and_contents(reference):
 
 def test_same_seed_same_bytes(reference, tmp_path):
     generate(CFG, tmp_path / "again", workers=0, progress=False)
-    assert _files(tmp_path / "again") == _files(reference)
+    assert folder_files(tmp_path / "again") == folder_files(reference)
 
 
 def test_dask_matches_serial(reference, tmp_path):
     generate(CFG, tmp_path / "dask", workers=2, progress=False)
-    assert _files(tmp_path / "dask") == _files(reference)
+    assert folder_files(tmp_path / "dask") == folder_files(reference)
 
 
 def test_other_seed_differs(reference, tmp_path):
@@ -84,7 +78,7 @@ def test_killed_run_resumes_without_loss_or_duplication(reference, tmp_path, mon
     with pytest.raises(DatasetError, match="--resume"):
         generate(CFG, out, workers=0, progress=False)
     generate(CFG, out, workers=0, resume=True, progress=False)
-    assert _files(out) == _files(reference)
+    assert folder_files(out) == folder_files(reference)
 
 
 def test_shard_written_before_manifest_is_adopted(reference, tmp_path):
@@ -97,7 +91,7 @@ def test_shard_written_before_manifest_is_adopted(reference, tmp_path):
     (out / "manifest.json").write_text(json.dumps(manifest))
     (out / "shards" / ".00002.npz.tmp-999").write_bytes(b"partial")
     generate(CFG, out, workers=0, resume=True, progress=False)
-    assert _files(out) == _files(reference)
+    assert folder_files(out) == folder_files(reference)
 
 
 def test_resume_with_other_options_is_refused(reference, tmp_path):
@@ -172,7 +166,7 @@ def test_existing_scheduler_gives_the_same_bytes(reference, tmp_path):
         n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None
     ) as cluster:
         generate(CFG, tmp_path / "sched", scheduler=cluster.scheduler_address, progress=False)
-    assert _files(tmp_path / "sched") == _files(reference)
+    assert folder_files(tmp_path / "sched") == folder_files(reference)
 
 
 def _copy(reference, out):

@@ -4,10 +4,10 @@ import json
 import math
 import shutil
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
+from data_helpers import folder_files, read_manifest
 
 from probaff.cli import main
 from probaff.data import (
@@ -30,16 +30,6 @@ OBSERVED = ("state_before", "state_after", "effect")
 PLAN_KEYS = {"scene", "n", "seed", "shard_size", "trajectories", "cloud_points", "cloud_noise"}
 
 
-def _files(root: Path) -> dict[str, bytes]:
-    return {
-        str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()
-    }
-
-
-def _manifest(root: Path) -> dict:
-    return json.loads((root / "manifest.json").read_text())
-
-
 @pytest.fixture(scope="module")
 def clean(generated):
     return generated(CLEAN, "clean")
@@ -51,7 +41,7 @@ def noisy(generated):
 
 
 def test_default_is_noise_free_version_6(clean):
-    manifest = _manifest(clean)
+    manifest = read_manifest(clean)
     assert manifest["schema_version"] == 6  # the reaction along the path (version 6)
     assert set(manifest["plan"]) == PLAN_KEYS
     ds = load_dataset(clean)
@@ -63,7 +53,7 @@ def test_default_is_noise_free_version_6(clean):
 
 def test_explicit_none_gives_the_same_bytes(clean, tmp_path):
     generate(replace(CLEAN, pose_noise=None), tmp_path / "none", workers=0, progress=False)
-    assert _files(tmp_path / "none") == _files(clean)
+    assert folder_files(tmp_path / "none") == folder_files(clean)
 
 
 def test_noise_changes_only_the_observations(clean, noisy):
@@ -92,7 +82,7 @@ def test_observed_effect_is_the_pushing_frame_difference_of_observed_poses(noisy
 
 def test_same_seed_same_bytes(noisy, tmp_path):
     generate(NOISY, tmp_path / "again", workers=0, progress=False)
-    assert _files(tmp_path / "again") == _files(noisy)
+    assert folder_files(tmp_path / "again") == folder_files(noisy)
 
 
 def test_noise_statistics_match_the_configured_std(noisy):
@@ -125,7 +115,7 @@ def test_observe_poses_statistics_on_many_draws():
 
 
 def test_manifest_and_summary_record_the_noise(clean, noisy):
-    manifest = _manifest(noisy)
+    manifest = read_manifest(noisy)
     assert manifest["schema_version"] == 6
     assert manifest["plan"]["pose_noise"] == {"position_std": 0.003, "yaw_std": math.radians(1.0)}
     assert set(manifest["plan"]) == PLAN_KEYS | {"pose_noise"}
@@ -154,18 +144,18 @@ def test_resume_with_other_noise_is_refused(clean, noisy, tmp_path):
 def test_resume_with_the_same_noise_neither_loses_nor_repeats(noisy, tmp_path):
     out = tmp_path / "partial"
     shutil.copytree(noisy, out)
-    manifest = _manifest(out)
+    manifest = read_manifest(out)
     del manifest["shards"]["00001"]
     (out / "manifest.json").write_text(json.dumps(manifest))
     (out / "shards" / "00001.npz").unlink()
     generate(NOISY, out, workers=0, resume=True, progress=False)
-    assert _files(out) == _files(noisy)
+    assert folder_files(out) == folder_files(noisy)
 
 
 def test_inconsistent_datasets_are_refused(clean, noisy, tmp_path):
     out = tmp_path / "v1"
     shutil.copytree(clean, out)
-    manifest = _manifest(out)
+    manifest = read_manifest(out)
     manifest["plan"]["pose_noise"] = NOISE.to_dict()
     manifest["schema_version"] = 1
     (out / "manifest.json").write_text(json.dumps(manifest))
@@ -177,7 +167,7 @@ def test_inconsistent_datasets_are_refused(clean, noisy, tmp_path):
         load_dataset(out)
     out = tmp_path / "v2"
     shutil.copytree(noisy, out)
-    manifest = _manifest(out)
+    manifest = read_manifest(out)
     del manifest["plan"]["pose_noise"]
     (out / "manifest.json").write_text(json.dumps(manifest))
     with pytest.raises(DatasetError, match="hold the ground-truth arrays"):
@@ -211,7 +201,7 @@ def test_cli_pose_noise(tmp_path, capsys, generate_cli):
     flags = ("--seed", "2", "--shard-size", "4", "--pose-noise", "0.002,0.5")
     assert generate_cli("near_obstacle", 4, out, *flags) == 0
     capsys.readouterr()
-    assert _manifest(out)["plan"]["pose_noise"] == {
+    assert read_manifest(out)["plan"]["pose_noise"] == {
         "position_std": 0.002,
         "yaw_std": math.radians(0.5),
     }

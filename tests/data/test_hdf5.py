@@ -12,6 +12,7 @@ import h5py
 import numpy as np
 import pytest
 import torch
+from data_helpers import folder_files
 
 from probaff._threads import limit_threads
 from probaff.data import (
@@ -43,12 +44,6 @@ FIXTURES = Path(__file__).resolve().parent / "fixtures"
 OBSERVED = ("object_ids", "state_before", "state_after", "push_origin", "push_yaw")
 
 
-def _files(root):
-    return {
-        str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()
-    }
-
-
 @pytest.fixture(scope="module")
 def pushes(tmp_path_factory):
     """A noisy push dataset with a wall (schema version 2, walls and ground truth stored)."""
@@ -72,7 +67,7 @@ def test_export_then_import_is_byte_identical(which, request, tmp_path):
     source = request.getfixturevalue(which)
     export_hdf5(source, tmp_path / "ds.h5")
     import_hdf5(tmp_path / "ds.h5", tmp_path / "back")
-    assert _files(tmp_path / "back") == _files(source)  # every shard and the manifest
+    assert folder_files(tmp_path / "back") == folder_files(source)  # every shard and the manifest
     a, b = load_any_dataset(source), load_any_dataset(tmp_path / "back")
     assert type(a) is type(b) and set(a.arrays) == set(b.arrays)
     for name, arr in a.arrays.items():
@@ -300,10 +295,10 @@ def test_truncated_and_corrupted_files_are_refused(pushes, tmp_path):
 
 def test_import_into_a_folder_holding_a_dataset_loses_nothing(pushes, picks, tmp_path):
     file = export_hdf5(pushes, tmp_path / "ds.h5")
-    before = _files(picks)
+    before = folder_files(picks)
     with pytest.raises(DatasetError, match="already holds a skill dataset; nothing was written"):
         import_hdf5(file, picks)
-    assert _files(picks) == before
+    assert folder_files(picks) == before
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "notes.txt").write_text("keep")
     with pytest.raises(DatasetError, match="not empty"):
@@ -450,7 +445,7 @@ def test_flipped_bytes_give_an_identical_import_or_one_dataset_error(tmp_path):
             assert "flipped.h5" in str(exc), (pos, str(exc))
             outcomes["refused"] += 1
         else:
-            assert _files(out) == _files(source), pos
+            assert folder_files(out) == folder_files(source), pos
             outcomes["identical"] += 1
         try:
             row = read_row(bad, 1)

@@ -16,6 +16,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from data_helpers import folder_files
 
 from probaff.data import export_hdf5, import_hdf5, load_dataset, summarize
 from probaff.data.schema import REQUIRED_ARRAYS, PushDataset
@@ -26,12 +27,6 @@ from probaff.sim.geometry import push_frame_effect
 
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
 TRUE = ("true_state_before", "true_state_after", "true_effect")
-
-
-def _files(root: Path) -> dict[str, bytes]:
-    return {
-        str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()
-    }
 
 
 def _shard_arrays(root: Path) -> dict[str, np.ndarray]:
@@ -45,11 +40,11 @@ def test_a_dataset_written_by_an_earlier_release_loads_bit_identically(version, 
     source = FIXTURES / f"push_v{version}"
     folder = tmp_path / "old"
     shutil.copytree(source, folder)
-    before = _files(folder)
+    before = folder_files(folder)
     manifest = json.loads((source / "manifest.json").read_text())
     assert manifest["schema_version"] == version and manifest["plan"]["n"] == 3
     ds = load_dataset(folder)
-    assert _files(folder) == before  # reading leaves the old files as they were
+    assert folder_files(folder) == before  # reading leaves the old files as they were
     assert read_manifest(folder) == manifest
     on_disk = _shard_arrays(source)
     assert set(ds.arrays) == set(on_disk)

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from data_helpers import folder_files, read_manifest
 
 import probaff.data.generation as gen_mod
 from probaff.cli import main
@@ -43,18 +44,8 @@ WORLD = load_sideview()
 SPAN = WORLD.gripper.span
 
 
-def _files(root: Path) -> dict[str, bytes]:
-    return {
-        str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()
-    }
-
-
-def _manifest(root: Path) -> dict:
-    return json.loads((root / "manifest.json").read_text())
-
-
 def _edit_manifest(root: Path, **changes) -> None:
-    m = _manifest(root)
+    m = read_manifest(root)
     m.update(changes)
     (root / "manifest.json").write_text(json.dumps(m))
 
@@ -79,7 +70,7 @@ def test_pick_dataset_shapes_and_manifest(pick):
     assert ds["opening_commanded"].shape == (24, T) and ds["q_waypoints"].shape[:2] == (24, W)
     assert ds["q_waypoints"].shape[2] == 6
     assert ds.object_names == sorted(ds.object_names) and "cube_10" in ds.object_names
-    manifest = _manifest(pick)
+    manifest = read_manifest(pick)
     assert (manifest["kind"], manifest["schema_version"]) == ("skill", 3)
     assert manifest["plan"] == {
         "scene": "pick",
@@ -154,8 +145,8 @@ def test_trajectories_are_resampled_and_padded_with_the_last_sample(pick):
 
 def test_same_seed_same_bytes_and_shards_are_independent(pick, tmp_path):
     generate_skills(PICK, tmp_path / "again", workers=0, progress=False)
-    assert _files(tmp_path / "again") == _files(pick)
-    manifest = _manifest(pick)
+    assert folder_files(tmp_path / "again") == folder_files(pick)
+    manifest = read_manifest(pick)
     arrays = make_shard(PICK.validate(), 2)  # shard 2 alone, without shards 0 and 1
     stored = read_shard(pick, 2, manifest["shards"]["00002"]["sha256"])
     assert arrays.keys() == stored.keys()
@@ -172,7 +163,7 @@ def generate_skills_dir(config: GenerateConfig, out: Path) -> Path:
 
 def test_dask_matches_serial(tiny, tmp_path):
     generate_skills(TINY, tmp_path / "dask", workers=2, progress=False)
-    assert _files(tmp_path / "dask") == _files(tiny)
+    assert folder_files(tmp_path / "dask") == folder_files(tiny)
 
 
 def test_resume_recomputes_only_the_deleted_shard(pick, tmp_path, monkeypatch):
@@ -192,7 +183,7 @@ def test_resume_recomputes_only_the_deleted_shard(pick, tmp_path, monkeypatch):
     monkeypatch.setattr(gen_mod, "make_shard", counting)
     generate_skills(PICK, out, workers=0, resume=True, progress=False)
     assert calls == [1]
-    assert _files(out) == _files(pick)
+    assert folder_files(out) == folder_files(pick)
 
 
 def test_corrupt_shard_is_detected_and_repaired_on_resume(pick, tmp_path):
@@ -205,7 +196,7 @@ def test_corrupt_shard_is_detected_and_repaired_on_resume(pick, tmp_path):
     with pytest.raises(DatasetError, match="checksum"):
         load_skill_dataset(out)
     generate_skills(PICK, out, workers=0, resume=True, progress=False)
-    assert _files(out) == _files(pick)
+    assert folder_files(out) == folder_files(pick)
 
 
 def test_resume_with_other_options_is_refused(tiny, tmp_path):
@@ -222,7 +213,7 @@ def test_resume_with_other_options_is_refused(tiny, tmp_path):
 def test_push_datasets_are_written_and_read_as_before(tmp_path, tiny, noise, version):
     out = tmp_path / "push"
     ds = generate(replace(PUSH, pose_noise=noise), out, workers=0, progress=False)
-    manifest = _manifest(out)
+    manifest = read_manifest(out)
     assert manifest["schema_version"] == version and "kind" not in manifest
     keys = PUSH_PLAN_KEYS | ({"pose_noise"} if noise else set())
     assert set(manifest["plan"]) == keys
@@ -303,7 +294,7 @@ def test_unknown_and_misused_scenes(tmp_path, monkeypatch):
 def test_generate_makes_the_dataset_of_the_scenes_kind(tiny, tmp_path):
     ds = generate(TINY, tmp_path / "one", workers=0, progress=False)
     assert isinstance(ds, SkillDataset) and ds.rows_label == "picks"
-    assert _files(tmp_path / "one") == _files(tiny)
+    assert folder_files(tmp_path / "one") == folder_files(tiny)
 
 
 def test_place_dataset_without_trajectories(tmp_path):
@@ -311,7 +302,7 @@ def test_place_dataset_without_trajectories(tmp_path):
     ds = generate_skills(cfg, tmp_path / "place", workers=0, progress=False)
     assert ds.skill == "place" and not ds.has_trajectories and ds.n_samples == 0
     assert "traj_time" not in ds.arrays
-    assert _manifest(tmp_path / "place")["plan"]["trajectories"] is False
+    assert read_manifest(tmp_path / "place")["plan"]["trajectories"] is False
     rows = np.arange(6)
     target, support = ds["target"].astype(int), ds["support"].astype(int)
     assert np.all(target == ds.present.sum(axis=1) - 1)  # the held cube is the last object
@@ -337,7 +328,7 @@ def test_place_dataset_without_trajectories(tmp_path):
 def test_manifest_traj_flag_must_match_the_shards(tiny, tmp_path):
     out = tmp_path / "flag"
     shutil.copytree(tiny, out)
-    m = _manifest(out)
+    m = read_manifest(out)
     m["plan"]["trajectories"] = False
     (out / "manifest.json").write_text(json.dumps(m))
     with pytest.raises(DatasetError, match="hold the trajectory arrays"):
@@ -452,7 +443,7 @@ def test_cli_describes_pick_and_place_datasets(tiny, tmp_path, capsys):
 def test_skill_dataset_without_checksums_loads_with_a_warning(tiny, tmp_path):
     out = tmp_path / "unchecked"
     shutil.copytree(tiny, out)
-    manifest = _manifest(out)
+    manifest = read_manifest(out)
     for entry in manifest["shards"].values():
         del entry["sha256"]
     (out / "manifest.json").write_text(json.dumps(manifest))

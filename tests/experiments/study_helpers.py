@@ -1,5 +1,6 @@
 """Helpers of the study tests: smoke runs of the study scripts, resumption, saved figures, and
-synthetic records of the affordance-map study, a Push-T worker that never shows the T."""
+synthetic records of the affordance-map study, a Push-T worker that never shows the T and one
+that hides the state."""
 
 from __future__ import annotations
 
@@ -200,3 +201,25 @@ class BlankPushTWorker:
         return {**state, **seen, "pixels": [self.image] * n, "agent_pos": [[100.0, 100.0]] * n,
                 "obs": seen["obs"] * n, "coverage": [0.0] * n, "terminated": False,
                 "truncated": False, "steps": self.steps}  # fmt: skip
+
+
+class PoisonedPushTWorker:
+    """A Push-T worker whose answers carry no usable state, around a real one.
+
+    The state's fields (`STATE`: the block's pose, the agent's state, the goal and the state
+    observation) are NaN; the observation (``pixels``, ``agent_pos``) and the environment's
+    own flags are kept, so that what a planner plans on must be perceived.
+    """
+
+    STATE = ("block", "agent", "agent_vel", "goal", "obs")
+
+    def __init__(self, worker: Any) -> None:
+        self.worker = worker
+
+    def ask(self, cmd: str, **fields: Any) -> dict[str, Any]:
+        """The wrapped worker's answer, its state fields replaced by NaN."""
+        answer: dict[str, Any] = self.worker.ask(cmd, **fields)
+        for key in self.STATE:
+            if key in answer:
+                answer[key] = np.full(np.shape(answer[key]), np.nan).tolist()
+        return answer

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 import pytest
-from study_helpers import BlankPushTWorker
+from study_helpers import BlankPushTWorker, PoisonedPushTWorker
 
 from probaff.errors import InputError
 from probaff.experiments.pusht.env import PushTEnvError, PushTWorker, pixel_observations
@@ -210,17 +210,14 @@ def test_shape_outline_area_and_centroid():
 
 
 class _Poisoned:
-    """A worker whose answers carry no usable state: what the planner plans on is perceived.
+    """A worker whose answers carry no usable state when `poison` (`PoisonedPushTWorker`).
 
-    The state's fields (the block's pose, the agent's state, the goal, the state observation)
-    are replaced by NaN when `poison`; the observation (``pixels``, ``agent_pos``) and the
-    environment's own flags are kept. The episode is cut after `steps` step calls.
+    It records the actions it is sent and cuts the episode after `steps` step calls.
     """
 
-    STATE = ("block", "agent", "agent_vel", "goal", "obs")
-
     def __init__(self, worker, poison: bool, steps: int) -> None:
-        self.worker, self.poison, self.left = worker, poison, steps
+        self.worker = PoisonedPushTWorker(worker) if poison else worker
+        self.left = steps
         self.actions: list[list[list[float]]] = []
 
     def ask(self, cmd, **fields):
@@ -229,10 +226,6 @@ class _Poisoned:
             self.actions.append(fields["actions"])
             self.left -= 1
             answer["truncated"] = answer["truncated"] or self.left <= 0
-        if self.poison:
-            for key in self.STATE:
-                if key in answer:
-                    answer[key] = np.full(np.shape(answer[key]), np.nan).tolist()
         return answer
 
 

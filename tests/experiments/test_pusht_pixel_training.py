@@ -15,7 +15,7 @@ import importlib
 
 import numpy as np
 import pytest
-from study_helpers import BlankPushTWorker
+from study_helpers import BlankPushTWorker, PoisonedPushTWorker
 
 from probaff.errors import InputError, ProbaffError
 from probaff.experiments.pusht.data import (
@@ -43,23 +43,6 @@ N = 6
 PERCEIVED = ("before", "after", "origin", "yaw", "dist", "approach_moved", "shape")
 
 
-class _Poisoned:
-    """A worker whose answers carry no usable state: the block's pose, the agent's state, the
-    goal and the state observation are NaN; the image, ``agent_pos`` and the flags are kept."""
-
-    STATE = ("block", "agent", "agent_vel", "goal", "obs")
-
-    def __init__(self, worker) -> None:
-        self.worker = worker
-
-    def ask(self, cmd, **fields):
-        answer = self.worker.ask(cmd, **fields)
-        for key in self.STATE:
-            if key in answer:
-                answer[key] = np.full(np.shape(answer[key]), np.nan).tolist()
-        return answer
-
-
 @pytest.fixture(scope="module")
 def recorded(pusht_python):
     """The same seeded chunk recorded from pixels by a clean and by a poisoned worker."""
@@ -68,7 +51,7 @@ def recorded(pusht_python):
     w = PushTWorker(pusht_python)
     try:
         for poison in (False, True):
-            proxy = _Poisoned(w) if poison else w
+            proxy = PoisonedPushTWorker(w) if poison else w
             out[poison] = record_pushes(proxy, chunk_rng(5, "train", 0), N, s, observation="pixels")
     finally:
         w.close()

@@ -8,6 +8,7 @@ import gtsam
 import numpy as np
 
 from probaff.maps import AffordanceGraph
+from probaff.maps.synthetic import drop_shelves
 
 
 def sparse_map(rng: np.random.Generator, size: int = 12, lo: int = 10, hi: int = 30) -> np.ndarray:
@@ -20,14 +21,7 @@ def sparse_map(rng: np.random.Generator, size: int = 12, lo: int = 10, hi: int =
 def shelf_map(rng: np.random.Generator, size: int = 12, lo: int = 10, hi: int = 30) -> np.ndarray:
     """Boxes stacked in 1- or 2-deep shelves: many short cycles."""
     while True:
-        target = int(rng.integers(lo, hi + 1))
-        occ = np.zeros((size, size), dtype=bool)
-        while occ.sum() < target:
-            h, w = int(rng.integers(1, 3)), int(rng.integers(2, 6))
-            if rng.random() < 0.5:
-                h, w = w, h
-            r, c = int(rng.integers(0, size - h + 1)), int(rng.integers(0, size - w + 1))
-            occ[r : r + h, c : c + w] = True
+        occ = drop_shelves(rng, size, int(rng.integers(lo, hi + 1)))
         if occ.sum() <= hi:
             return occ
 

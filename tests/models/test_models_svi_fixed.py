@@ -5,7 +5,6 @@ import pytest
 import torch
 from pyro.infer import TraceEnum_ELBO
 
-from probaff._threads import limit_threads
 from probaff.models import MixtureOfGPExperts, fit_em
 from probaff.models.synthetic import softmax_regimes
 from probaff.models.variational import svi_fixed
@@ -13,11 +12,7 @@ from probaff.models.variational.svi import fit_svi
 from probaff.models.variational.svi_fixed import FixedHyperparameterSVI
 from probaff.models.variational.vi import VariationalMixtureOfGPExperts, WhitenedQ
 
-
-@pytest.fixture(autouse=True, scope="module")
-def _single_thread():
-    with limit_threads(1):
-        yield
+pytestmark = pytest.mark.usefixtures("single_thread")
 
 
 def _built(n_inducing: int = 10):

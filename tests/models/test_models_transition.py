@@ -28,10 +28,7 @@ from probaff.models.persistence import FORMATS, load, save
 N_TRAIN, N_TEST = 60, 40
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _single_thread():
-    with limit_threads(1):
-        yield
+pytestmark = pytest.mark.usefixtures("single_thread")
 
 
 def _reaction_data(n: int, seed: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:

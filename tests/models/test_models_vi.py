@@ -6,18 +6,13 @@ import torch
 from pyro.infer import TraceEnum_ELBO
 from torch.distributions import MixtureSameFamily
 
-from probaff._threads import limit_threads
 from probaff.errors import InputError
 from probaff.models import MixtureOfGPExperts, NotFittedError, fit_em
 from probaff.models.synthetic import piecewise_1d, regime_features
 from probaff.models.variational.svi import SVIHistory, fit_svi
 from probaff.models.variational.vi import SVGPExpert, VariationalMixtureOfGPExperts
 
-
-@pytest.fixture(autouse=True, scope="module")
-def _single_thread():
-    with limit_threads(1):
-        yield
+pytestmark = pytest.mark.usefixtures("single_thread")
 
 
 def test_svi_matches_em_on_held_out_nlpd():

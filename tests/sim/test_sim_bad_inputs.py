@@ -392,10 +392,22 @@ def test_side_view_and_camera_entry_points_refuse_strings():
 
 
 def test_the_shared_checks_name_the_argument():
-    from probaff.sim.inputs import check_items, check_objects, check_rng, check_type, floats
+    from probaff.sim.inputs import (
+        check_items,
+        check_objects,
+        check_rng,
+        check_type,
+        float_rows,
+        floats,
+    )
 
     with pytest.raises(InputError, match=r"x must hold numbers, got 'a'"):
         floats("x", "a")
+    assert float_rows("b", np.zeros(0), 7).shape == (0, 7)
+    with pytest.raises(InputError, match=r"b has shape \(2, 6\), expected \(\*, 7\)"):
+        float_rows("b", np.zeros((2, 6)), 7)
+    with pytest.raises(InputError, match="b contains 7 NaN or infinite"):
+        float_rows("b", np.array([[np.nan] * 7]), 7)
     with pytest.raises(InputError, match=r"w must be a int \(an int\), got str"):
         check_type("w", "3", int, "an int")
     with pytest.raises(InputError, match=r"rng must be a numpy\.random\.Generator"):

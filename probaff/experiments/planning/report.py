@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from probaff.eval.metrics import wilson_interval
-from probaff.eval.tables import markdown_table
+from probaff.eval.tables import group_rows, markdown_table
 from probaff.experiments.planning.config import THESIS_EDGE, PlanningStudyConfig
 
 __all__ = [
@@ -52,14 +52,6 @@ _BLAME_COLUMNS = [
 _TOOL_COLUMNS = [*_RATE_COLUMNS, "depth_cm", "depth_sd_cm", "gain_cm", "plan_seconds"]
 
 
-def _by_planner(records: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
-    """The records of each planner, planners in the order they first appear."""
-    out: dict[str, list[dict[str, Any]]] = {}
-    for r in records:
-        out.setdefault(r["planner"], []).append(r)
-    return out
-
-
 def _rate(planner: str, rs: list[dict[str, Any]], key: str) -> dict[str, Any]:
     """A planner's trials, successes (records whose `key` is true), rate and its interval.
 
@@ -93,7 +85,7 @@ def summarise_tool(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
         ``gain_cm`` (mean final minus initial depth) and ``plan_seconds``.
     """
     rows = []
-    for planner, rs in _by_planner(records).items():
+    for planner, rs in group_rows(records, "planner").items():
         depth = 100 * np.array([r["final_depth"] for r in rs])
         start = 100 * np.array([r["initial_depth"] for r in rs])
         rows.append(
@@ -122,7 +114,7 @@ def summarise(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
         each outcome.
     """
     rows = []
-    for planner, rs in _by_planner(records).items():
+    for planner, rs in group_rows(records, "planner").items():
         errors = [s["error"] for r in rs for s in r["steps"]]
         plan_s = [t for r in rs for t in r["planning_seconds"]]
         ok = [r["pushes"] for r in rs if r["success"]]

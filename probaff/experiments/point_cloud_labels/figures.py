@@ -84,6 +84,15 @@ def _save(fig: Figure, path: str | os.PathLike[str]) -> str:
     return os.fspath(path)
 
 
+def _segment_colours(seg: np.ndarray) -> np.ndarray:
+    """(n, 4) RGBA colour of each point by its segment row `seg` (n,), grey for -1."""
+    from matplotlib import colormaps
+
+    colour = colormaps["tab20"](seg % 20)
+    colour[seg < 0] = (0.8, 0.8, 0.8, 1.0)
+    return colour
+
+
 def _scatter_view(ax: Axes, pts: np.ndarray, colour: np.ndarray, axes: tuple[int, int]) -> None:
     names = "xyz"
     ax.scatter(pts[:, axes[0]], pts[:, axes[1]], c=colour, s=0.5, linewidths=0)
@@ -114,11 +123,7 @@ def plot_segment_cloud(
         InputError: For an empty cloud, mismatched shapes, non-finite values or bad rows.
     """
     pts, seg = _cloud(points, point_segments, max_points)
-    from matplotlib import colormaps
-
-    cmap = colormaps["tab20"]
-    colour = cmap(seg % 20)
-    colour[seg < 0] = (0.8, 0.8, 0.8, 1.0)
+    colour = _segment_colours(seg)
     fig = Figure(figsize=(11, 4.5))
     top, side = fig.subplots(1, 2)
     _scatter_view(top, pts, colour, (0, 1))
@@ -188,8 +193,7 @@ def plot_scanned_scene(
         names, view = ("azimuth, right positive (deg)", "elevation (deg)"), "camera view"
     from matplotlib import colormaps
 
-    colour = colormaps["tab20"](seg % 20)
-    colour[seg < 0] = (0.8, 0.8, 0.8, 1.0)
+    colour = _segment_colours(seg)
     shades = colormaps["viridis"].with_extremes(bad=_UNASSIGNED)
     n_seg = int(prob.shape[0])
     lo, hi = xy.min(axis=0), xy.max(axis=0)

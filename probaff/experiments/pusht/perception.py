@@ -37,7 +37,7 @@ image, or fitted poorly) are not errors: `perceive_block` returns them with a st
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -431,6 +431,25 @@ def _fit(fun: Any, x0: np.ndarray, scale: np.ndarray, max_nfev: int | None = Non
     return _Fit(np.asarray(res.x, dtype=float), float(res.cost), res.jac, res.fun)
 
 
+def _fit_ramped(
+    residual: Callable[[np.ndarray, float], np.ndarray],
+    starts: Iterable[np.ndarray],
+    scale: np.ndarray,
+    ramps: Sequence[float],
+    max_nfev: int,
+) -> _Fit:
+    """The best of fits from `starts` at the widest ramp, refined through the narrower ones."""
+    best: _Fit | None = None
+    for x0 in starts:
+        fit = _fit(lambda p: residual(p, ramps[0]), x0, scale, max_nfev=max_nfev)
+        if best is None or fit.cost < best.cost:
+            best = fit
+    assert best is not None
+    for ramp in ramps[1:]:
+        best = _fit(lambda p, ramp=ramp: residual(p, ramp), best.x, scale)
+    return best
+
+
 def _laplace(fit: _Fit, n_params: int) -> np.ndarray:
     """Covariance ``s^2 (J^T J)^-1`` of a least-squares fit, s^2 its residual variance."""
     n = fit.residual.size
@@ -525,23 +544,13 @@ def perceive_scene(frames: Any, options: PerceptionOptions | None = None) -> Sce
     length = extent / math.sqrt(2)
     width = length - math.sqrt(max(length**2 - area, 0.0))
     dims0 = np.array([length, width, width, length - width])
-    best: _Fit | None = None
-    for start in _start_poses(centroid, TeeShape(*dims0).centroid(), opts.starts):
-        x0 = np.r_[start, dims0]
 
-        def res(p: np.ndarray, ramp: float = opts.ramps[0]) -> np.ndarray:
-            return w * (_tee_fraction(p[:3], p[3:], _GOAL_RIM, points, ramp) - observed)
+    def res(p: np.ndarray, ramp: float) -> np.ndarray:
+        return w * (_tee_fraction(p[:3], p[3:], _GOAL_RIM, points, ramp) - observed)
 
-        fit = _fit(res, x0, np.r_[1.0, 1.0, 0.02, 1.0, 1.0, 1.0, 1.0], max_nfev=60)
-        if best is None or fit.cost < best.cost:
-            best = fit
-    assert best is not None
-    for ramp in opts.ramps[1:]:
-
-        def res_r(p: np.ndarray, ramp: float = ramp) -> np.ndarray:
-            return w * (_tee_fraction(p[:3], p[3:], _GOAL_RIM, points, ramp) - observed)
-
-        best = _fit(res_r, best.x, np.r_[1.0, 1.0, 0.02, 1.0, 1.0, 1.0, 1.0])
+    starts = _start_poses(centroid, TeeShape(*dims0).centroid(), opts.starts)
+    scale = np.r_[1.0, 1.0, 0.02, 1.0, 1.0, 1.0, 1.0]
+    best = _fit_ramped(res, (np.r_[x, dims0] for x in starts), scale, opts.ramps, max_nfev=60)
     shape = TeeShape(*(float(v) for v in np.abs(best.x[3:])))
     goal_pose = np.array([best.x[0], best.x[1], _wrap(best.x[2])])
     goal_cov = _laplace(best, 7)[:3, :3]
@@ -633,23 +642,11 @@ def _fit_block(
     else:
         centroid = (points * observed[:, None]).sum(0) / max(observed.sum(), 1e-9)
         starts = _start_poses(centroid, shape.centroid(), opts.starts)
-    best: _Fit | None = None
-    for start in starts:
-        x0 = np.r_[start, rim0][:n]
 
-        def res0(p: np.ndarray) -> np.ndarray:
-            return weight * (model(p, opts.ramps[0]) - observed)
+    def res(p: np.ndarray, ramp: float) -> np.ndarray:
+        return weight * (model(p, ramp) - observed)
 
-        fit = _fit(res0, x0, scale, max_nfev=20)
-        if best is None or fit.cost < best.cost:
-            best = fit
-    assert best is not None
-    for ramp in opts.ramps[1:]:
-
-        def res(p: np.ndarray, ramp: float = ramp) -> np.ndarray:
-            return weight * (model(p, ramp) - observed)
-
-        best = _fit(res, best.x, scale)
+    best = _fit_ramped(res, (np.r_[x, rim0][:n] for x in starts), scale, opts.ramps, max_nfev=20)
     predicted = model(best.x, opts.ramps[-1])
     hidden = float((predicted * (1.0 - weight)).sum() / max(predicted.sum(), 1e-9))
     seen = weight > 0

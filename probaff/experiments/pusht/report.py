@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from probaff.eval.tables import markdown_table
+from probaff.eval.tables import group_rows, markdown_table
 from probaff.experiments.pusht.config import PushTStudyConfig
 from probaff.experiments.pusht.scoring import DIFFUSION_POLICY, reference_row, score
 
@@ -61,14 +61,6 @@ def model_rows(scored: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     return sorted(scored, key=lambda r: (order.get(r["model"], 9), r["train_pushes"]))
 
 
-def _by_planner(records: Sequence[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
-    """The records by planner, planners in the order they first appear."""
-    by: dict[str, list[dict[str, Any]]] = {}
-    for r in records:
-        by.setdefault(r["planner"], []).append(r)
-    return by
-
-
 def planner_rows(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """One row per planner, in the order planners first appear.
 
@@ -85,7 +77,7 @@ def planner_rows(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
         last bit.
     """
     rows = []
-    for planner, rs in _by_planner(records).items():
+    for planner, rs in group_rows(records, "planner").items():
         errors = [r["error_px"] for r in rs if np.isfinite(r["error_px"])]
         rows.append(
             {
@@ -110,7 +102,7 @@ def timing_rows(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
         mean wall-clock seconds per push) and ``plan_seconds_max`` (the slowest episode's).
     """
     rows = []
-    for planner, rs in _by_planner(records).items():
+    for planner, rs in group_rows(records, "planner").items():
         seconds = np.array([float(r["plan_seconds"]) for r in rs])
         known = seconds[np.isfinite(seconds)]
         rows.append(

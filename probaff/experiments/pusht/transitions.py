@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from probaff._checks import check_finite, check_shape
+from probaff._checks import check_array_fields
 from probaff.experiments.pusht.env import PushTWorker
 from probaff.experiments.pusht.geometry import GYM_TEE, TeeGeometry, cog_pose, origin_pose, to_world
 from probaff.experiments.pusht.models import PushModel, QuasiStaticTee, predict_moments
@@ -65,11 +65,7 @@ class TeePushes:
     def __post_init__(self) -> None:
         n = len(np.asarray(self.prims))
         shapes = {"poses": (n, 3), "agents": (n, 2), "agent_vels": (n, 2), "prims": (n, 3)}
-        for name, shape in shapes.items():
-            arr = np.asarray(getattr(self, name), dtype=float)
-            check_shape(f"TeePushes.{name}", arr, shape)
-            check_finite(f"TeePushes.{name}", arr)
-            object.__setattr__(self, name, arr)
+        check_array_fields(self, "TeePushes", shapes)
 
     def __len__(self) -> int:
         return len(self.prims)

@@ -28,7 +28,16 @@ from probaff.models.experts.likelihood import WeightedGaussianLikelihood
 from probaff.models.options import AUTO_NOISE_FLOOR, NOISE_BOUNDS, GPOptions
 from probaff.models.tensors import DeviceCheckedModule, as_matrix, as_vector
 
-__all__ = ["WeightedExpert", "noise_floor_vector", "out_of_sample", "training_noise_floor"]
+__all__ = [
+    "MIN_VARIANCE",
+    "WeightedExpert",
+    "noise_floor_vector",
+    "out_of_sample",
+    "training_noise_floor",
+]
+
+MIN_VARIANCE = 1e-12
+"""Floor on every expert's predictive variances (in standardised output units)."""
 
 
 def noise_floor_vector(
@@ -230,18 +239,55 @@ class WeightedExpert(DeviceCheckedModule):
 
         Args:
             X: Features, `(N, D)`.
-            include_noise: Add the observation noise variance to the latent one.
+            include_noise: Add the observation noise variance (weight 1) to the latent one.
 
         Returns:
             Independent normals with loc and scale `(N, E)`.
+
+        Raises:
+            NotFittedError: If the expert has no training data yet.
         """
         raise NotImplementedError
+
+    def output_normal(self, mean: Tensor, var: Tensor) -> Normal:
+        """Standardised predictive moments as independent normals in output units.
+
+        Args:
+            mean: Means, `(E, n)`, in standardised output units.
+            var: Variances, `(E, n)`, in standardised output units; floored at
+                `MIN_VARIANCE`.
+
+        Returns:
+            Independent normals with loc and scale `(n, E)`, in output units.
+        """
+        var = var.clamp_min(MIN_VARIANCE)
+        loc = mean.T * self.y_scaler.std + self.y_scaler.mean
+        return Normal(loc, var.T.sqrt() * self.y_scaler.std)
 
     def loo_predict(self) -> Normal:
         """Leave-one-out predictive distribution of every training row (each subclass's own).
 
         Returns:
-            Independent normals with loc and scale `(n, E)`, in training-row order.
+            Independent normals with loc and scale `(n_train, E)`, in output units, one row
+            per training sample with non-zero weight, in the order given to `fit`.
+
+        Raises:
+            NotFittedError: If the expert has no training data yet.
+        """
+        raise NotImplementedError
+
+    def marginal_log_likelihood(self, jitter: float | None = None) -> Tensor:
+        """The hyperparameters' objective per output, divided by `n` (each subclass's own).
+
+        Args:
+            jitter: Diagonal jitter of the training factorisation (each subclass says how it
+                is used); defaults to the expert's current jitter.
+
+        Returns:
+            One value per output, `(E,)`, differentiable in the hyperparameters.
+
+        Raises:
+            NotFittedError: If the expert has no training data yet.
         """
         raise NotImplementedError
 

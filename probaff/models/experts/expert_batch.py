@@ -35,7 +35,7 @@ from torch import Tensor
 from torch.distributions import Normal
 
 from probaff.errors import NotFittedError
-from probaff.models.experts.expert_base import out_of_sample
+from probaff.models.experts.expert_base import MIN_VARIANCE, out_of_sample
 from probaff.models.experts.gaussian_density import loo_moments
 from probaff.models.experts.gp_expert import FitRequest, GPExpert
 from probaff.models.lbfgs import Evaluation, lockstep
@@ -56,8 +56,6 @@ _BATCHED: ContextVar[bool] = ContextVar("probaff_batched_experts", default=True)
 
 # Jitter levels tried after the plain factorisation (as `psd_cholesky`).
 _MAX_TRIES = 3
-# Floor on predictive variances (in standardised output units), as `GPExpert.predict`.
-_MIN_VARIANCE = 1e-12
 # Most entries of one block of cross-covariances when predicting (bounds the memory).
 _PREDICT_BLOCK = 2**24
 # An expert is batched with larger ones only if it holds this share of their samples...
@@ -571,19 +569,13 @@ def predict_exact_experts_out_of_sample(
     Where expert `j` holds row `i` (``held[i, j]``) it is `GPExpert.loo_predict`'s
     leave-one-out normal; elsewhere `GPExpert.predict`'s (noise included), which is already
     out of sample. Both come from one factorisation of each expert's training covariance
-    (batched), and each expert predicts only the rows it does not hold.
+    (batched), and each expert predicts only the rows it does not hold. The result and errors
+    are those of `predict_exact_experts`.
 
     Args:
         experts: `M` fitted experts with the same `D`, `E` and options.
         X: Expert features of the training rows, `(N, D)`, on the experts' device.
         held: Whether each expert holds each row (its training rows, in order), `(N, M)`.
-
-    Returns:
-        Normals with loc and scale `(N, M, E)`, in output units.
-
-    Raises:
-        NotFittedError: If an expert has no training data.
-        NotPSDError: If a training covariance cannot be factorised at any jitter.
     """
     if not batching_enabled():
         return out_of_sample(experts, X, held)
@@ -618,12 +610,11 @@ def _loo_group(
     noise = hyper[2]  # (B, E)
     own = noise[..., None] * stack.noise_scale  # sigma^2 / w_i on real rows, (B, E, n)
     mean, latent = loo_moments(chol, stack.y, alpha, own)  # (B, E, n) each
-    var = latent.clamp_min(_MIN_VARIANCE) + noise[..., None]
+    var = latent.clamp_min(MIN_VARIANCE) + noise[..., None]
     out = []
     for b, expert in enumerate(experts):
         n = int(stack.counts[b])
-        loc = mean[b, :, :n].T * expert.y_scaler.std + expert.y_scaler.mean
-        out.append(Normal(loc, var[b, :, :n].T.sqrt() * expert.y_scaler.std))
+        out.append(expert.output_normal(mean[b, :, :n], var[b, :, :n]))
     return out
 
 
@@ -667,7 +658,7 @@ def _predict_group(
     mean, var = torch.cat(means, -1), torch.cat(variances, -1)  # (B, E, K)
     if include_noise:
         var = var + hyper[2][..., None]
-    var = var.clamp_min(_MIN_VARIANCE)
+    var = var.clamp_min(MIN_VARIANCE)
     y_mean = torch.stack([e.y_scaler.mean for e in experts])[..., None]
     y_std = torch.stack([e.y_scaler.std for e in experts])[..., None]
     loos = _loo_group(experts, stack, hyper, chol, alpha) if loo else []

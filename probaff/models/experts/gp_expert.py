@@ -19,7 +19,7 @@ from torch import Tensor
 from torch.distributions import Normal
 
 from probaff.errors import NotFittedError
-from probaff.models.experts.expert_base import WeightedExpert, noise_floor_vector
+from probaff.models.experts.expert_base import MIN_VARIANCE, WeightedExpert, noise_floor_vector
 from probaff.models.experts.gaussian_density import gaussian_log_density, loo_moments, psd_cholesky
 from probaff.models.experts.kernels import ard_se_kernel
 from probaff.models.experts.likelihood import WeightedGaussianLikelihood
@@ -36,8 +36,6 @@ FitRequest: TypeAlias = tuple[float, np.ndarray]
 _JITTERS = (1e-8, 1e-6, 1e-4, 1e-2)
 # Box constraints (standardised units) that keep every hyperparameter finite and positive.
 _LENGTHSCALE_BOUNDS = (1e-3, 1e4)
-# Floor on predictive variances (in standardised output units).
-_MIN_VARIANCE = 1e-12
 
 
 @contextlib.contextmanager
@@ -272,15 +270,11 @@ class GPExpert(WeightedExpert):
         `gaussian_log_density` instead of back-propagation through a Cholesky
         factorisation, which makes each L-BFGS evaluation about twice as fast.
 
+        The result and errors are those of `WeightedExpert.marginal_log_likelihood`.
+
         Args:
             jitter: First diagonal jitter tried when the kernel matrix is singular;
                 defaults to the expert's current jitter.
-
-        Returns:
-            One value per output, `(E,)`, differentiable in the hyperparameters.
-
-        Raises:
-            NotFittedError: If the expert has no training data yet.
         """
         if not self.is_fitted:
             raise NotFittedError("GPExpert has no training data; call fit first.")
@@ -302,15 +296,7 @@ class GPExpert(WeightedExpert):
     def predict(self, X: Any, *, include_noise: bool = True) -> Normal:
         """Predictive distribution of the outputs at `X`.
 
-        Args:
-            X: Features, `(N, D)`.
-            include_noise: Add the observation noise variance (weight 1) to the latent one.
-
-        Returns:
-            Independent normals with loc and scale `(N, E)`.
-
-        Raises:
-            NotFittedError: If the expert has no training data yet.
+        The arguments, result and errors are those of `WeightedExpert.predict`.
         """
         if not self.is_fitted:
             raise NotFittedError("GPExpert has no training data; call fit first.")
@@ -318,14 +304,10 @@ class GPExpert(WeightedExpert):
         self.eval()
         with torch.no_grad(), exact_gp_settings(float(self.jitter)):
             post = self.gp(self.x_scaler(x))
-            mean = post.mean.T
-            var = post.variance.T
+            var = post.variance  # (E, N)
             if include_noise:
-                var = var + self.likelihood.noise[..., 0]
-        var = var.clamp_min(_MIN_VARIANCE)
-        mean = mean * self.y_scaler.std + self.y_scaler.mean
-        std = var.sqrt() * self.y_scaler.std
-        return Normal(mean, std)
+                var = var + self.likelihood.noise  # (E, 1)
+        return self.output_normal(post.mean, var)
 
     def loo_predict(self) -> Normal:
         r"""Leave-one-out predictive distribution of every training sample.
@@ -335,14 +317,10 @@ class GPExpert(WeightedExpert):
         closed form of Rasmussen & Williams (2006, eq. 5.12): with
         :math:`A = K + \sigma^2 W^{-1}` and :math:`\alpha = A^{-1}(y - m)`,
         :math:`\mu_{-i} = y_i - \alpha_i / [A^{-1}]_{ii}` and the latent variance
-        :math:`1/[A^{-1}]_{ii} - \sigma^2 / w_i`. It costs one Cholesky factorisation.
-
-        Returns:
-            Independent normals with loc and scale `(n_train, E)`, in output units, one row
-            per training sample with non-zero weight, in the order given to `fit`.
+        :math:`1/[A^{-1}]_{ii} - \sigma^2 / w_i`. It costs one Cholesky factorisation. The
+        result and errors are those of `WeightedExpert.loo_predict`, and one more:
 
         Raises:
-            NotFittedError: If the expert has no training data yet.
             NotPSDError: If the training covariance cannot be factorised even with jitter
                 (the policy of the marginal likelihood: as it is, then with the expert's
                 jitter times 1, 10, 100).
@@ -361,10 +339,8 @@ class GPExpert(WeightedExpert):
             resid = y - self.gp.mean_module.constant[:, None]
             alpha = torch.cholesky_solve(resid[..., None], chol)[..., 0]
             mean, latent = loo_moments(chol, y, alpha, own)  # (E, n) each
-            var = latent.clamp_min(_MIN_VARIANCE) + noise
-        mean = mean.T * self.y_scaler.std + self.y_scaler.mean
-        std = var.T.sqrt() * self.y_scaler.std
-        return Normal(mean, std)
+            var = latent.clamp_min(MIN_VARIANCE) + noise
+        return self.output_normal(mean, var)
 
     # ------------------------------------------------------------ relevances
     @property

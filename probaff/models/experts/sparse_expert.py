@@ -30,7 +30,7 @@ from torch import Tensor
 from torch.distributions import Normal
 
 from probaff.errors import InputError, NotFittedError
-from probaff.models.experts.expert_base import WeightedExpert
+from probaff.models.experts.expert_base import MIN_VARIANCE, WeightedExpert
 from probaff.models.experts.kernels import ard_se_kernel
 from probaff.models.experts.likelihood import weight_correction
 from probaff.models.options import (
@@ -55,8 +55,6 @@ __all__ = [
 _JITTERS = (1e-6, 1e-4, 1e-2)
 # Box constraints (standardised units) that keep every length scale finite and positive.
 _LENGTHSCALE_BOUNDS = (1e-3, 1e4)
-# Floor on predictive variances (in standardised output units).
-_MIN_VARIANCE = 1e-12
 # Rows per block in the no-gradient passes (prediction, leave-one-out), bounding memory.
 _BLOCK = 4096
 # Working copies of the (E, m, N) cross-covariance that one bound evaluation and its
@@ -400,15 +398,11 @@ class SparseGPExpert(WeightedExpert):
         `GPExpert.marginal_log_likelihood`, which it equals when the inducing inputs are the
         training inputs (up to the jitter) and bounds from below otherwise.
 
+        The result and errors are those of `WeightedExpert.marginal_log_likelihood`.
+
         Args:
             jitter: Diagonal jitter of :math:`K_{uu}`, relative to the signal variance;
                 defaults to the expert's current jitter.
-
-        Returns:
-            One value per output, `(E,)`, differentiable in the hyperparameters.
-
-        Raises:
-            NotFittedError: If the expert has no training data yet.
         """
         if not self.is_fitted:
             raise NotFittedError("SparseGPExpert has no training data; call fit first.")
@@ -535,24 +529,10 @@ class SparseGPExpert(WeightedExpert):
                 proj += a_w @ r[:, rows, None]
             return _factors(lu, gram, proj, self.likelihood.noise[..., 0]), inv_l2, s
 
-    def _to_output_units(self, mean: Tensor, var: Tensor) -> Normal:
-        """Standardised `(E, n)` mean and variance as normals `(n, E)` in output units."""
-        var = var.clamp_min(_MIN_VARIANCE)
-        loc = mean.T * self.y_scaler.std + self.y_scaler.mean
-        return Normal(loc, var.T.sqrt() * self.y_scaler.std)
-
     def predict(self, X: Any, *, include_noise: bool = True) -> Normal:
         """Predictive distribution of the outputs at `X` (the SGPR predictive).
 
-        Args:
-            X: Features, `(N, D)`.
-            include_noise: Add the observation noise variance (weight 1) to the latent one.
-
-        Returns:
-            Independent normals with loc and scale `(N, E)`.
-
-        Raises:
-            NotFittedError: If the expert has no training data yet.
+        The arguments, result and errors are those of `WeightedExpert.predict`.
         """
         f, inv_l2, s = self._posterior()
         x = self.x_scaler(as_matrix("features X", X, n_cols=self.n_features)).to(self.jitter)
@@ -568,7 +548,7 @@ class SparseGPExpert(WeightedExpert):
             mean, var = torch.cat(means, -1), torch.cat(variances, -1)
             if include_noise:
                 var = var.clamp_min(0.0) + self.likelihood.noise
-        return self._to_output_units(mean, var)
+        return self.output_normal(mean, var)
 
     def loo_predict(self) -> Normal:
         r"""Leave-one-out predictive distribution of every training sample.
@@ -583,14 +563,8 @@ class SparseGPExpert(WeightedExpert):
         :math:`h_i = \lVert g_i \rVert^2 / \lambda_i`, :math:`\mu_{-i} = y_i - (r_i -
         g_i^\top v) / (1 - h_i)` and :math:`1/[A^{-1}]_{ii} = \lambda_i / (1 - h_i)`. It costs
         :math:`O(N m^2)`, like one bound evaluation. (The inducing inputs were chosen with
-        sample `i` among the candidates; that choice is not undone.)
-
-        Returns:
-            Independent normals with loc and scale `(n_train, E)`, in output units, one row
-            per training sample with non-zero weight, in the order given to `fit`.
-
-        Raises:
-            NotFittedError: If the expert has no training data yet.
+        sample `i` among the candidates; that choice is not undone.) The result and errors are
+        those of `WeightedExpert.loo_predict`.
         """
         f, inv_l2, s = self._posterior()
         noise = self.likelihood.noise  # (E, 1)
@@ -607,8 +581,8 @@ class SparseGPExpert(WeightedExpert):
                 h = (g.square().sum(-2) / lam[:, rows]).clamp_max(1.0 - 1e-12)
                 means.append(y - (r - (g * f.v).sum(-2)) / (1.0 - h))
                 latent = lam[:, rows] * h / (1.0 - h) + s[:, None] - a.square().sum(-2)
-                variances.append(latent.clamp_min(_MIN_VARIANCE) + noise)
-        return self._to_output_units(torch.cat(means, -1), torch.cat(variances, -1))
+                variances.append(latent.clamp_min(MIN_VARIANCE) + noise)
+        return self.output_normal(torch.cat(means, -1), torch.cat(variances, -1))
 
     # ------------------------------------------------------------ relevances
     @property

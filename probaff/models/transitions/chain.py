@@ -26,6 +26,7 @@ from probaff._checks import (
     check_box_sizes,
     check_count,
     check_finite,
+    check_rows,
     check_shape,
 )
 from probaff.errors import InputError
@@ -64,12 +65,8 @@ def _rigid(name: str, T: Any, shape: tuple[int | None, ...]) -> np.ndarray:
 
 def _points(name: str, x: Any) -> np.ndarray:
     """Validate a non-empty, finite (Q, 3) point set; return it as float64."""
-    arr = as_float_array(name, x, copy=True)
-    check_shape(name, arr, (None, 3))
-    if arr.shape[0] == 0:
-        raise InputError(f"{name} holds no points; give at least one (1, 3) point.")
-    check_finite(name, arr)
-    return arr
+    empty = f"{name} holds no points; give at least one (1, 3) point."
+    return check_rows(name, x, 3, empty, copy=True)
 
 
 def _frozen(arr: np.ndarray) -> np.ndarray:
