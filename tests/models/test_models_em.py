@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 import torch
 
-from probaff._threads import limit_threads
 from probaff.data.generation import GenerateConfig, generate
 from probaff.errors import InputError
 from probaff.features import chapter5_features
@@ -24,16 +23,10 @@ from probaff.models.mixture.em_starts import _copy_state, _objective
 from probaff.models.options import EMOptions
 from probaff.models.synthetic import piecewise_1d, softmax_regimes
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.usefixtures("single_thread")]
 
 # Cheap settings for tests whose point is not the default's robustness.
 FAST = {"max_iter": 4, "warm_max_iter": 8, "gp_max_iter": 25}
-
-
-@pytest.fixture(autouse=True, scope="module")
-def _single_thread():
-    with limit_threads(1):
-        yield
 
 
 def _ch5(tmp_path_factory, n=72):

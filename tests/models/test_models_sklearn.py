@@ -15,7 +15,6 @@ from sklearn.preprocessing import StandardScaler
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
 import probaff.errors
-from probaff._threads import limit_threads
 from probaff.errors import InputError
 from probaff.models import MIXTURE_GP, EMOptions, MixtureOfGPExperts, fit_em
 from probaff.models.sklearn import (
@@ -27,7 +26,10 @@ from probaff.models.synthetic import piecewise_1d, softmax_regimes
 
 # Small and random data let an expert collapse; EM repairs it with a RuntimeWarning (that
 # repair is tested in test_models_em.py), which is noise here.
-pytestmark = pytest.mark.filterwarnings("ignore:EM iteration .* collapsed expert:RuntimeWarning")
+pytestmark = [
+    pytest.mark.filterwarnings("ignore:EM iteration .* collapsed expert:RuntimeWarning"),
+    pytest.mark.usefixtures("single_thread"),
+]
 
 # One start, no split/merge and few iterations: every test here is about the estimator's
 # contract, not about the quality of EM's default search.
@@ -58,12 +60,6 @@ def data():
 def fitted(data):
     X, Y = data
     return MixtureOfGPExpertsRegressor(2, random_state=0, **CHEAP).fit(X, Y[:, 0])
-
-
-@pytest.fixture(autouse=True, scope="module")
-def _single_thread():
-    with limit_threads(1):
-        yield
 
 
 # ---------------------------------------------------------------- the API
