@@ -16,6 +16,7 @@ import json
 import sys
 
 from probaff._cli_errors import run_cli
+from probaff.errors import InputError
 from probaff.experiments.config_cli import study_config, study_parser
 from probaff.experiments.planning import SMOKE, Config, run
 from probaff.experiments.planning.reference import check_run, fell, load_reference
@@ -33,6 +34,11 @@ def main() -> int:
     args = parser.parse_args()
     reference = None if args.reference is None else load_reference(args.reference)
     config = study_config(Config, args, SMOKE)
+    if reference is not None and config.replan_distance is not None:
+        raise InputError(
+            "--reference holds successes measured with the task file's replanning distance "
+            "(5 cm, the thesis's rule); drop --replan-distance to check a run against it."
+        )
     summary = run(config)
     status = 0
     if reference is not None:

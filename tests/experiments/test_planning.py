@@ -20,6 +20,7 @@ from probaff.errors import InputError
 from probaff.experiments.planning import PlanningStudyConfig, run
 from probaff.experiments.planning.config import trial_seed
 from probaff.experiments.planning.report import attribute_failures, summarise
+from probaff.experiments.planning.run import edge_trial
 from probaff.planning import (
     PushReachability,
     QuasiStaticTransition,
@@ -125,6 +126,26 @@ def test_bad_config():
         run(PlanningStudyConfig(trials=0))
     with pytest.raises(InputError, match="train_pushes must be at least 10"):
         run(PlanningStudyConfig(train_pushes=5))
+    for bad in (0.0, -0.02, float("nan"), "2 cm", True):
+        with pytest.raises(InputError, match="replan_distance must be a finite number > 0"):
+            run(PlanningStudyConfig(replan_distance=bad))
+
+
+@pytest.mark.slow
+def test_an_episode_replans_by_the_study_s_distance():
+    """The study's `replan_distance` replaces the task file's in every episode it runs."""
+    seed = trial_seed(0, 1)
+
+    def steps(distance):
+        record = edge_trial("astar-quasistatic", 1, seed, False, models={}, **distance)
+        return [(s["error"], s["replanned"], s["fell"]) for s in record["steps"]]
+
+    default = steps({})
+    eager, lazy = steps({"replan_distance": 1e-6}), steps({"replan_distance": 9.0})
+    task = load_edge_task()
+    assert default and all(r == (e > task.replan_distance and not f) for e, r, f in default)
+    assert eager and all(r == (not f) for _, r, f in eager)
+    assert lazy and not any(r for _, r, _ in lazy)
 
 
 # --- figures

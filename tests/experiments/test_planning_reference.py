@@ -212,3 +212,13 @@ def test_script_refuses_a_bad_reference_before_any_work(monkeypatch, capsys, tmp
     # without --reference the script runs as before
     code, stdout, _ = _script(monkeypatch, capsys, "--smoke", "--out", str(tmp_path / "o"))
     assert code == 0 and json.loads(stdout) == {"files": [f"{tmp_path / 'o'}/summary.md"]}
+
+
+def test_script_refuses_a_reference_with_another_replanning_distance(
+    monkeypatch, capsys, tmp_path, fake_study
+):
+    calls = fake_study([], [])
+    args = ("--reference", str(REFERENCE), "--replan-distance", "0.02", "--out", str(tmp_path))
+    code, stdout, stderr = _script(monkeypatch, capsys, *args)
+    assert code == 2 and calls == [] and stdout == ""
+    assert "drop --replan-distance" in stderr and len(stderr.strip().splitlines()) == 1

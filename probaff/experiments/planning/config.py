@@ -9,7 +9,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from probaff._checks import check_count
+from probaff._checks import check_count, check_number
 from probaff.errors import InputError
 from probaff.experiments.base import StudyConfig, check_planners
 from probaff.experiments.config_cli import option_flags
@@ -51,6 +51,15 @@ class PlanningStudyConfig(StudyConfig):
         tool_trials: Tool-push trials per planner (0 skips chapter 5).
         tool_train_pushes: Training pushes of the tool-push scene for chapter 5's mixture.
         tool_planners: Names from `probaff.planning.TOOL_PUSH_PLANNERS`.
+        replan_distance: Replan a push-to-edge episode when the book lands farther than this
+            from the plan's prediction (m, a finite number > 0); None for the task file's
+            (`worlds/tasks/push_to_edge.yaml`: 5 cm, the thesis's rule, which the stored
+            reference counts use). Below it an episode keeps the rest of its plan, whose
+            poses were predicted from where the book was expected, not where it landed: on
+            the 100 episodes at seed 0, 4 of A* with the mixture's 5 falls came from pushes
+            that each landed 2-4 cm beyond their prediction near the edge. With 0.02 m, A*
+            with the mixture succeeded in 96 of them (93 at 5 cm) and with the single GP in
+            98 (91).
     """
 
     out: str = "results/planning"
@@ -64,6 +73,7 @@ class PlanningStudyConfig(StudyConfig):
     tool_trials: int = 50
     tool_train_pushes: int = 300
     tool_planners: tuple[str, ...] = TOOL_PUSH_PLANNERS
+    replan_distance: float | None = None
 
     SMOKE: ClassVar[Mapping[str, Any]] = SMOKE
 
@@ -76,6 +86,8 @@ class PlanningStudyConfig(StudyConfig):
         check_count("trials", self.trials)
         check_count("tool_trials", self.tool_trials, minimum=0)
         check_count("tool_train_pushes", self.tool_train_pushes)
+        if self.replan_distance is not None:
+            check_number("replan_distance", self.replan_distance, bound="> 0", unit="m")
         unknown = [p for p in self.tool_planners if p not in TOOL_PUSH_PLANNERS]
         if unknown:
             raise InputError(

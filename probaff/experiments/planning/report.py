@@ -202,16 +202,32 @@ def _thesis_row() -> dict[str, Any]:
 
 
 def edge_section(
-    config: PlanningStudyConfig, rows: list[dict[str, Any]], blame: list[dict[str, Any]]
+    config: PlanningStudyConfig,
+    rows: list[dict[str, Any]],
+    blame: list[dict[str, Any]],
+    *,
+    replan_distance: float,
 ) -> list[str]:
-    """The summary's push-to-edge section: the planners' table beside the thesis's, blame."""
+    """The summary's push-to-edge section: the planners' table beside the thesis's, blame.
+
+    Args:
+        config: The study's settings.
+        rows: `summarise` rows.
+        blame: `attribute_failures` rows (may be empty).
+        replan_distance: The episodes' replanning distance (m).
+
+    Returns:
+        Markdown lines.
+    """
     md = [
         "# Planning study",
         "",
         "## Push to the edge, then grasp (chapter 4)",
         "",
         f"{config.trials} seeded episodes per planner, the same starts for every planner; "
-        f"models fitted on {config.train_pushes} pushes of the `push_to_edge` scene.",
+        f"models fitted on {config.train_pushes} pushes of the `push_to_edge` scene; an "
+        f"episode replans when a push lands more than {100 * replan_distance:.1f} cm from "
+        "its prediction (the thesis: 5 cm).",
         "",
         markdown_table([*rows, _thesis_row()], _EDGE_COLUMNS, digits=3),
         "",

@@ -29,6 +29,7 @@ and the target's final depth into the reachable region).
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from functools import cache, partial
 from pathlib import Path
 from typing import Any, cast
@@ -94,7 +95,13 @@ def _episode_tools() -> tuple[EdgeTask, PushSimulator, PushReachability]:
 
 
 def edge_trial(
-    planner: str, trial: int, seed: int, keep_trajectories: bool, *, models: dict[str, Any]
+    planner: str,
+    trial: int,
+    seed: int,
+    keep_trajectories: bool,
+    *,
+    models: dict[str, Any],
+    replan_distance: float | None = None,
 ) -> dict[str, Any]:
     """Run one episode of one planner (a study task; Dask workers import it).
 
@@ -104,12 +111,16 @@ def edge_trial(
         seed: The episode's seed (`trial_seed`).
         keep_trajectories: Store the executed hand and book trajectories.
         models: Fitted planner models by name.
+        replan_distance: The task's `EdgeTask.replan_distance` for this episode (m); None
+            keeps the task file's.
 
     Returns:
         The episode's record (`EdgeEpisode.to_dict`) with ``trial``.
     """
     spec = EDGE_PLANNERS[planner]
     task, sim, reach = _episode_tools()
+    if replan_distance is not None:
+        task = replace(task, replan_distance=replan_distance)
     with limit_threads(1):
         episode = run_edge_episode(
             task,
@@ -219,7 +230,10 @@ def _trials(
     c = study.config
     edge = part == "edge"
     planners, trials = (c.planners, c.trials) if edge else (c.tool_planners, c.tool_trials)
-    only, world = (_EDGE_FIELDS, _EDGE_WORLD) if edge else (_TOOL_FIELDS, _TOOL_WORLD)
+    fields, world = (_EDGE_FIELDS, _EDGE_WORLD) if edge else (_TOOL_FIELDS, _TOOL_WORLD)
+    only: tuple[str, ...] = fields
+    if edge and c.replan_distance is not None:  # the task file's keeps the keys it had
+        only = (*fields, "replan_distance")
     tag = c.tag(only=only, world=world, version=_VERSION)
     tasks = [
         (
@@ -238,7 +252,8 @@ def _edge(study: StudyRun[PlanningStudyConfig]) -> tuple[list[dict[str, Any]], l
     """The push-to-edge episodes, their table and figures: summary rows and Markdown."""
     config = study.config
     names = {EDGE_PLANNERS[p].model for p in config.planners} & set(EDGE_MODELS)
-    records = _trials(study, "edge", {"models": edge_models(study, names)})
+    shared = {"models": edge_models(study, names), "replan_distance": config.replan_distance}
+    records = _trials(study, "edge", shared)
     rows = summarise(records)
     study.table("edge_summary.csv", rows)
     for path in edge_figures(rows, records, config.planners, load_edge_task(), study.out):
@@ -246,7 +261,9 @@ def _edge(study: StudyRun[PlanningStudyConfig]) -> tuple[list[dict[str, Any]], l
     blame = attribute_failures(records)
     if blame:
         study.table("edge_failures.csv", blame)
-    return rows, edge_section(config, rows, blame)
+    task = load_edge_task()
+    distance = task.replan_distance if config.replan_distance is None else config.replan_distance
+    return rows, edge_section(config, rows, blame, replan_distance=distance)
 
 
 def _tool(study: StudyRun[PlanningStudyConfig]) -> tuple[list[dict[str, Any]], list[str]]:
