@@ -31,6 +31,7 @@ _EDGE_COLUMNS = [
     *_RATE_COLUMNS,
     "pushes",
     "replans",
+    "vetoes",
     "error_cm",
     "plan_seconds",
     "n_fell",
@@ -109,7 +110,8 @@ def summarise(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     Returns:
         Rows with ``planner``, ``trials``, ``successes``, ``success_rate``, ``success_low``,
         ``success_high``, ``pushes`` (mean over trials), ``pushes_success`` (mean over
-        successful trials), ``replans``, ``error_cm`` (mean one-step prediction error),
+        successful trials), ``replans``, ``vetoes`` (pushes of kept plans refused from the
+        book's pose then; 0 in records without them), ``error_cm`` (mean one-step prediction error),
         ``plan_seconds`` (mean per planning call), ``plan_seconds_max``, and the counts of
         each outcome.
     """
@@ -123,6 +125,7 @@ def summarise(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
             "pushes": float(np.mean([r["pushes"] for r in rs])),
             "pushes_success": float(np.mean(ok)) if ok else math.nan,
             "replans": float(np.mean([r["replans"] for r in rs])),
+            "vetoes": float(np.mean([r.get("vetoes", 0) for r in rs])),
             "error_cm": 100 * float(np.mean(errors)) if errors else math.nan,
             "plan_seconds": float(np.mean(plan_s)) if plan_s else math.nan,
             "plan_seconds_max": float(np.max(plan_s)) if plan_s else math.nan,
@@ -197,7 +200,7 @@ def _thesis_row() -> dict[str, Any]:
         "pushes": t["pushes"],
         "replans": t["replans"],
         "error_cm": t["error_cm"],
-        **dict.fromkeys(("plan_seconds", "n_fell", "n_budget", "n_stuck"), ""),
+        **dict.fromkeys(("vetoes", "plan_seconds", "n_fell", "n_budget", "n_stuck"), ""),
     }
 
 
@@ -231,7 +234,8 @@ def edge_section(
         "",
         markdown_table([*rows, _thesis_row()], _EDGE_COLUMNS, digits=3),
         "",
-        "`success_low`/`success_high`: 95 % Wilson interval. `pushes`, `replans`: means per "
+        "`success_low`/`success_high`: 95 % Wilson interval. `pushes`, `replans`, `vetoes` "
+        "(pushes of a kept plan refused from the book's pose then, each replanned): means per "
         "trial; `error_cm`: mean distance between the predicted and the executed book "
         "position after a push; `plan_seconds`: mean wall time per planning call.",
         "",

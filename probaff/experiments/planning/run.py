@@ -81,6 +81,7 @@ _TOOL_WORLD = ("scenes/tool_push.yaml", "tabletop.yaml", "objects.yaml")
 _TOOL_GROUPS = ("f_o", "f_c")
 _VERSION = 7  # 3: SMEM by partial EM; 4: L-BFGS coroutines; 5: fused kernel; 6: lasso continuation;
 # 7: the push-to-edge models' prior width (EDGE_PRIOR_WIDTH)
+_EPISODE_VERSION = 8  # push-to-edge episodes (models as _VERSION); 8: kept plans rechecked
 _KEEP_TRAJECTORIES = 6  # episodes per planner whose full trajectories are stored (figures)
 
 
@@ -102,6 +103,7 @@ def edge_trial(
     *,
     models: dict[str, Any],
     replan_distance: float | None = None,
+    recheck: bool = True,
 ) -> dict[str, Any]:
     """Run one episode of one planner (a study task; Dask workers import it).
 
@@ -113,6 +115,7 @@ def edge_trial(
         models: Fitted planner models by name.
         replan_distance: The task's `EdgeTask.replan_distance` for this episode (m); None
             keeps the task file's.
+        recheck: `run_edge_episode`'s ``recheck``.
 
     Returns:
         The episode's record (`EdgeEpisode.to_dict`) with ``trial``.
@@ -132,6 +135,7 @@ def edge_trial(
             simulator=sim,
             reach=reach,
             trajectories=keep_trajectories,
+            recheck=recheck,
         )
     return {**episode.to_dict(), "trial": trial}
 
@@ -232,9 +236,13 @@ def _trials(
     planners, trials = (c.planners, c.trials) if edge else (c.tool_planners, c.tool_trials)
     fields, world = (_EDGE_FIELDS, _EDGE_WORLD) if edge else (_TOOL_FIELDS, _TOOL_WORLD)
     only: tuple[str, ...] = fields
-    if edge and c.replan_distance is not None:  # the task file's keeps the keys it had
-        only = (*fields, "replan_distance")
-    tag = c.tag(only=only, world=world, version=_VERSION)
+    if edge:  # the defaults keep the keys they have
+        only = (
+            *fields,
+            *(["replan_distance"] if c.replan_distance is not None else []),
+            *(["recheck"] if not c.recheck else []),
+        )
+    tag = c.tag(only=only, world=world, version=_EPISODE_VERSION if edge else _VERSION)
     tasks = [
         (
             f"{part}.{planner}.trial{trial:04d}.{tag}",
@@ -252,7 +260,11 @@ def _edge(study: StudyRun[PlanningStudyConfig]) -> tuple[list[dict[str, Any]], l
     """The push-to-edge episodes, their table and figures: summary rows and Markdown."""
     config = study.config
     names = {EDGE_PLANNERS[p].model for p in config.planners} & set(EDGE_MODELS)
-    shared = {"models": edge_models(study, names), "replan_distance": config.replan_distance}
+    shared = {
+        "models": edge_models(study, names),
+        "replan_distance": config.replan_distance,
+        "recheck": config.recheck,
+    }
     records = _trials(study, "edge", shared)
     rows = summarise(records)
     study.table("edge_summary.csv", rows)

@@ -21,6 +21,7 @@ from probaff.planning.push_to_edge.planners import (
     plan_astar,
     plan_greedy,
     predict_books,
+    push_admissible,
 )
 from probaff.planning.push_to_edge.task import (
     EdgeTask,
@@ -44,6 +45,7 @@ __all__ = [
     "plan_astar",
     "plan_greedy",
     "predict_books",
+    "push_admissible",
     "run_edge_episode",
     "sample_episode",
 ]

@@ -3,9 +3,13 @@
 The planner plans from the observed book pose; the first planned push runs in the simulator
 (the URDF arm's IK and the episode's own randomised physics, unknown to the planner) and the
 book's new pose is observed. The rest of the plan is kept while the book lands within
-``replan_distance`` of its prediction; otherwise the planner replans from where it is. The
-episode succeeds when the book is graspable (`EdgeTask.graspable`), and fails when it falls,
-when the planner finds no admissible push, or after ``budget`` pushes.
+``replan_distance`` of its prediction; otherwise the planner replans from where it is. With
+``recheck`` (the default), each later push of a kept plan must also pass the planner's own
+test of a search child from the book's pose then (`push_admissible`), or the planner replans
+(a veto): the plan's later poses were predicted from where the book was expected to be, and
+small errors that each stay under ``replan_distance`` add up. The episode succeeds when the
+book is graspable (`EdgeTask.graspable`), and fails when it falls, when the planner finds no
+admissible push, or after ``budget`` pushes.
 
 Covered by tests/planning/push_to_edge/test_edge_episode.py.
 """
@@ -27,6 +31,7 @@ from probaff.planning.push_to_edge.planners import (
     PushReachability,
     plan_astar,
     plan_greedy,
+    push_admissible,
 )
 from probaff.planning.push_to_edge.task import EdgeTask, check_task, sample_episode
 from probaff.planning.transitions import Transition, check_transition
@@ -81,6 +86,8 @@ class EdgeEpisode:
         outcome: ``"success"``, ``"fell"``, ``"budget"`` or ``"stuck"`` (no admissible push).
         pushes: Pushes executed.
         replans: Plans made after the first.
+        vetoes: Pushes of a kept plan that the planner's test refused from the book's pose
+            then (``recheck``), each followed by a new plan.
         plans: Every plan's predicted poses, (n_i, 3) each, as lists.
         planning_seconds: Wall time of each planning call.
         start: (2, 3) book and battery poses at the start.
@@ -94,6 +101,7 @@ class EdgeEpisode:
     outcome: str
     pushes: int
     replans: int
+    vetoes: int
     plans: list[list[list[float]]]
     planning_seconds: list[float]
     start: list[list[float]]
@@ -111,9 +119,11 @@ class EdgeEpisode:
 
 
 def _check_episode(
-    task: Any, transition: Any, search: Any, seed: Any, simulator: Any, reach: Any
+    task: Any, transition: Any, search: Any, seed: Any, simulator: Any, reach: Any, recheck: Any
 ) -> int:
     """The episode's seed, or `InputError` for any argument of `run_edge_episode` it refuses."""
+    if not isinstance(recheck, bool):
+        raise InputError(f"recheck must be True or False, got {recheck!r}.")
     if not isinstance(search, str) or search not in EDGE_SEARCHES:
         raise InputError(f"unknown search {search!r}; choose one of {sorted(EDGE_SEARCHES)}.")
     seed = check_count("seed", seed, minimum=0)
@@ -126,6 +136,33 @@ def _check_episode(
         what = "reach must be the arm's PushReachability(task) or None"
         check_instance(reach, PushReachability, what)
     return seed
+
+
+def _next_push(
+    task: EdgeTask, reach: PushReachability, poses: np.ndarray, plan: EdgePlan
+) -> tuple[np.ndarray, float]:
+    """The plan's first push from the book's pose now: (2,) world hand start and yaw (rad).
+
+    The candidate push of the book's pose nearest the plan's yaw, snapped to the
+    reachability cell the planner was told.
+    """
+    origins, yaws = task.candidate_pushes(poses[0][None])
+    nearest = int(np.argmin(np.abs(np.angle(np.exp(1j * (yaws - plan.yaws[0]))))))
+    origin, snapped = reach.snap(origins[0, nearest], np.array(yaws[nearest]))
+    return origin, float(snapped)
+
+
+def _vetoed(
+    task: EdgeTask,
+    transition: Transition,
+    reach: PushReachability,
+    poses: np.ndarray,
+    plan: EdgePlan,
+    risk: bool,
+) -> bool:
+    """Whether the planner's own test (`push_admissible`) refuses the plan's next push now."""
+    origin, yaw = _next_push(task, reach, poses, plan)
+    return not push_admissible(task, transition, poses[0], poses[1], origin, yaw, risk=risk)
 
 
 def _push(
@@ -142,10 +179,7 @@ def _push(
     Returns:
         The step and the (2, 3) poses after it, or ``None`` if the exact IK refused the push.
     """
-    origins, yaws = task.candidate_pushes(poses[0][None])
-    nearest = int(np.argmin(np.abs(np.angle(np.exp(1j * (yaws - plan.yaws[0]))))))
-    origin, snapped = reach.snap(origins[0, nearest], np.array(yaws[nearest]))
-    yaw = float(snapped)
+    origin, yaw = _next_push(task, reach, poses, plan)
     push = replace(
         scene,
         poses=poses.copy(),
@@ -187,8 +221,9 @@ def run_edge_episode(
     simulator: PushSimulator | None = None,
     reach: PushReachability | None = None,
     trajectories: bool = True,
+    recheck: bool = True,
 ) -> EdgeEpisode:
-    """Run one closed-loop episode.
+    """Run one closed-loop episode (replanning and `recheck`: the module docstring).
 
     Args:
         task: The task.
@@ -201,16 +236,18 @@ def run_edge_episode(
         reach: The planner's reachability cache (built when ``None``; share it across
             episodes of one process).
         trajectories: Keep the executed hand and book trajectories in the record.
+        recheck: Test each later push of a kept plan from the book's pose before it runs.
 
     Returns:
         The episode's record.
 
     Raises:
-        InputError: For an unknown search, a negative seed, a bad task, a `transition`,
-            `simulator` or `reach` of the wrong kind, a start off the table or overlapping
-            the battery, or a transition whose predictions are not finite.
+        InputError: For an unknown search, a negative seed, a `recheck` that is not a bool,
+            a bad task, a `transition`, `simulator` or `reach` of the wrong kind, a start off
+            the table or overlapping the battery, or a transition whose predictions are not
+            finite.
     """
-    seed = _check_episode(task, transition, search, seed, simulator, reach)
+    seed = _check_episode(task, transition, search, seed, simulator, reach, recheck)
     planner = EDGE_SEARCHES[search]
     scene = sample_episode(task, np.random.default_rng(seed))
     task.check_start(scene.poses[0], scene.poses[1])
@@ -222,7 +259,7 @@ def run_edge_episode(
     plans: list[list[list[float]]] = []
     seconds: list[float] = []
     steps: list[EdgeStep] = []
-    replans, unreachable = 0, 0
+    replans, unreachable, vetoes = 0, 0, 0
     outcome = "budget"
     while len(steps) < task.budget:
         if bool(task.graspable(poses[0])):
@@ -238,6 +275,9 @@ def run_edge_episode(
             if len(plan) == 0:
                 outcome = "stuck"
                 break
+        elif recheck and _vetoed(task, transition, reach, poses, plan, risk):  # a kept plan
+            vetoes, plan = vetoes + 1, None
+            continue
         done = _push(task, sim, reach, scene, poses, plan, trajectories)
         if done is None:
             unreachable += 1
@@ -253,9 +293,8 @@ def run_edge_episode(
             outcome = "fell"
             break
         plan = None if step.replanned else plan.rest()
-    else:
-        if bool(task.graspable(poses[0])):
-            outcome = "success"
+    if outcome == "budget" and bool(task.graspable(poses[0])):
+        outcome = "success"
     return EdgeEpisode(
         seed=seed,
         planner=label or f"{search}{'-risk' if risk else ''}:{transition.name}",
@@ -263,6 +302,7 @@ def run_edge_episode(
         outcome=outcome,
         pushes=len(steps),
         replans=replans,
+        vetoes=vetoes,
         plans=plans,
         planning_seconds=seconds,
         start=start.tolist(),

@@ -55,6 +55,7 @@ __all__ = [
     "plan_astar",
     "plan_greedy",
     "predict_books",
+    "push_admissible",
 ]
 
 
@@ -202,6 +203,47 @@ class EdgePlan:
         )
 
 
+def _outcomes(
+    task: EdgeTask,
+    transition: Transition,
+    battery: np.ndarray,
+    risk: bool,
+    books: np.ndarray,
+    origins: np.ndarray,
+    yaws: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The predicted book poses of N pushes and whether a planner admits each.
+
+    A push is admitted when its predicted centre stays ``search.safety_margin`` inside every
+    edge and, for the mean-only planner, off the battery; the risk-aware planner (`risk`)
+    also bounds the fractions of ``risk.samples`` draws that fall or hit the battery.
+
+    Args:
+        task: The task.
+        transition: The planner's model of the pushes.
+        battery: (3,) world battery pose.
+        risk: The risk-aware planner's test.
+        books: (N, 3) world book poses before the pushes.
+        origins: (N, 2) world hand starts.
+        yaws: (N,) world push yaws (rad).
+
+    Returns:
+        ``(child, keep)``: (N, 3) predicted mean poses and (N,) bool.
+    """
+    n_samples = task.risk.samples if risk else 0
+    pred = predict_books(task, transition, books, origins, yaws, battery, n_samples)
+    child = pred.mean
+    margin = task.search.safety_margin
+    if risk and pred.samples is not None:
+        p_fall = task.fallen(pred.samples).mean(0)
+        p_hit = task.collides(pred.samples, battery).mean(0)
+        keep = (p_fall <= task.risk.max_fall) & (p_hit <= task.risk.max_collision)
+        keep &= ~task.fallen(child, margin)
+    else:
+        keep = ~task.fallen(child, margin) & ~task.collides(child, battery)
+    return child, keep
+
+
 class _BookSearch:
     """The push-to-edge task as a `SearchProblem` over book poses (the battery stands)."""
 
@@ -233,25 +275,15 @@ class _BookSearch:
         parent, col = np.nonzero(ok)
         if len(parent) == 0:
             return parent, np.zeros(0), np.zeros((0, 3))
-        n_samples = task.risk.samples if self.risk else 0
-        pred = predict_books(
+        child, keep = _outcomes(
             task,
             self.transition,
+            battery,
+            self.risk,
             poses[parent],
             origins[parent, col],
             yaws[col],
-            battery,
-            n_samples,
         )
-        child = pred.mean
-        margin = task.search.safety_margin
-        if self.risk and pred.samples is not None:
-            p_fall = task.fallen(pred.samples).mean(0)
-            p_hit = task.collides(pred.samples, battery).mean(0)
-            keep = (p_fall <= task.risk.max_fall) & (p_hit <= task.risk.max_collision)
-            keep &= ~task.fallen(child, margin)
-        else:
-            keep = ~task.fallen(child, margin) & ~task.collides(child, battery)
         return parent[keep], yaws[col][keep], child[keep]
 
     def is_goal(self, poses: np.ndarray) -> np.ndarray:
@@ -274,6 +306,50 @@ class _BookSearch:
             round(float(pose[1]) / s.xy_resolution),
             round((float(pose[2]) % math.pi) / math.pi * self._bins) % self._bins,
         )
+
+
+def push_admissible(
+    task: EdgeTask,
+    transition: Transition,
+    book: np.ndarray,
+    battery: np.ndarray,
+    origin: np.ndarray,
+    yaw: float,
+    *,
+    risk: bool = False,
+) -> bool:
+    """Whether a planner would still take one push from where the book is now.
+
+    The same test as the search's children get: the model's prediction of the
+    push from `book` stays inside the safety margin and off the battery (or, with `risk`,
+    within the risk bounds). An episode asks it before it executes the next push of a plan
+    it kept, since that plan was predicted from where the book was expected to be.
+
+    Args:
+        task: The task.
+        transition: The planner's model of the pushes.
+        book: (3,) world book pose now.
+        battery: (3,) world battery pose.
+        origin: (2,) world hand start of the push.
+        yaw: World push yaw (rad).
+        risk: The risk-aware planner's test.
+
+    Returns:
+        True when the push is admitted.
+
+    Raises:
+        InputError: For a transition whose prediction is not finite or of the wrong shape.
+    """
+    _, keep = _outcomes(
+        task,
+        transition,
+        np.asarray(battery, dtype=float),
+        risk,
+        np.asarray(book, dtype=float)[None],
+        np.asarray(origin, dtype=float)[None],
+        np.array([yaw], dtype=float),
+    )
+    return bool(keep[0])
 
 
 Search = Callable[[_BookSearch, np.ndarray, int], SearchResult]

@@ -7,7 +7,8 @@ import pytest
 
 from probaff.errors import InputError
 from probaff.planning.push_to_edge.episode import EDGE_SEARCHES, run_edge_episode
-from probaff.planning.transitions import QuasiStaticTransition
+from probaff.planning.push_to_edge.planners import push_admissible
+from probaff.planning.transitions import QuasiStaticTransition, TransitionPrediction
 
 
 def test_closed_loop_episode_is_seeded_and_succeeds_with_a_good_model(task, reach):
@@ -45,3 +46,45 @@ def test_episode_arguments_are_checked(task, reach):
         run_edge_episode("push_to_edge", qs, 0, reach=reach)  # type: ignore[arg-type]
     with pytest.raises(InputError, match="reach must be the arm's PushReachability"):
         run_edge_episode(task, qs, 0, reach="ik")  # type: ignore[arg-type]
+
+
+class _Short:
+    """The quasi-static model with every predicted move cut to `scale` of its length."""
+
+    name = "short"
+
+    def __init__(self, task, scale: float) -> None:
+        self.inner, self.scale = QuasiStaticTransition(task), scale
+
+    def predict(self, pushes, *, n_samples=0, rng=None):
+        pred = self.inner.predict(pushes, n_samples=n_samples, rng=rng)
+        short = pushes.poses + self.scale * (pred.mean - pushes.poses)
+        samples = None if pred.samples is None else np.broadcast_to(short, pred.samples.shape)
+        return TransitionPrediction(short, samples)
+
+
+def test_a_push_is_admitted_by_the_planner_s_own_test(task):
+    battery = np.array([-0.3, -0.3, 0.0])
+    qs = QuasiStaticTransition(task)
+    for risk in (False, True):
+        inside = push_admissible(
+            task, qs, np.array([0.0, 0.1, 0.0]), battery, np.array([-0.2, 0.1]), 0.0, risk=risk
+        )
+        over = push_admissible(
+            task, qs, np.array([0.45, 0.1, 0.0]), battery, np.array([0.25, 0.1]), 0.0, risk=risk
+        )
+        assert inside and not over
+
+
+def test_kept_plans_are_rechecked_from_where_the_book_is(task, reach):
+    """A model that predicts short moves keeps plans that overshoot: without the recheck the
+    book of seed 0 falls; with it the overshooting push is refused from the book's real pose
+    and replanned, and the book ends graspable."""
+    short = _Short(task, 0.7)
+    off = run_edge_episode(task, short, 0, reach=reach, trajectories=False, recheck=False)
+    on = run_edge_episode(task, short, 0, reach=reach, trajectories=False)
+    assert off.outcome == "fell" and off.vetoes == 0
+    assert on.success and on.vetoes >= 1 and on.to_dict()["vetoes"] == on.vetoes
+    assert len(on.plans) == on.replans + 1 and on.replans >= on.vetoes
+    with pytest.raises(InputError, match="recheck must be True or False"):
+        run_edge_episode(task, short, 0, reach=reach, recheck="yes")  # type: ignore[arg-type]
