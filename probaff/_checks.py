@@ -16,6 +16,7 @@ from probaff.errors import InputError
 __all__ = [
     "as_float_array",
     "check_array_fields",
+    "check_bool",
     "check_box_sizes",
     "check_count",
     "check_finite",
@@ -243,6 +244,17 @@ def check_rows(
         raise InputError(empty_message)
     check_finite(name, arr)
     return arr
+
+
+def check_bool(name: str, value: Any) -> bool:
+    """Return `value` if it is a bool, else raise `InputError` naming `name`.
+
+    Strict: 0, 1, strings and numpy booleans are refused, since a switch given as anything
+    but True or False is a mistake.
+    """
+    if not isinstance(value, bool):
+        raise InputError(f"{name} must be True or False, got {value!r}.")
+    return value
 
 
 def check_box_sizes(name: str, sizes: Any, empty_message: str, *, copy: bool = False) -> np.ndarray:

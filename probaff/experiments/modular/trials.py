@@ -32,7 +32,7 @@ import numpy as np
 import torch
 from torch.distributions import Distribution
 
-from probaff._checks import check_count
+from probaff._checks import check_bool, check_count
 from probaff._threads import limit_threads
 from probaff.data.schema import PushDataset
 from probaff.data.skill_schema import SkillDataset
@@ -160,8 +160,7 @@ class TrialSettings:
     def __post_init__(self) -> None:
         """Raise `InputError` for a bad count, group list, reaction or step length."""
         check_count("chain_samples", self.chain_samples, minimum=2)
-        if not isinstance(self.stepped, bool):
-            raise InputError(f"stepped must be True or False, got {self.stepped!r}.")
+        check_bool("stepped", self.stepped)
         check_step_length(self.step_length)
         if self.reaction not in REACTIONS:
             raise InputError(f"reaction must be one of {list(REACTIONS)}, got {self.reaction!r}.")

@@ -9,7 +9,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from probaff._checks import check_count, check_number
+from probaff._checks import check_bool, check_count, check_number
 from probaff.errors import InputError
 from probaff.experiments.base import StudyConfig, check_planners
 from probaff.experiments.config_cli import option_flags
@@ -92,8 +92,7 @@ class PlanningStudyConfig(StudyConfig):
         check_count("trials", self.trials)
         check_count("tool_trials", self.tool_trials, minimum=0)
         check_count("tool_train_pushes", self.tool_train_pushes)
-        if not isinstance(self.recheck, bool):
-            raise InputError(f"recheck must be True or False, got {self.recheck!r}.")
+        check_bool("recheck", self.recheck)
         if self.replan_distance is not None:
             check_number("replan_distance", self.replan_distance, bound="> 0", unit="m")
         unknown = [p for p in self.tool_planners if p not in TOOL_PUSH_PLANNERS]

@@ -111,9 +111,9 @@ def summarise(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
         Rows with ``planner``, ``trials``, ``successes``, ``success_rate``, ``success_low``,
         ``success_high``, ``pushes`` (mean over trials), ``pushes_success`` (mean over
         successful trials), ``replans``, ``vetoes`` (pushes of kept plans refused from the
-        book's pose then; 0 in records without them), ``error_cm`` (mean one-step prediction error),
-        ``plan_seconds`` (mean per planning call), ``plan_seconds_max``, and the counts of
-        each outcome.
+        book's pose then; 0 in records without them), ``error_cm`` (mean one-step prediction
+        error), ``plan_seconds`` (mean per planning call), ``plan_seconds_max``, and the
+        counts of each outcome.
     """
     rows = []
     for planner, rs in group_rows(records, "planner").items():

@@ -268,12 +268,12 @@ def _edge(study: StudyRun[PlanningStudyConfig]) -> tuple[list[dict[str, Any]], l
     records = _trials(study, "edge", shared)
     rows = summarise(records)
     study.table("edge_summary.csv", rows)
-    for path in edge_figures(rows, records, config.planners, load_edge_task(), study.out):
+    task = load_edge_task()
+    for path in edge_figures(rows, records, config.planners, task, study.out):
         study.figure(path)
     blame = attribute_failures(records)
     if blame:
         study.table("edge_failures.csv", blame)
-    task = load_edge_task()
     distance = task.replan_distance if config.replan_distance is None else config.replan_distance
     return rows, edge_section(config, rows, blame, replan_distance=distance)
 

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from probaff._checks import check_count
+from probaff._checks import check_bool, check_count
 from probaff.errors import InputError, UnreachablePoseError
 from probaff.planning._checks import check_instance
 from probaff.planning.push_to_edge.planners import (
@@ -122,8 +122,7 @@ def _check_episode(
     task: Any, transition: Any, search: Any, seed: Any, simulator: Any, reach: Any, recheck: Any
 ) -> int:
     """The episode's seed, or `InputError` for any argument of `run_edge_episode` it refuses."""
-    if not isinstance(recheck, bool):
-        raise InputError(f"recheck must be True or False, got {recheck!r}.")
+    check_bool("recheck", recheck)
     if not isinstance(search, str) or search not in EDGE_SEARCHES:
         raise InputError(f"unknown search {search!r}; choose one of {sorted(EDGE_SEARCHES)}.")
     seed = check_count("seed", seed, minimum=0)
