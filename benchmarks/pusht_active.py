@@ -1,9 +1,11 @@
 """Push-T training pushes chosen by information gain against random ones, on the same seeds.
 
-Two collections of ``max(--sizes)`` pushes in the unmodified gym-pusht environment, with one
-seed (`probaff.experiments.pusht.active`): ``variance`` (after ``--start`` random pushes, each
-push is the one of ``--pool`` feasible candidates whose effect the mixture, refitted every
-``--refit-every`` pushes, predicts with the largest variance) and ``random``. At every size in
+One collection of ``max(--sizes)`` pushes per strategy (``--strategies``) in the unmodified
+gym-pusht environment, with one seed (`probaff.experiments.pusht.active`): after ``--start``
+random pushes, each push is the one of ``--pool`` feasible candidates that the mixture,
+refitted every ``--refit-every`` pushes, scores best: ``reduction`` (the largest reduction of
+its predictive variance over ``--reference`` primitives drawn as the planner draws them) or
+``variance`` (the largest predictive variance); ``random`` is the baseline. At every size in
 ``--sizes``, the mixture of GP experts is fitted on each collection's first pushes (the study's
 EM: ``--experts``, ``--em-max-iter``) and scored on ``--test-pushes`` held-out random pushes
 (RMSE, NLPD, 90 % coverage), and, with ``--episodes`` above 0, the learned-model planner runs
@@ -11,12 +13,20 @@ that many episodes (reset seeds ``--episode-seed + i``, the same for both) and i
 LeRobot scores (success with its Wilson interval, mean maximum reward, coverage).
 
 Outputs in ``--out`` (default ``results/pusht_active``): ``pushes_<strategy>.json`` (the
-collections, reused when their setup matches), ``results.csv`` and ``summary.md``.
+collections, reused when their setup matches), ``results.csv``, ``summary.md`` and, with
+episodes, ``success_vs_pushes.png`` (success against training pushes, one line a strategy,
+95 % Wilson intervals). Strategies run in separate processes on the same seeds (for example
+one per core) write their own folders; ``--merge DIR ...`` reads their ``results.csv`` and
+writes the joint table and figure to ``--out`` without fitting anything.
+
+Run time: an episode takes about 3 s when it succeeds early and up to about 15 s when it runs
+to the 300-step limit, on one core.
 
 Usage::
 
     python benchmarks/pusht_active.py [--sizes 20 40 60] [--episodes 0] [--seed 0]
-        [--python .venv-pusht/bin/python] [--out results/pusht_active]
+        [--strategies reduction,variance,random] [--python .venv-pusht/bin/python]
+        [--out results/pusht_active] [--merge DIR ...]
 """
 
 from __future__ import annotations
@@ -28,13 +38,17 @@ import time
 from pathlib import Path
 from typing import Any
 
+from tqdm import tqdm
+
 from probaff._checks import check_count
-from probaff._cli_errors import run_cli
+from probaff._cli_errors import report_error, run_cli
 from probaff._io import atomic_write_text
 from probaff._threads import limit_threads
+from probaff.errors import InputError, ProbaffError
 from probaff.eval.tables import markdown_table
 from probaff.experiments.pusht.active import STRATEGIES, ActiveOptions, collect_pushes
 from probaff.experiments.pusht.data import push_dataset, record_chunk, with_worker
+from probaff.experiments.pusht.figures import plot_success_curve
 from probaff.experiments.pusht.models import evaluate, fit_learned, push_effects, push_features
 from probaff.experiments.pusht.planner import SearchSettings, run_episode
 from probaff.experiments.pusht.primitives import PrimitiveSettings
@@ -50,13 +64,71 @@ def _first(rows: dict[str, Any], n: int) -> dict[str, Any]:
     return {k: v[:n] for k, v in rows.items() if k != "refits"}
 
 
-def main() -> None:
-    """Collect (or reuse) both collections, fit, score, and write the comparison."""
+def _strategies(text: str) -> list[str]:
+    """Comma-separated names of `STRATEGIES`; `InputError` naming ``--strategies``."""
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    bad = [n for n in names if n not in STRATEGIES]
+    if not names or bad:
+        raise InputError(
+            f"--strategies takes names of {list(STRATEGIES)} separated by commas, got {text!r}."
+        )
+    return list(dict.fromkeys(names))
+
+
+def _read_results(folder: Path) -> list[dict[str, Any]]:
+    """The rows of an earlier run's ``results.csv``; `InputError` naming ``--merge``."""
+    path = folder / "results.csv"
+    if not path.is_file():
+        raise InputError(f"--merge: {path} does not exist; give folders of finished runs.")
+    lines = path.read_text().splitlines()
+    header = lines[0].split(",")
+    if not set(_COLUMNS + _EPISODE_COLUMNS) <= set(header):
+        raise InputError(f"--merge: {path} is not a results table with episodes; re-run it.")
+    rows = []
+    for line in lines[1:]:
+        cells = dict(zip(header, line.split(","), strict=True))
+        rows.append(
+            {k: (v if k == "strategy" else float(v)) for k, v in cells.items()}
+            | {"train_pushes": int(cells["train_pushes"])}
+        )
+    return rows
+
+
+def _write(out: Path, results: list[dict[str, Any]], about: str) -> None:
+    """Write ``results.csv``, ``summary.md`` and (with episodes) the success figure."""
+    episodes = all(c in r for r in results for c in _EPISODE_COLUMNS)
+    columns = _COLUMNS + (_EPISODE_COLUMNS if episodes else [])
+    csv = [",".join(columns)] + [",".join(str(r[c]) for c in columns) for r in results]
+    atomic_write_text(out / "results.csv", "\n".join(csv) + "\n")
+    figure = ""
+    if episodes and results:
+        png = plot_success_curve(results, out / "success_vs_pushes.png", by="strategy")
+        figure = f"Figure: `{png}`."
+    text = "\n".join(
+        [
+            "# Push-T training pushes: information gain against random",
+            "",
+            about,
+            "",
+            markdown_table(results, columns, digits=3),
+            "",
+            figure,
+            "",
+        ]
+    )
+    atomic_write_text(out / "summary.md", text)
+    print(text)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Collect (or reuse) the collections, fit, score, and write the comparison."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[20, 40, 60])
+    ap.add_argument("--strategies", default=",".join(STRATEGIES))
     ap.add_argument("--start", type=int, default=10)
     ap.add_argument("--refit-every", type=int, default=10)
     ap.add_argument("--pool", type=int, default=64)
+    ap.add_argument("--reference", type=int, default=256)
     ap.add_argument("--experts", type=int, default=3)
     ap.add_argument("--em-max-iter", type=int, default=10)
     ap.add_argument("--test-pushes", type=int, default=200)
@@ -65,28 +137,46 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--python", default=None, help="the Push-T environment's Python")
     ap.add_argument("--out", default="results/pusht_active")
-    args = ap.parse_args()
+    ap.add_argument("--merge", nargs="+", default=None, help="folders of finished runs to join")
+    args = ap.parse_args(argv)
+    try:
+        run(args)
+    except ProbaffError as exc:
+        return report_error("pusht_active", exc)
+    return 0
+
+
+def run(args: argparse.Namespace) -> None:
+    """The work of `main` on parsed flags (module doc)."""
+    out = Path(args.out)
+    if args.merge:
+        rows = [r for folder in args.merge for r in _read_results(Path(folder))]
+        rows.sort(key=lambda r: (r["train_pushes"], STRATEGIES.index(str(r["strategy"]))))
+        _write(out, rows, f"Joined from {', '.join(f'`{f}`' for f in args.merge)}.")
+        return
+    strategies = _strategies(args.strategies)
     sizes = sorted({check_count("--sizes", n) for n in args.sizes})
     seed = check_count("--seed", args.seed, minimum=0)
     episodes = check_count("--episodes", args.episodes, minimum=0)
     em = EMOptions(max_iter=check_count("--em-max-iter", args.em_max_iter), n_restarts=2, seed=seed)
-    settings, out = PrimitiveSettings(), Path(args.out)
+    settings = PrimitiveSettings()
     collected: dict[str, dict[str, Any]] = {}
-    for strategy in STRATEGIES:
+    for strategy in strategies:
         options = ActiveOptions(
             budget=sizes[-1],
             strategy=strategy,
             start=min(args.start, sizes[0]),
             refit_every=args.refit_every,
             pool=args.pool,
+            reference=args.reference,
         )
         setup = {"seed": seed, "options": repr(options), "settings": repr(settings)}
         path = out / f"pushes_{strategy}.json"
         saved = json.loads(path.read_text()) if path.is_file() else {}
         if saved.get("setup") != setup:
             t0 = time.perf_counter()
-            rows = collect_pushes(seed, options, settings, args.python)
-            saved = {"setup": setup, "rows": rows, "seconds": time.perf_counter() - t0}
+            pushes = collect_pushes(seed, options, settings, args.python)
+            saved = {"setup": setup, "rows": pushes, "seconds": time.perf_counter() - t0}
             atomic_write_text(path, json.dumps(saved) + "\n")
         collected[strategy] = saved
     test_n = check_count("--test-pushes", args.test_pushes)
@@ -95,49 +185,58 @@ def main() -> None:
     )
     Xt, Yt = push_features(test), push_effects(test)
     results = []
-    for n in sizes:
-        for strategy in STRATEGIES:
-            ds = push_dataset([_first(collected[strategy]["rows"], n)], seed)
-            with limit_threads(1):
-                model, _ = fit_learned(
-                    "moe", push_features(ds), push_effects(ds), experts=args.experts, em=em
-                )
-            row: dict[str, Any] = {"strategy": strategy, "train_pushes": n}
-            row |= evaluate(model, Xt, Yt)
-            if episodes:
-                search = SearchSettings()
+    for n in tqdm(sizes, desc="sizes", disable=None):
+        for strategy in strategies:
+            cell = out / "cells" / f"{strategy}_n{n}.json"
+            setup = {
+                "collection": collected[strategy]["setup"],
+                "n": n,
+                "experts": args.experts,
+                "em": repr(em),
+                "test": [seed, test_n],
+                "episodes": [episodes, args.episode_seed],
+            }
+            stored = json.loads(cell.read_text()) if cell.is_file() else {}
+            if stored.get("setup") == setup:
+                row = stored["row"]
+            else:
+                ds = push_dataset([_first(collected[strategy]["rows"], n)], seed)
+                with limit_threads(1):
+                    model, _ = fit_learned(
+                        "moe", push_features(ds), push_effects(ds), experts=args.experts, em=em
+                    )
+                row = {"strategy": strategy, "train_pushes": n} | evaluate(model, Xt, Yt)
+                if episodes:
+                    search = SearchSettings()
 
-                def play(w: Any, model: Any = model, search: Any = search) -> list[dict[str, Any]]:
-                    with limit_threads(1):
-                        return [
-                            run_episode(
-                                w, args.episode_seed + i, ModelTransition(model), search, settings
-                            )
-                            for i in range(episodes)
-                        ]
+                    def play(
+                        w: Any, model: Any = model, search: Any = search
+                    ) -> list[dict[str, Any]]:
+                        with limit_threads(1):
+                            return [
+                                run_episode(
+                                    w,
+                                    args.episode_seed + i,
+                                    ModelTransition(model),
+                                    search,
+                                    settings,
+                                )
+                                for i in range(episodes)
+                            ]
 
-                row |= {k: score(with_worker(args.python, play))[k] for k in _EPISODE_COLUMNS}
+                    scored = score(with_worker(args.python, play))
+                    row |= {k: scored[k] for k in _EPISODE_COLUMNS}
+                atomic_write_text(cell, json.dumps({"setup": setup, "row": row}) + "\n")
             results.append(row)
             print(json.dumps(row), flush=True)
-    columns = _COLUMNS + (_EPISODE_COLUMNS if episodes else [])
-    header = ",".join(columns)
-    csv = [header] + [",".join(str(r[c]) for c in columns) for r in results]
-    atomic_write_text(out / "results.csv", "\n".join(csv) + "\n")
     command = "python benchmarks/pusht_active.py " + " ".join(sys.argv[1:])
-    secs = {s: round(collected[s]["seconds"], 1) for s in STRATEGIES}
-    text = "\n".join(
-        [
-            "# Push-T training pushes: information gain against random",
-            "",
-            f"`{command.strip()}`; collection seconds {secs}; {test_n} held-out random pushes.",
-            "",
-            markdown_table(results, columns, digits=3),
-            "",
-        ]
+    secs = {s: round(collected[s]["seconds"], 1) for s in strategies}
+    _write(
+        out,
+        results,
+        f"`{command.strip()}`; collection seconds {secs}; {test_n} held-out random pushes.",
     )
-    atomic_write_text(out / "summary.md", text)
-    print(text)
 
 
 if __name__ == "__main__":
-    sys.exit(run_cli(main))
+    sys.exit(run_cli(main, prog="pusht_active"))

@@ -3,6 +3,8 @@
 - `ActiveOptions` refuses a budget that is not a positive integer, and its other bad settings;
 - `predictive_spread` against the variances written out by hand;
 - `variance_chooser` against the argmax of those variances over the same feasible candidates;
+- `reduction_chooser` against the argmax of the integrated variance reduction over the same
+  feasible candidates and the same draw of the planner's queries;
 - `record_chosen` in gym-pusht: random pushes first, then chosen ones after a refit, the same
   random start as the random strategy on the same seed.
 
@@ -20,17 +22,19 @@ from probaff.experiments.pusht.active import (
     predictive_spread,
     primitive_features,
     record_chosen,
+    reduction_chooser,
     variance_chooser,
 )
 from probaff.experiments.pusht.env import PushTWorker
 from probaff.experiments.pusht.geometry import GYM_TEE
-from probaff.experiments.pusht.models import QuasiStaticTee
+from probaff.experiments.pusht.models import LearnedModel, QuasiStaticTee
 from probaff.experiments.pusht.primitives import (
     PrimitiveSettings,
     feasible_starts,
     sample_primitives,
 )
-from probaff.models import EMOptions
+from probaff.models import EMOptions, MixtureOfGPExperts, fit_em
+from probaff.models.mixture import integrated_variance_reduction
 
 
 @pytest.mark.parametrize("budget", [0, -3, 2.5, True, "60", None])
@@ -46,6 +50,8 @@ def test_other_bad_settings_are_refused():
         ActiveOptions(budget=20, strategy="entropy")
     with pytest.raises(InputError, match="refit_every"):
         ActiveOptions(budget=20, refit_every=0)
+    with pytest.raises(InputError, match="reference"):
+        ActiveOptions(budget=20, reference=0)
 
 
 class _Wide:
@@ -94,3 +100,29 @@ def test_chosen_pushes_follow_a_random_start_in_gym_pusht(pusht_python):
     assert active["before"][:5] == random["before"][:5]  # the same random start
     assert active["dist"][:5] == random["dist"][:5]
     assert active["dist"][5:] != random["dist"][5:]  # then chosen, not random
+
+
+def test_the_reduction_chooser_takes_the_push_that_informs_the_queries_most():
+    s = PrimitiveSettings()
+    prims = sample_primitives(np.random.default_rng(9), 40, s)
+    X = primitive_features(prims, s)
+    Y = np.column_stack([X[:, 4] * X[:, 2], X[:, 4] * X[:, 3], X[:, 0] / 100])
+    mixture = MixtureOfGPExperts(2)
+    fit_em(mixture, torch.as_tensor(X), torch.as_tensor(Y), n_restarts=1, split_merge=0)
+    model = LearnedModel("moe", mixture)
+    pose, agent = np.array([256.0, 300.0, 0.4]), np.array([100.0, 100.0])
+    for seed in range(2):
+        chosen = reduction_chooser(model, 24, s, reference=32)(
+            np.random.default_rng(seed), pose, agent
+        )
+        rng = np.random.default_rng(seed)
+        cand = sample_primitives(rng, 24, s)
+        ok = cand[feasible_starts(pose, cand, s)]
+        queries = primitive_features(sample_primitives(rng, 32, s), s)
+        score = integrated_variance_reduction(
+            mixture,
+            primitive_features(ok, s),
+            queries,
+            output_weights=[1.0, 1.0, GYM_TEE.radius**2],
+        )
+        np.testing.assert_array_equal(chosen, ok[int(torch.argmax(score))])

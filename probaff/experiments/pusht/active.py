@@ -1,11 +1,20 @@
-"""Training pushes chosen by information gain: the push the model is least sure of, next.
+"""Training pushes chosen by information gain: the push that teaches the model most, next.
 
 The thesis chooses the action that most reduces uncertainty; here it is applied to the push
 model's own training data. After `ActiveOptions.start` random pushes, the mixture of GP experts
 is fitted (EM, `fit_learned`) and every next push is chosen from `ActiveOptions.pool` feasible
-primitives sampled at the T's current pose: the one whose predicted effect has the largest
-predictive variance (`predictive_spread`: the law of total variance over the experts, so both
-the experts' own uncertainty and their disagreement count). The model is refitted every
+primitives sampled at the T's current pose, by one of two scores:
+
+* ``"reduction"``: the push whose observation most lowers the mixture's predictive variance
+  over the pushes a planner asks about (`reduction_chooser`:
+  `probaff.models.mixture.integrated_variance_reduction`, Cohn's criterion, over
+  `ActiveOptions.reference` primitives drawn as the planner draws its candidates);
+* ``"variance"``: the push whose predicted effect has the largest predictive variance
+  (`predictive_spread`: the law of total variance over the experts, so both the experts' own
+  uncertainty and their disagreement count). It favours pushes unlike any other, which a
+  planner seldom needs.
+
+Both count a turn as the arc it moves the T's corners through. The model is refitted every
 `ActiveOptions.refit_every` pushes. ``strategy="random"`` runs the same loop with random pushes
 (`probaff.experiments.pusht.data`'s), the baseline.
 
@@ -21,6 +30,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import torch
 
 from probaff._checks import check_count
 from probaff._threads import limit_threads
@@ -29,6 +39,7 @@ from probaff.experiments.pusht.data import Chooser, push_dataset, record_pushes,
 from probaff.experiments.pusht.env import PushTWorker
 from probaff.experiments.pusht.geometry import GYM_TEE
 from probaff.experiments.pusht.models import (
+    LearnedModel,
     PushModel,
     fit_learned,
     predict_moments,
@@ -42,6 +53,7 @@ from probaff.experiments.pusht.primitives import (
     sample_primitives,
 )
 from probaff.models import EMOptions
+from probaff.models.mixture import integrated_variance_reduction
 
 __all__ = [
     "STRATEGIES",
@@ -50,11 +62,13 @@ __all__ = [
     "predictive_spread",
     "primitive_features",
     "record_chosen",
+    "reduction_chooser",
     "variance_chooser",
 ]
 
-STRATEGIES = ("variance", "random")
-"""How training pushes are chosen: by the model's predictive variance, or at random."""
+STRATEGIES = ("reduction", "variance", "random")
+"""How training pushes are chosen: by the variance they remove, by the model's predictive
+variance, or at random."""
 
 
 @dataclass(frozen=True)
@@ -63,16 +77,19 @@ class ActiveOptions:
 
     Attributes:
         budget: Pushes recorded in all (a positive integer).
-        strategy: ``"variance"`` (information gain) or ``"random"``.
+        strategy: ``"reduction"``, ``"variance"`` (information gain, module doc) or
+            ``"random"``.
         start: Random pushes before the first fit (at least 5, at most `budget`).
         refit_every: Pushes between two refits, k.
         pool: Candidate primitives scored per chosen push.
         experts: Experts M of the mixture fitted to choose.
         em: The EM fits made to choose (their seed is the collection's).
+        reference: Primitives drawn per choice as the planner's queries (``"reduction"``).
 
     Raises:
         InputError: For a budget, start, refit interval, pool or expert count that is not a
-            positive integer, a start outside [5, budget], or an unknown strategy.
+            positive integer, a start outside [5, budget], or an unknown strategy; a
+            reference size that is not a positive integer.
     """
 
     budget: int
@@ -82,6 +99,7 @@ class ActiveOptions:
     pool: int = 64
     experts: int = 2
     em: EMOptions = field(default=EMOptions(max_iter=5, n_restarts=1, split_merge=0))
+    reference: int = 256
 
     def __post_init__(self) -> None:
         if isinstance(self.budget, bool) or not isinstance(self.budget, int) or self.budget < 1:
@@ -89,7 +107,7 @@ class ActiveOptions:
                 f"the active-learning budget must be a positive integer (pushes to record), got "
                 f"{self.budget!r}; pass e.g. ActiveOptions(budget=60)."
             )
-        for name in ("start", "refit_every", "pool", "experts"):
+        for name in ("start", "refit_every", "pool", "experts", "reference"):
             check_count(f"ActiveOptions.{name}", getattr(self, name))
         if not 5 <= self.start <= self.budget:
             raise InputError(
@@ -124,6 +142,42 @@ def predictive_spread(
     return np.asarray(std[:, 0] ** 2 + std[:, 1] ** 2 + (radius * std[:, 2]) ** 2)
 
 
+def _output_weights(radius: float = GYM_TEE.radius) -> np.ndarray:
+    """(3,) weights of (dy_p, dz_p, dtheta) variances: a turn as the arc at `radius` (px)."""
+    return np.array([1.0, 1.0, radius**2])
+
+
+def reduction_chooser(
+    model: LearnedModel, pool: int, settings: PrimitiveSettings, reference: int = 256
+) -> Chooser:
+    """A chooser of the push whose observation most lowers the variance at the planner's queries.
+
+    Args:
+        model: The current push model (a `LearnedModel` with exact GP experts).
+        pool: Primitives sampled per choice; the feasible ones are scored.
+        settings: The primitives' settings.
+        reference: Primitives drawn per choice (`sample_primitives`, the planner's draw) at
+            which the reduction of the predictive variance is averaged.
+    """
+
+    def choose(rng: np.random.Generator, pose: np.ndarray, agent: np.ndarray) -> np.ndarray:
+        prims = sample_primitives(rng, pool, settings)
+        ok = prims[feasible_starts(pose, prims, settings)]
+        if len(ok) == 0:
+            return np.asarray(prims[0])
+        queries = primitive_features(sample_primitives(rng, reference, settings), settings)
+        with torch.no_grad():
+            score = integrated_variance_reduction(
+                model.model,
+                primitive_features(ok, settings),
+                queries,
+                output_weights=_output_weights(),
+            )
+        return np.asarray(ok[int(torch.argmax(score))])
+
+    return choose
+
+
 def variance_chooser(model: PushModel, pool: int, settings: PrimitiveSettings) -> Chooser:
     """A chooser (`probaff.experiments.pusht.data.Chooser`) of the push of largest variance.
 
@@ -144,7 +198,7 @@ def variance_chooser(model: PushModel, pool: int, settings: PrimitiveSettings) -
     return choose
 
 
-def _fit(rows: dict[str, list[Any]], options: ActiveOptions, seed: int) -> PushModel:
+def _fit(rows: dict[str, list[Any]], options: ActiveOptions, seed: int) -> LearnedModel:
     ds = push_dataset([rows], seed)
     em = dataclasses.replace(options.em, seed=seed)
     with limit_threads(1):
@@ -178,9 +232,13 @@ def record_chosen(
     while len(rows["before"]) < options.budget:
         n = min(options.refit_every, options.budget - len(rows["before"]))
         choose: Chooser | None = None
-        if options.strategy == "variance":
+        if options.strategy != "random":
             refits.append(len(rows["before"]))
-            choose = variance_chooser(_fit(rows, options, seed), options.pool, settings)
+            model = _fit(rows, options, seed)
+            if options.strategy == "variance":
+                choose = variance_chooser(model, options.pool, settings)
+            else:
+                choose = reduction_chooser(model, options.pool, settings, options.reference)
         more = record_pushes(w, rng, n, settings, choose)
         rows = {k: rows[k] + more[k] for k in rows}
     return {**rows, "refits": refits}

@@ -87,14 +87,31 @@ def plot_episodes(records: Sequence[dict[str, Any]], path: str | Path, per_plann
     return _finish(fig, path)
 
 
-def plot_success_curve(rows: Sequence[dict[str, Any]], path: str | Path) -> str:
-    """Success of the learned-model planner against training pushes (95 % Wilson intervals)."""
+def plot_success_curve(
+    rows: Sequence[dict[str, Any]], path: str | Path, by: str | None = None
+) -> str:
+    """Success of the learned-model planner against training pushes (95 % Wilson intervals).
+
+    Args:
+        rows: One row per size: ``train_pushes``, ``success_rate``, ``success_low``,
+            ``success_high`` (and the column `by`).
+        path: The PNG to write.
+        by: A column whose values get a line each (e.g. ``"strategy"``); None for one line.
+
+    Returns:
+        `path` as a string.
+    """
     fig, ax = plt.subplots(figsize=(5, 3.5))
-    n = np.array([r["train_pushes"] for r in rows], dtype=float)
-    rate = np.array([r["success_rate"] for r in rows])
-    lo = np.maximum(rate - np.array([r["success_low"] for r in rows]), 0.0)  # rounding
-    hi = np.maximum(np.array([r["success_high"] for r in rows]) - rate, 0.0)
-    ax.errorbar(n, rate, yerr=[lo, hi], marker="o", capsize=3, label="beam search, mixture")
+    groups: dict[str, list[dict[str, Any]]] = {}
+    for r in rows:
+        groups.setdefault("beam search, mixture" if by is None else str(r[by]), []).append(r)
+    for label, part in groups.items():
+        part = sorted(part, key=lambda r: r["train_pushes"])
+        n = np.array([r["train_pushes"] for r in part], dtype=float)
+        rate = np.array([r["success_rate"] for r in part])
+        lo = np.maximum(rate - np.array([r["success_low"] for r in part]), 0.0)  # rounding
+        hi = np.maximum(np.array([r["success_high"] for r in part]) - rate, 0.0)
+        ax.errorbar(n, rate, yerr=[lo, hi], marker="o", capsize=3, label=label)
     ax.axhline(
         DIFFUSION_POLICY.success_rate,
         color="tab:red",

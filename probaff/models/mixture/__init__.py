@@ -7,11 +7,20 @@ feature columns, whose point prediction may be stacked with one GP (``point``). 
 responsibilities and records it (`EMHistory`); the named starting responsibilities are
 `probaff.models.initialization`'s, shared with the variational fit. `ClusteredGPModel`
 (``clustered``) is chapter 4's hierarchical alternative: GMM effect clusters, one GP per
-cluster and an SVM gate.
+cluster and an SVM gate. `integrated_variance_reduction` (``acquisition``) ranks inputs to
+observe next by how much they would lower the mixture's predictive variance elsewhere.
 """
 
+from probaff.models.mixture.acquisition import integrated_variance_reduction
 from probaff.models.mixture.clustered import ClusteredGPModel
 from probaff.models.mixture.em import EMHistory, fit_em, fit_em_path
 from probaff.models.mixture.model import MixtureOfGPExperts
 
-__all__ = ["ClusteredGPModel", "EMHistory", "MixtureOfGPExperts", "fit_em", "fit_em_path"]
+__all__ = [
+    "ClusteredGPModel",
+    "EMHistory",
+    "MixtureOfGPExperts",
+    "fit_em",
+    "fit_em_path",
+    "integrated_variance_reduction",
+]
