@@ -255,7 +255,7 @@ class _Spy:
         return TransitionPrediction(mean, effect_std=np.zeros_like(mean), pusher=pusher)
 
 
-def test_pixel_episodes_never_hand_the_state_to_the_planner(pusht_python):
+def test_pixel_episodes_never_hand_the_state_to_the_planner(pusht_python, tmp_path):
     from probaff.experiments.pusht.planner import SearchSettings, run_episode
     from probaff.experiments.pusht.primitives import PrimitiveSettings
 
@@ -291,6 +291,18 @@ def test_pixel_episodes_never_hand_the_state_to_the_planner(pusht_python):
     assert not record["lost"]
     # the poisoned run can score nothing against the state, and does not pretend to
     assert math.isnan(p_record["perception_px"])
+    # the kept frames: the images planned on, the perceived pose beside the state's
+    from probaff.experiments.pusht.figures import plot_frames
+    from probaff.experiments.pusht.observe import FRAMES_KEPT
+
+    frames = record["frames"]
+    assert 2 <= len(frames) <= FRAMES_KEPT and len(record["shape"]) == 4
+    for frame in frames:
+        assert np.asarray(frame["pixels"]).shape == (96, 96, 3)
+        seen, true = np.asarray(frame["pose"]), np.asarray(frame["truth"])
+        assert np.abs(seen[:2] - true[:2]).max() * PX < 1.5 and not np.array_equal(seen, true)
+    png = plot_frames([record, {"seed": 1}], tmp_path / "frames.png")
+    assert (tmp_path / "frames.png").stat().st_size > 10_000 and png.endswith("frames.png")
 
 
 def test_observation_setting_is_checked():

@@ -1,7 +1,8 @@
 """Figures of the Push-T study: episodes over the goal, success and model scores against data.
 
 `plot_episodes` draws the T's outline after every push of a few episodes of each planner
-against the goal; `plot_success_curve` the learned-model planner's success (95 % Wilson
+against the goal; `plot_frames` the 96 x 96 images a pixel planner planned on, with the pose
+it perceived and the state's; `plot_success_curve` the learned-model planner's success (95 % Wilson
 intervals) against the number of training pushes, with the diffusion policy's rate;
 `plot_models` the held-out RMSE and NLPD of each model against the number of training pushes.
 """
@@ -24,12 +25,14 @@ from probaff._io import atomic_save_figure
 from probaff.experiments.pusht.geometry import (
     GOAL_ORIGIN_POSE,
     OUTLINE,
+    TeeGeometry,
     cog_pose,
     to_world,
 )
+from probaff.experiments.pusht.perception import WORLD_SIZE, TeeShape, world_to_pixel
 from probaff.experiments.pusht.scoring import DIFFUSION_POLICY
 
-__all__ = ["plot_episodes", "plot_models", "plot_success_curve"]
+__all__ = ["plot_episodes", "plot_frames", "plot_models", "plot_success_curve"]
 
 
 def _finish(fig: Figure, path: str | Path) -> str:
@@ -84,6 +87,57 @@ def plot_episodes(records: Sequence[dict[str, Any]], path: str | Path, per_plann
                 fontsize=7,
             )
     fig.suptitle("Push-T episodes: the T after every push (dark: later) and the goal (green)")
+    return _finish(fig, path)
+
+
+def plot_frames(records: Sequence[dict[str, Any]], path: str | Path, episodes: int = 3) -> str:
+    """Draw the images pixel episodes planned on, with the perceived and the true pose.
+
+    Each row is one episode with ``frames`` (`probaff.experiments.pusht.planner.run_episode`
+    with a trajectory, from pixels): its kept images, the T's outline at the pose perceived
+    from that image (the perceived shape; orange) and at the state's pose (gym-pusht's shape,
+    for scoring only; dashed black). The title gives the perceived pose's error.
+
+    Args:
+        records: Episode records; those with ``frames`` are drawn, the first `episodes`.
+        path: The PNG to write.
+        episodes: Episodes drawn (rows).
+
+    Returns:
+        `path` as a string.
+    """
+    kept = [r for r in records if r.get("frames")][:episodes]
+    cols = max([len(r["frames"]) for r in kept] + [1])
+    fig, axes = plt.subplots(
+        max(len(kept), 1), cols, figsize=(1.9 * cols, 2.1 * max(len(kept), 1)), squeeze=False
+    )
+    for ax in axes.ravel():
+        ax.set_axis_off()
+    if not kept:
+        axes[0][0].text(0.5, 0.5, "no pixel episode kept its frames", ha="center", va="center")
+    for i, r in enumerate(kept):
+        tee = TeeGeometry.from_shape(TeeShape(*r["shape"]))
+        for j, frame in enumerate(r["frames"]):
+            ax = axes[i][j]
+            pixels = np.asarray(frame["pixels"], dtype=np.uint8)
+            n = pixels.shape[0]
+            ax.imshow(pixels, extent=(-0.5, n - 0.5, n - 0.5, -0.5))
+            truth = np.asarray(frame["truth"], dtype=float)
+            outline = world_to_pixel(to_world(cog_pose(truth), OUTLINE), n)
+            ax.add_patch(Polygon(outline, closed=True, fill=False, ec="black", ls="--", lw=0.6))
+            title = "not read"
+            if frame["pose"] is not None:
+                pose = np.asarray(frame["pose"], dtype=float)
+                seen = world_to_pixel(to_world(cog_pose(pose, tee), tee.outline), n)
+                ax.add_patch(Polygon(seen, closed=True, fill=False, ec="tab:orange", lw=1.0))
+                err = float(np.hypot(*(cog_pose(pose) - cog_pose(truth))[:2])) * n / WORLD_SIZE
+                turn = np.degrees(np.angle(np.exp(1j * (pose[2] - truth[2]))))
+                title = f"{err:.2f} px, {abs(turn):.2f} deg"
+            ax.set_title(f"seed {r['seed']}: {title}" if j == 0 else title, fontsize=6)
+    fig.suptitle(
+        "Push-T from pixels: frames planned on, perceived pose (orange) and state (dashed)",
+        fontsize=8,
+    )
     return _finish(fig, path)
 
 

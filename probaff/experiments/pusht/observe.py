@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from probaff._checks import check_count
 from probaff.errors import InputError
 from probaff.experiments.pusht.env import PushTWorker, pixel_observations
 from probaff.experiments.pusht.geometry import (
@@ -48,7 +49,15 @@ from probaff.experiments.pusht.perception import (
     pixel_to_world,
 )
 
-__all__ = ["CONTROL_DT", "OBSERVATIONS", "Observed", "PixelObserver", "StateObserver", "observer"]
+__all__ = [
+    "CONTROL_DT",
+    "FRAMES_KEPT",
+    "OBSERVATIONS",
+    "Observed",
+    "PixelObserver",
+    "StateObserver",
+    "observer",
+]
 
 OBSERVATIONS = ("state", "pixels")
 """What the planner may observe: the environment's state, or the policy's image."""
@@ -134,6 +143,11 @@ class _Log:
     errors_deg: list[float] = field(default_factory=list)
     flagged: int = 0
     retreats: int = 0
+    frames: list[dict[str, Any]] = field(default_factory=list)
+
+
+FRAMES_KEPT = 6
+"""Frames an episode record keeps for the figures when asked (`PixelObserver.keep_frames`)."""
 
 
 class PixelObserver:
@@ -146,6 +160,8 @@ class PixelObserver:
             cannot be read, before the episode is given up.
         retreat: How far (world units) the pusher's target moves away from the block.
         retreat_steps: Control steps each retreat holds its target.
+        keep_frames: Frames planned on that `record` returns (evenly spaced, the first and
+            the last included), each with its perceived and its true pose; 0 for none.
     """
 
     name = "pixels"
@@ -158,10 +174,12 @@ class PixelObserver:
         retries: int = 3,
         retreat: float = 80.0,
         retreat_steps: int = 6,
+        keep_frames: int = 0,
     ) -> None:
         self.worker = worker
         self.options = options or PerceptionOptions()
         self.retries, self.retreat, self.retreat_steps = retries, retreat, retreat_steps
+        self.keep_frames = check_count("keep_frames", keep_frames, minimum=0)
         self.scene: Scene | None = None
         self.tee = GYM_TEE  # until the scene is perceived; never planned with
         self.goal = np.full(3, np.nan)
@@ -266,6 +284,14 @@ class PixelObserver:
             self._last = est.pose
         truth = cog_pose(np.array(answer["block"]))  # scoring only, never planned on
         pose = cog_pose(est.pose, self.tee) if est.ok else np.full(3, np.nan)
+        if self.keep_frames:
+            self._log.frames.append(
+                {
+                    "pixels": pixels,
+                    "pose": est.pose.tolist() if est.ok else None,
+                    "truth": [float(v) for v in answer["block"]],
+                }
+            )
         if est.ok:
             self._log.estimates.append(est)
             seen = cog_pose(est.pose)  # scored where the state is: gym-pusht's frame
@@ -285,13 +311,21 @@ class PixelObserver:
     def record(self) -> dict[str, Any]:
         """What the observer adds to the episode's record (perception scored on the state)."""
         log = self._log
-        return {
+        record: dict[str, Any] = {
             "observation": self.name,
             "flagged": log.flagged,
             "retreats": log.retreats,
             "perception_px": float(np.mean(log.errors_px)) if log.errors_px else math.nan,
             "perception_deg": float(np.mean(log.errors_deg)) if log.errors_deg else math.nan,
         }
+        if self.keep_frames and log.frames and self.scene is not None:
+            keep = np.unique(np.linspace(0, len(log.frames) - 1, self.keep_frames).round())
+            record["frames"] = [
+                {**log.frames[int(k)], "pixels": np.asarray(log.frames[int(k)]["pixels"]).tolist()}
+                for k in keep
+            ]
+            record["shape"] = self.scene.shape.as_array().tolist()
+        return record
 
 
 def _colour_centre(pixels: np.ndarray) -> np.ndarray:
@@ -309,8 +343,15 @@ def _ended(answer: dict[str, Any]) -> bool:
     return bool(answer.get("terminated", False) or answer.get("truncated", False))
 
 
-def observer(observation: str, worker: PushTWorker) -> StateObserver | PixelObserver:
+def observer(
+    observation: str, worker: PushTWorker, *, keep_frames: int = 0
+) -> StateObserver | PixelObserver:
     """The observer of `observation` (``"state"`` or ``"pixels"``).
+
+    Args:
+        observation: ``"state"`` or ``"pixels"``.
+        worker: The Push-T worker.
+        keep_frames: Frames a pixel observer's record keeps (`PixelObserver`).
 
     Raises:
         InputError: For another observation.
@@ -318,5 +359,5 @@ def observer(observation: str, worker: PushTWorker) -> StateObserver | PixelObse
     if observation == "state":
         return StateObserver(worker)
     if observation == "pixels":
-        return PixelObserver(worker)
+        return PixelObserver(worker, keep_frames=keep_frames)
     raise InputError(f"observation must be one of {list(OBSERVATIONS)}, got {observation!r}.")

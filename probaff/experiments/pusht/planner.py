@@ -40,7 +40,7 @@ from probaff.experiments.pusht.geometry import (
     to_world,
 )
 from probaff.experiments.pusht.models import check_model_observation
-from probaff.experiments.pusht.observe import observer
+from probaff.experiments.pusht.observe import FRAMES_KEPT, observer
 from probaff.experiments.pusht.primitives import (
     PrimitiveSettings,
     feasible_starts,
@@ -343,14 +343,16 @@ def run_episode(
         ``observation="pixels"`` also ``observation``, ``flagged`` (frames not read),
         ``retreats`` (times the pusher backed away), ``perception_px`` and ``perception_deg``
         (mean error of the perceived poses planned on, px of the image and degrees) and
-        ``lost`` (the block could not be read even after backing away; the episode ends).
+        ``lost`` (the block could not be read even after backing away; the episode ends);
+        with `trajectory` also ``frames`` (`FRAMES_KEPT` images planned on, each with its
+        perceived and its true body-origin pose) and ``shape`` (the perceived T's lengths).
 
     Raises:
         InputError: For an unknown `observation`.
         ObservationMismatchError: If `transition`'s model was fitted on pushes recorded from
             another observation than `observation` and not `allow_observation_mismatch`.
     """
-    eye = observer(observation, worker)
+    eye = observer(observation, worker, keep_frames=FRAMES_KEPT if trajectory else 0)
     check_model_observation(transition, observation, allow=allow_observation_mismatch)
     seen = eye.reset(int(seed))
     goal, tee = eye.goal, eye.tee

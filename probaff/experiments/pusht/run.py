@@ -22,7 +22,8 @@ Outputs in ``out/``: ``models.csv`` (held-out scores against training pushes),
 ``planners.csv`` (success rate with its 95 % Wilson interval, mean maximum coverage, pushes,
 control steps and prediction error), ``curve.csv`` (success against training pushes),
 ``summary.md``, and the figures ``episodes.png``, ``success_vs_pushes.png`` and
-``models.png``. Two runs of the same config write them, and every other file but those
+``models.png`` (from pixels also ``frames.png``: the images planned on, with the perceived and
+the true pose). Two runs of the same config write them, and every other file but those
 named next, identical byte for byte, whether or not a run was killed and resumed. Planning
 time per push is a measurement of the machine, not a result: it is kept apart, in
 ``timings.csv`` (per planner) and ``timings/tasks/KEY.json`` (per episode).
@@ -48,7 +49,12 @@ from probaff.experiments.pusht.data import (
     record_chunk,
     with_worker,
 )
-from probaff.experiments.pusht.figures import plot_episodes, plot_models, plot_success_curve
+from probaff.experiments.pusht.figures import (
+    plot_episodes,
+    plot_frames,
+    plot_models,
+    plot_success_curve,
+)
 from probaff.experiments.pusht.models import (
     LearnedModel,
     QuasiStaticTee,
@@ -317,6 +323,8 @@ def run(config: PushTStudyConfig) -> dict[str, Any]:
         study.figure(plot_success_curve(crows, study.out / "success_vs_pushes.png"))
     study.figure(plot_models(mrows, study.out / "models.png"))
     study.figure(plot_episodes(records, study.out / "episodes.png"))
+    if any(r.get("frames") for r in records):  # from pixels: the images planned on
+        study.figure(plot_frames(records, study.out / "frames.png"))
     perception = sets[c.plan_pushes].meta.get("perception")
     study.summary(summary_lines(c, mrows, prows, crows, records, np.asarray(moved), perception))
     return {"models": mrows, "planners": prows, "curve": crows, "files": study.files}
