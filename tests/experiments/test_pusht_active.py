@@ -102,7 +102,8 @@ def test_chosen_pushes_follow_a_random_start_in_gym_pusht(pusht_python):
     assert active["dist"][5:] != random["dist"][5:]  # then chosen, not random
 
 
-def test_the_reduction_chooser_takes_the_push_that_informs_the_queries_most():
+@pytest.mark.parametrize("measure", ["variance", "information"])
+def test_the_reduction_chooser_takes_the_push_that_informs_the_queries_most(measure):
     s = PrimitiveSettings()
     prims = sample_primitives(np.random.default_rng(9), 40, s)
     X = primitive_features(prims, s)
@@ -112,17 +113,15 @@ def test_the_reduction_chooser_takes_the_push_that_informs_the_queries_most():
     model = LearnedModel("moe", mixture)
     pose, agent = np.array([256.0, 300.0, 0.4]), np.array([100.0, 100.0])
     for seed in range(2):
-        chosen = reduction_chooser(model, 24, s, reference=32)(
+        chosen = reduction_chooser(model, 24, s, reference=32, measure=measure)(
             np.random.default_rng(seed), pose, agent
         )
         rng = np.random.default_rng(seed)
         cand = sample_primitives(rng, 24, s)
         ok = cand[feasible_starts(pose, cand, s)]
         queries = primitive_features(sample_primitives(rng, 32, s), s)
+        weights = [1.0, 1.0, GYM_TEE.radius**2] if measure == "variance" else None
         score = integrated_variance_reduction(
-            mixture,
-            primitive_features(ok, s),
-            queries,
-            output_weights=[1.0, 1.0, GYM_TEE.radius**2],
+            mixture, primitive_features(ok, s), queries, output_weights=weights, measure=measure
         )
         np.testing.assert_array_equal(chosen, ok[int(torch.argmax(score))])

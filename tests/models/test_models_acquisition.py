@@ -45,6 +45,7 @@ def test_one_expert_matches_the_posterior_refitted_with_the_candidate(single):
     ref = 4 * torch.rand(30, 2, generator=g, dtype=torch.float64) - 2
     weights = torch.tensor([1.0, 3.0], dtype=torch.float64)
     ivr = integrated_variance_reduction(model, cand, ref, output_weights=weights)
+    info = integrated_variance_reduction(model, cand, ref, measure="information")
     sx = expert.x_scaler
     train, rq = sx(x), sx(ref)
     noise = expert.likelihood.noise.expand(expert.n_outputs, x.shape[0])
@@ -57,6 +58,8 @@ def test_one_expert_matches_the_posterior_refitted_with_the_candidate(single):
             )
             want = ((before - after).mean(-1) * expert.y_scaler.std**2 * weights).sum()
             torch.testing.assert_close(ivr[i], want, rtol=1e-5, atol=1e-10)
+            nats = (0.5 * torch.log(before / after)).mean(-1).sum()
+            torch.testing.assert_close(info[i], nats, rtol=1e-5, atol=1e-10)
     assert bool((ivr >= 0).all())
 
 
@@ -79,6 +82,7 @@ def test_a_candidate_far_from_the_reference_informs_it_least():
         ({"output_weights": torch.tensor([1.0, -1.0])}, "output_weights"),
         ({"output_weights": torch.ones(3)}, "output_weights"),
         ({"output_weights": torch.tensor([1.0, float("inf")])}, "output_weights"),
+        ({"measure": "entropy"}, "measure"),
     ],
 )
 def test_bad_input_names_the_argument(single, kwargs, match):

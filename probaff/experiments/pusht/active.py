@@ -5,10 +5,13 @@ model's own training data. After `ActiveOptions.start` random pushes, the mixtur
 is fitted (EM, `fit_learned`) and every next push is chosen from `ActiveOptions.pool` feasible
 primitives sampled at the T's current pose, by one of two scores:
 
-* ``"reduction"``: the push whose observation most lowers the mixture's predictive variance
-  over the pushes a planner asks about (`reduction_chooser`:
-  `probaff.models.mixture.integrated_variance_reduction`, Cohn's criterion, over
-  `ActiveOptions.reference` primitives drawn as the planner draws its candidates);
+* ``"information"``: the push whose observation tells the most (nats) about the mixture's
+  predictions of the pushes a planner asks about (`reduction_chooser`:
+  `probaff.models.mixture.integrated_variance_reduction` with ``measure="information"``, over
+  `ActiveOptions.reference` primitives drawn as the planner draws its candidates): the
+  thesis's information gain, in which each effect counts whatever its units;
+* ``"reduction"``: the same, but the predictive variance it removes (Cohn's criterion; the
+  turn counted as the arc it moves the T's corners through);
 * ``"variance"``: the push whose predicted effect has the largest predictive variance
   (`predictive_spread`: the law of total variance over the experts, so both the experts' own
   uncertainty and their disagreement count). It favours pushes unlike any other, which a
@@ -66,9 +69,9 @@ __all__ = [
     "variance_chooser",
 ]
 
-STRATEGIES = ("reduction", "variance", "random")
-"""How training pushes are chosen: by the variance they remove, by the model's predictive
-variance, or at random."""
+STRATEGIES = ("information", "reduction", "variance", "random")
+"""How training pushes are chosen: by the information they give or the variance they remove
+at the planner's queries, by the model's predictive variance, or at random."""
 
 
 @dataclass(frozen=True)
@@ -77,14 +80,15 @@ class ActiveOptions:
 
     Attributes:
         budget: Pushes recorded in all (a positive integer).
-        strategy: ``"reduction"``, ``"variance"`` (information gain, module doc) or
+        strategy: ``"information"``, ``"reduction"``, ``"variance"`` (module doc) or
             ``"random"``.
         start: Random pushes before the first fit (at least 5, at most `budget`).
         refit_every: Pushes between two refits, k.
         pool: Candidate primitives scored per chosen push.
         experts: Experts M of the mixture fitted to choose.
         em: The EM fits made to choose (their seed is the collection's).
-        reference: Primitives drawn per choice as the planner's queries (``"reduction"``).
+        reference: Primitives drawn per choice as the planner's queries (``"information"``,
+            ``"reduction"``).
 
     Raises:
         InputError: For a budget, start, refit interval, pool or expert count that is not a
@@ -148,16 +152,22 @@ def _output_weights(radius: float = GYM_TEE.radius) -> np.ndarray:
 
 
 def reduction_chooser(
-    model: LearnedModel, pool: int, settings: PrimitiveSettings, reference: int = 256
+    model: LearnedModel,
+    pool: int,
+    settings: PrimitiveSettings,
+    reference: int = 256,
+    measure: str = "variance",
 ) -> Chooser:
-    """A chooser of the push whose observation most lowers the variance at the planner's queries.
+    """A chooser of the push whose observation most informs the planner's queries.
 
     Args:
         model: The current push model (a `LearnedModel` with exact GP experts).
         pool: Primitives sampled per choice; the feasible ones are scored.
         settings: The primitives' settings.
         reference: Primitives drawn per choice (`sample_primitives`, the planner's draw) at
-            which the reduction of the predictive variance is averaged.
+            which the score is averaged.
+        measure: ``"variance"`` (the variance removed, the turn as its arc) or
+            ``"information"`` (nats, every effect alike).
     """
 
     def choose(rng: np.random.Generator, pose: np.ndarray, agent: np.ndarray) -> np.ndarray:
@@ -171,7 +181,8 @@ def reduction_chooser(
                 model.model,
                 primitive_features(ok, settings),
                 queries,
-                output_weights=_output_weights(),
+                output_weights=_output_weights() if measure == "variance" else None,
+                measure=measure,
             )
         return np.asarray(ok[int(torch.argmax(score))])
 
@@ -238,7 +249,10 @@ def record_chosen(
             if options.strategy == "variance":
                 choose = variance_chooser(model, options.pool, settings)
             else:
-                choose = reduction_chooser(model, options.pool, settings, options.reference)
+                measure = "variance" if options.strategy == "reduction" else "information"
+                choose = reduction_chooser(
+                    model, options.pool, settings, options.reference, measure
+                )
         more = record_pushes(w, rng, n, settings, choose)
         rows = {k: rows[k] + more[k] for k in rows}
     return {**rows, "refits": refits}

@@ -19,9 +19,15 @@ with :math:`s_e` the expert's output scale. This is Cohn's (1996) active-learnin
 (ALC), the negative integrated posterior variance of BoTorch's ``qNegIntegratedPosterior
 Variance`` for one point, applied expert by expert. Unlike the largest predictive variance,
 which favours inputs at the edge of the data that nothing else resembles, it favours inputs
-whose observation informs many of the inputs in `R`. For a Gaussian predictive, the
-reduction of the summed log-variances (the information gained about the outputs at `R`) is
-ranked the same way to first order.
+whose observation informs many of the inputs in `R`.
+
+With ``measure="information"`` each term is instead the information (nats) the observation
+gives about the expert's function value at :math:`r`,
+
+.. math:: I_{je}(r; x) = -\tfrac12 \log\Big(1 - \frac{\Delta_{je}(r; x)}{c_{je}(r, r)}\Big),
+
+which does not depend on the outputs' units, so an output of small variance (a turn beside
+a displacement) counts as much as one of large variance; `output_weights` still weigh them.
 """
 
 from __future__ import annotations
@@ -36,7 +42,10 @@ from probaff.errors import InputError
 from probaff.models.experts.gp_expert import GPExpert, exact_gp_settings
 from probaff.models.tensors import as_matrix
 
-__all__ = ["integrated_variance_reduction"]
+__all__ = ["MEASURES", "integrated_variance_reduction"]
+
+MEASURES = ("variance", "information")
+"""What `integrated_variance_reduction` averages: variance removed, or information gained."""
 
 
 def integrated_variance_reduction(
@@ -45,6 +54,7 @@ def integrated_variance_reduction(
     reference: Any,
     *,
     output_weights: Any | None = None,
+    measure: str = "variance",
 ) -> Tensor:
     """Each candidate's expected reduction of the predictive variance over `reference`.
 
@@ -52,17 +62,21 @@ def integrated_variance_reduction(
         model: A fitted `MixtureOfGPExperts` with exact GP experts.
         candidates: Inputs that could be observed next, `(C, D)`, in the model's feature frame.
         reference: Inputs the model will be asked about, `(R, D)`, same frame.
-        output_weights: Non-negative weight of each output's variance, `(E,)` (e.g. a turn's
+        output_weights: Non-negative weight of each output's term, `(E,)` (e.g. a turn's
             radius squared to count an angle as the arc it moves); None for ones.
+        measure: ``"variance"`` (`IVR`, squared output units) or ``"information"`` (nats
+            about the function values at `reference`; module doc).
 
     Returns:
-        `IVR(x)` of every candidate (module doc), `(C,)`, in squared output units (weighted).
+        The score of every candidate (module doc), `(C,)`, averaged over `reference`.
 
     Raises:
         InputError: For inputs of the wrong width or with NaN/inf, negative or mis-sized
-            output weights, or a mixture with sparse experts.
+            output weights, an unknown measure, or a mixture with sparse experts.
         NotFittedError: If the mixture is not fitted.
     """
+    if measure not in MEASURES:
+        raise InputError(f"measure must be one of {list(MEASURES)}, got {measure!r}.")
     model.check_fitted()
     x_c = model.features(as_matrix("candidates", candidates, n_cols=model.n_features))
     x_r = model.features(as_matrix("reference", reference, n_cols=model.n_features))
@@ -97,7 +111,12 @@ def integrated_variance_reduction(
         var_c = cov[:, n_ref:, n_ref:].diagonal(dim1=-2, dim2=-1)  # (E, C)
         g_c = gate[n_ref:, j].clamp_min(1e-12)
         denom = var_c + expert.likelihood.noise / g_c  # (E, C), standardised units
-        scale = w * expert.y_scaler.std**2  # (E,): output units
         reduction = cross**2 / denom[:, None, :]  # (E, R, C)
+        if measure == "variance":
+            scale = w * expert.y_scaler.std**2  # (E,): output units
+        else:
+            var_r = cov[:, :n_ref, :n_ref].diagonal(dim1=-2, dim2=-1)  # (E, R)
+            ratio = (reduction / var_r.clamp_min(1e-300)[..., None]).clamp(0.0, 1.0 - 1e-12)
+            reduction, scale = -0.5 * torch.log1p(-ratio), w
         total += torch.einsum("e,r,erc->c", scale, gate[:n_ref, j], reduction)
     return total / n_ref
