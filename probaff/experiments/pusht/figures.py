@@ -173,6 +173,9 @@ def plot_success_curve(
         label=f"diffusion policy ({DIFFUSION_POLICY.observation})",
     )
     ax.set_xscale("log")
+    sizes = sorted({int(r["train_pushes"]) for r in rows})
+    ax.set_xticks(sizes, [str(n) for n in sizes])
+    ax.minorticks_off()
     ax.set_ylim(0, 1.02)
     ax.set_xlabel("training pushes")
     ax.set_ylabel("success rate")
