@@ -47,14 +47,8 @@ from probaff._io import atomic_write_text
 from probaff.errors import InputError
 from probaff.experiments.pusht.env import PushTWorker, pixel_observations
 from probaff.experiments.pusht.geometry import cog_pose
-from probaff.experiments.pusht.perception import (
-    FRAME_SIZE,
-    WORLD_SIZE,
-    PerceptionOptions,
-    class_fractions,
-    perceive_block,
-    perceive_scene,
-)
+from probaff.experiments.pusht.perception import PerceptionOptions, perceive_block, perceive_scene
+from probaff.experiments.pusht.pixels import FRAME_SIZE, WORLD_SIZE, class_fractions
 from probaff.experiments.pusht.primitives import (
     PrimitiveSettings,
     primitive_actions,

@@ -16,17 +16,19 @@ from study_helpers import BlankPushTWorker, PoisonedPushTWorker
 from probaff.errors import InputError
 from probaff.experiments.pusht.env import PushTEnvError, PushTWorker, pixel_observations
 from probaff.experiments.pusht.perception import (
+    PerceptionOptions,
+    Scene,
+    TeeShape,
+    perceive_block,
+    perceive_scene,
+)
+from probaff.experiments.pusht.pixels import (
     CLASSES,
     FRAME_SIZE,
     PALETTE,
     WORLD_SIZE,
-    PerceptionOptions,
-    Scene,
-    TeeShape,
     check_observation,
     class_fractions,
-    perceive_block,
-    perceive_scene,
     pixel_to_world,
     world_to_pixel,
 )

@@ -50,12 +50,8 @@ from probaff.experiments.pusht.geometry import (
     to_world,
 )
 from probaff.experiments.pusht.observe import OBSERVATIONS, Observed, PixelObserver
-from probaff.experiments.pusht.perception import (
-    FRAME_SIZE,
-    WORLD_SIZE,
-    PerceptionOptions,
-    TeeShape,
-)
+from probaff.experiments.pusht.perception import PerceptionOptions, TeeShape
+from probaff.experiments.pusht.pixels import FRAME_SIZE, WORLD_SIZE
 from probaff.experiments.pusht.primitives import (
     PrimitiveSettings,
     primitive_actions,

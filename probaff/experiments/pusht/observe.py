@@ -37,15 +37,17 @@ from probaff.experiments.pusht.geometry import (
     cog_pose,
 )
 from probaff.experiments.pusht.perception import (
-    CLASSES,
-    WORLD_SIZE,
     BlockEstimate,
     PerceptionOptions,
     Scene,
-    check_observation,
-    class_fractions,
     perceive_block,
     perceive_scene,
+)
+from probaff.experiments.pusht.pixels import (
+    CLASSES,
+    WORLD_SIZE,
+    check_observation,
+    class_fractions,
     pixel_to_world,
 )
 
