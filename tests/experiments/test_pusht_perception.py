@@ -358,3 +358,21 @@ def test_a_goal_region_the_block_covers_is_fitted_with_the_block(pusht_python):
 def test_goal_hidden_must_be_a_fraction(value):
     with pytest.raises(InputError, match="goal_hidden"):
         PerceptionOptions(goal_hidden=value)
+
+
+def test_the_position_variance_is_bounded_by_one_sample_spacing():
+    """A fit whose x and y columns of J coincide (no sample on one orientation's ramp)."""
+    from probaff.experiments.pusht.perception import _Fit, _laplace
+
+    rng = np.random.default_rng(0)
+    jac = rng.normal(size=(200, 3))
+    residual = 0.05 * rng.normal(size=200)
+    fit = _Fit(np.zeros(3), 0.0, jac, residual)
+    s2 = float(np.sum(residual**2)) / 197
+    np.testing.assert_allclose(_laplace(fit, 3), s2 * np.linalg.inv(jac.T @ jac), rtol=1e-8)
+    jac[:, 1] = jac[:, 0] + 1e-4 * rng.normal(size=200)  # x and y move the same pixels alike
+    spacing = WORLD_SIZE / FRAME_SIZE
+    free = np.sqrt(np.diag(_laplace(_Fit(np.zeros(3), 0.0, jac, residual), 3)))
+    bounded = np.sqrt(np.diag(_laplace(fit, 3, np.full(2, 12.0 / spacing**2))))
+    assert free[:2].max() > 5 * spacing  # tens of units, as in the frames it flagged
+    assert bounded[:2].max() <= spacing / math.sqrt(12) * 1.0001

@@ -15,7 +15,12 @@ to the block's fraction by least squares, coarse to fine (`perceive_block`). Its
 the Gauss-Newton (Laplace) one of that fit, scaled by the residual, plus a block jackknife over
 the outline's eight edges (the fit again without the pixels nearest each edge): the image
 samples the world every 5.3 units, so one edge's pixels err together, which the Laplace
-approximation alone, counting every pixel as independent, would miss.
+approximation alone, counting every pixel as independent, would miss. The position's precision
+also gets that of one sample spacing (a uniform uncertainty over 5.3 units, 1.54 units of
+standard deviation): a pixel is a point sample on a ramp one unit wide, so where no sample point
+falls on the ramp of one orientation's edges (a T at 45 degrees can show this), the fit has no
+slope along their normal, and the Laplace variance alone runs to tens of units for an edge that
+the samples still place within one spacing.
 
 One frame pins the T's outline down only to the sampling: the perceived lengths can be off by
 a unit or two (the bar's width against the stem's length most). Goal and block share the one
@@ -290,12 +295,18 @@ def _fit_ramped(
     return best
 
 
-def _laplace(fit: _Fit, n_params: int) -> np.ndarray:
-    """Covariance ``s^2 (J^T J)^-1`` of a least-squares fit, s^2 its residual variance."""
+def _laplace(fit: _Fit, n_params: int, prior: np.ndarray | None = None) -> np.ndarray:
+    """Covariance ``(J^T J / s^2 + P)^-1`` of a least-squares fit, s^2 its residual variance.
+
+    `prior`, the diagonal of `P` (one precision per parameter, 0 for none), bounds what the
+    fit cannot pin down; without it the result is the Laplace ``s^2 (J^T J)^-1``.
+    """
     n = fit.residual.size
-    s2 = float(np.sum(fit.residual**2)) / max(n - n_params, 1)
-    jtj = fit.jac.T @ fit.jac
-    return np.asarray(s2 * np.linalg.pinv(jtj), dtype=float)
+    s2 = max(float(np.sum(fit.residual**2)) / max(n - n_params, 1), 1e-300)
+    precision = fit.jac.T @ fit.jac / s2
+    if prior is not None:
+        precision = precision + np.diag(np.r_[prior, np.zeros(n_params - len(prior))])
+    return np.asarray(np.linalg.pinv(precision), dtype=float)
 
 
 def _window(mask: np.ndarray, margin: int) -> tuple[slice, slice]:
@@ -558,7 +569,10 @@ def _fit_block(
     sub = np.asarray(subsets)
     sub[:, 2] = best.x[2] + np.array([_wrap(t - best.x[2]) for t in sub[:, 2]])
     dev = sub - sub.mean(0)
-    cov = _laplace(best, n)[:3, :3] + (len(sub) - 1) / len(sub) * dev.T @ dev
+    # a point-sampled edge lies within one sample spacing: at most that uniform uncertainty
+    spacing = WORLD_SIZE / size
+    quantised = np.array([12.0, 12.0]) / spacing**2
+    cov = _laplace(best, n, quantised)[:3, :3] + (len(sub) - 1) / len(sub) * dev.T @ dev
     std = np.sqrt(np.maximum(np.diag(cov), 0.0))
     px = size / WORLD_SIZE
     if hidden > opts.max_hidden:
