@@ -3,21 +3,21 @@
 The thesis chooses the action that most reduces uncertainty; here it is applied to the push
 model's own training data. After `ActiveOptions.start` random pushes, the mixture of GP experts
 is fitted (EM, `fit_learned`) and every next push is chosen from `ActiveOptions.pool` feasible
-primitives sampled at the T's current pose, by one of two scores:
+primitives sampled at the T's current pose, by one of three scores:
 
 * ``"information"``: the push whose observation tells the most (nats) about the mixture's
   predictions of the pushes a planner asks about (`reduction_chooser`:
   `probaff.models.mixture.integrated_variance_reduction` with ``measure="information"``, over
   `ActiveOptions.reference` primitives drawn as the planner draws its candidates): the
   thesis's information gain, in which each effect counts whatever its units;
-* ``"reduction"``: the same, but the predictive variance it removes (Cohn's criterion; the
-  turn counted as the arc it moves the T's corners through);
+* ``"reduction"``: the same, but the predictive variance it removes (Cohn's criterion);
 * ``"variance"``: the push whose predicted effect has the largest predictive variance
   (`predictive_spread`: the law of total variance over the experts, so both the experts' own
   uncertainty and their disagreement count). It favours pushes unlike any other, which a
   planner seldom needs.
 
-Both count a turn as the arc it moves the T's corners through. The model is refitted every
+The two variances count a turn as the arc it moves the T's corners through
+(`_output_weights`). The model is refitted every
 `ActiveOptions.refit_every` pushes. ``strategy="random"`` runs the same loop with random pushes
 (`probaff.experiments.pusht.data`'s), the baseline.
 
@@ -29,6 +29,7 @@ longer one with the same seed and options (the refits happen at the same counts)
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -143,12 +144,33 @@ def predictive_spread(
     the T's corners through, at their RMS `radius` (px).
     """
     _, std = predict_moments(model, X)
-    return np.asarray(std[:, 0] ** 2 + std[:, 1] ** 2 + (radius * std[:, 2]) ** 2)
+    return np.asarray((std**2 * _output_weights(radius)).sum(axis=1))
 
 
 def _output_weights(radius: float = GYM_TEE.radius) -> np.ndarray:
     """(3,) weights of (dy_p, dz_p, dtheta) variances: a turn as the arc at `radius` (px)."""
     return np.array([1.0, 1.0, radius**2])
+
+
+def _best_feasible(
+    pool: int,
+    settings: PrimitiveSettings,
+    score: Callable[[np.random.Generator, np.ndarray], Any],
+) -> Chooser:
+    """A chooser of the best-scored of `pool` primitives feasible at the T's pose.
+
+    `score(rng, features)` scores the (K, 5) features of the feasible ones (`argmax` is
+    taken); where none is feasible the first primitive drawn is returned.
+    """
+
+    def choose(rng: np.random.Generator, pose: np.ndarray, agent: np.ndarray) -> np.ndarray:
+        prims = sample_primitives(rng, pool, settings)
+        ok = prims[feasible_starts(pose, prims, settings)]
+        if len(ok) == 0:
+            return np.asarray(prims[0])
+        return np.asarray(ok[int(np.argmax(score(rng, primitive_features(ok, settings))))])
+
+    return choose
 
 
 def reduction_chooser(
@@ -169,24 +191,17 @@ def reduction_chooser(
         measure: ``"variance"`` (the variance removed, the turn as its arc) or
             ``"information"`` (nats, every effect alike).
     """
+    weights = _output_weights() if measure == "variance" else None
 
-    def choose(rng: np.random.Generator, pose: np.ndarray, agent: np.ndarray) -> np.ndarray:
-        prims = sample_primitives(rng, pool, settings)
-        ok = prims[feasible_starts(pose, prims, settings)]
-        if len(ok) == 0:
-            return np.asarray(prims[0])
+    def score(rng: np.random.Generator, features: np.ndarray) -> np.ndarray:
         queries = primitive_features(sample_primitives(rng, reference, settings), settings)
         with torch.no_grad():
-            score = integrated_variance_reduction(
-                model.model,
-                primitive_features(ok, settings),
-                queries,
-                output_weights=_output_weights() if measure == "variance" else None,
-                measure=measure,
+            gain = integrated_variance_reduction(
+                model.model, features, queries, output_weights=weights, measure=measure
             )
-        return np.asarray(ok[int(torch.argmax(score))])
+        return gain.cpu().numpy()
 
-    return choose
+    return _best_feasible(pool, settings, score)
 
 
 def variance_chooser(model: PushModel, pool: int, settings: PrimitiveSettings) -> Chooser:
@@ -197,16 +212,7 @@ def variance_chooser(model: PushModel, pool: int, settings: PrimitiveSettings) -
         pool: Primitives sampled per choice; the feasible ones are scored.
         settings: The primitives' settings.
     """
-
-    def choose(rng: np.random.Generator, pose: np.ndarray, agent: np.ndarray) -> np.ndarray:
-        prims = sample_primitives(rng, pool, settings)
-        ok = prims[feasible_starts(pose, prims, settings)]
-        if len(ok) == 0:
-            return np.asarray(prims[0])
-        spread = predictive_spread(model, primitive_features(ok, settings))
-        return np.asarray(ok[int(np.argmax(spread))])
-
-    return choose
+    return _best_feasible(pool, settings, lambda rng, features: predictive_spread(model, features))
 
 
 def _fit(rows: dict[str, list[Any]], options: ActiveOptions, seed: int) -> LearnedModel:
