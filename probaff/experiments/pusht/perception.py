@@ -452,11 +452,7 @@ def _joint_fit(
         The outline, the goal's pose and the block's rim, if the block's fit with them is
         accepted (`_fit_block`'s checks).
     """
-    size = frac.shape[0]
-    window = _window((frac[..., 2] > 0.05) | (frac[..., 3] > opts.unknown), opts.margin)
-    points = _grid(size, window)
-    observed = frac[..., 2][window].ravel()
-    weight = (frac[..., 3][window].ravel() <= opts.unknown).astype(float)
+    points, observed, weight = _block_pixels(frac, opts)
 
     def res(p: np.ndarray, ramp: float) -> np.ndarray:
         dims = p[6:10]
@@ -468,7 +464,7 @@ def _joint_fit(
     scale = np.r_[1.0, 1.0, 0.02, 1.0, 1.0, 0.02, 1.0, 1.0, 1.0, 1.0, 0.5]
     fit = _fit_ramped(res, [x0], scale, opts.ramps, max_nfev=80)
     shape = TeeShape(*(float(v) for v in np.abs(fit.x[6:10])))
-    check = _fit_block(frac, shape, None, opts, guess=np.r_[fit.x[3:6]], rim_free=True)
+    check = _fit_block(frac, shape, None, opts, guess=fit.x[3:6], rim_free=True)
     if check is None or check.status != "ok":
         return None
     return shape, np.array([fit.x[0], fit.x[1], _wrap(fit.x[2])]), float(check.extra["rim"])
@@ -513,6 +509,22 @@ def perceive_block(
     return est
 
 
+def _block_pixels(
+    frac: np.ndarray, opts: PerceptionOptions
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pixels a block fit reads: around the block's colour and the pusher's.
+
+    Returns:
+        Their world points `(P, 2)`, the block's fraction there `(P,)`, and a weight `(P,)`
+        that leaves out the pixels the pusher covers.
+    """
+    block, agent = frac[..., 2], frac[..., 3]
+    window = _window((block > 0.05) | (agent > opts.unknown), opts.margin)
+    observed = block[window].ravel()
+    weight = (agent[window].ravel() <= opts.unknown).astype(float)
+    return _grid(frac.shape[0], window), observed, weight
+
+
 def _fit_block(
     frac: np.ndarray,
     shape: TeeShape,
@@ -524,17 +536,14 @@ def _fit_block(
 ) -> BlockEstimate | None:
     """Fit the T to the block's colour fraction `frac[..., 2]`; None if it shows nowhere."""
     size = frac.shape[0]
-    block, agent = frac[..., 2], frac[..., 3]
+    block = frac[..., 2]
     pixel_area = (WORLD_SIZE / size) ** 2
     rim0 = 2.5 if rim is None else rim
     expected = shape.area() + rim0 * 2 * (shape.bar_length + shape.bar_width + shape.stem_length)
     visible = float(block.sum()) * pixel_area / expected
     if block.sum() < 1.0:
         return None
-    window = _window((block > 0.05) | (agent > opts.unknown), opts.margin)
-    points = _grid(size, window)
-    observed = block[window].ravel()
-    weight = (agent[window].ravel() <= opts.unknown).astype(float)
+    points, observed, weight = _block_pixels(frac, opts)
     dims = shape.as_array()
     n = 4 if rim_free else 3
     scale = np.r_[1.0, 1.0, 0.02, 0.5][:n]
