@@ -13,6 +13,7 @@ The studies built on them live in `probaff.experiments`.
 
 from probaff.eval.fingerprint import config_fingerprint
 from probaff.eval.metrics import (
+    corrected_halfwidth,
     interval_coverage,
     marginal_components,
     mean_halfwidth,
@@ -28,6 +29,7 @@ __all__ = [
     "ExpertSelection",
     "ResultStore",
     "config_fingerprint",
+    "corrected_halfwidth",
     "csv_table",
     "interval_coverage",
     "marginal_components",

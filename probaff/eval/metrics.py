@@ -17,6 +17,7 @@ from probaff._checks import check_count, check_finite, check_shape
 from probaff.errors import InputError
 
 __all__ = [
+    "corrected_halfwidth",
     "interval_coverage",
     "marginal_components",
     "mean_halfwidth",
@@ -178,6 +179,55 @@ def wilson_interval(successes: int, trials: int, confidence: float = 0.95) -> tu
     return max(0.0, centre - half), min(1.0, centre + half)
 
 
+def _t_quantile(confidence: float, dof: int) -> float:
+    """The two-sided Student-t quantile of `confidence` with `dof` degrees of freedom."""
+    from scipy.stats import t
+
+    if not 0 < confidence < 1:
+        raise InputError(f"confidence must lie in (0, 1), got {confidence!r}.")
+    return float(t.ppf(0.5 + confidence / 2, dof))
+
+
+def _sample_sd(v: Sequence[float]) -> float:
+    return math.sqrt(sum((x - sum(v) / len(v)) ** 2 for x in v) / (len(v) - 1))
+
+
+def corrected_halfwidth(
+    values: Sequence[float], test_to_train: float, confidence: float = 0.95
+) -> float:
+    """Half-width of Nadeau and Bengio's corrected resampled t interval of the mean of `values`.
+
+    The J scores of repeated cross-validation (R repeats of K folds, J = R K) share training
+    rows, so they are correlated and the plain t interval `mean_halfwidth` is too narrow.
+    Nadeau and Bengio (2003, "Inference for the generalization error") correct the variance
+    of the mean from ``sd^2 / J`` to ``sd^2 (1 / J + n_test / n_train)``; Bouckaert and Frank
+    (2004) apply it to repeated K-fold, where ``n_test / n_train = 1 / (K - 1)``.
+
+    Args:
+        values: One paired difference per (repeat, fold), `(J,)`.
+        test_to_train: Held-out rows over training rows of one split, ``1 / (K - 1)`` for
+            K-fold; 0 gives the plain t interval.
+        confidence: Two-sided confidence level in (0, 1).
+
+    Returns:
+        ``t_{(1 + confidence) / 2, J - 1} * sd * sqrt(1 / J + test_to_train)`` (0 for fewer
+        than two values); NaN values propagate.
+
+    Raises:
+        InputError: For a level outside (0, 1) or a negative or non-finite `test_to_train`.
+    """
+    if not math.isfinite(test_to_train) or test_to_train < 0:
+        raise InputError(
+            f"test_to_train must be a finite ratio >= 0 (1 / (K - 1) for K folds), "
+            f"got {test_to_train!r}."
+        )
+    q = _t_quantile(confidence, max(len(values) - 1, 1))
+    v = [float(x) for x in values]
+    if len(v) < 2:
+        return 0.0
+    return q * _sample_sd(v) * math.sqrt(1 / len(v) + test_to_train)
+
+
 def mean_halfwidth(values: Sequence[float], confidence: float = 0.95) -> float:
     """Half-width of the Student-t interval of the mean of `values` (0 for fewer than two).
 
@@ -191,12 +241,4 @@ def mean_halfwidth(values: Sequence[float], confidence: float = 0.95) -> float:
     Raises:
         InputError: For a level outside (0, 1).
     """
-    from scipy.stats import t
-
-    if not 0 < confidence < 1:
-        raise InputError(f"confidence must lie in (0, 1), got {confidence!r}.")
-    v = [float(x) for x in values]
-    if len(v) < 2:
-        return 0.0
-    sd = math.sqrt(sum((x - sum(v) / len(v)) ** 2 for x in v) / (len(v) - 1))
-    return float(t.ppf(0.5 + confidence / 2, len(v) - 1) * sd / math.sqrt(len(v)))
+    return corrected_halfwidth(values, 0.0, confidence)

@@ -1,11 +1,18 @@
 import math
+import statistics
 
 import pytest
 import torch
 from torch.distributions import Categorical, Independent, MixtureSameFamily, Normal
 
 from probaff.errors import InputError
-from probaff.eval.metrics import interval_coverage, nlpd, rmse
+from probaff.eval.metrics import (
+    corrected_halfwidth,
+    interval_coverage,
+    mean_halfwidth,
+    nlpd,
+    rmse,
+)
 
 
 def _mixture(n=4000, seed=0):
@@ -56,3 +63,20 @@ def test_bad_targets():
         nlpd(dist, y)
     with pytest.raises(InputError, match="level"):
         interval_coverage(dist, y.nan_to_num(), 1.5)
+
+
+def test_corrected_halfwidth_widens_the_plain_t_interval_by_nadeau_and_bengio():
+    from scipy.stats import t
+
+    values = [0.3, -0.1, 0.4, 0.2, 0.0, 0.5]  # J = 6 splits: 2 repeats of 3 folds
+    sd = statistics.stdev(values)
+    plain = t.ppf(0.975, 5) * sd / math.sqrt(6)
+    assert mean_halfwidth(values) == pytest.approx(plain)
+    assert corrected_halfwidth(values, 0.0) == pytest.approx(plain)
+    # 3 folds: a test fold is half the size of its training rows
+    want = t.ppf(0.975, 5) * sd * math.sqrt(1 / 6 + 1 / 2)
+    assert corrected_halfwidth(values, 0.5) == pytest.approx(want)
+    assert corrected_halfwidth([1.0], 0.5) == 0.0  # one split: no interval
+    for bad in (-0.5, math.nan, math.inf):
+        with pytest.raises(InputError, match="test_to_train"):
+            corrected_halfwidth(values, bad)

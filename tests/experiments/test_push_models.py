@@ -32,3 +32,36 @@ def test_bad_config():
         run(PushModelStudyConfig(ch5_features=("xyz",)))
     with pytest.raises(InputError, match="unknown method"):
         run(PushModelStudyConfig(methods=("mcmc",)))
+
+
+def test_repeats_add_splits_and_keep_one_runs_keys():
+    from types import SimpleNamespace
+
+    import numpy as np
+    from sklearn.model_selection import KFold
+
+    from probaff.experiments.push_models.run import _tasks
+
+    features = SimpleNamespace(groups={"o": slice(0, 2)})
+    data = (features, np.zeros((12, 6)))
+    configs = {"o": (("o",), ("o",))}
+
+    def keyed(repeats):
+        config = PushModelStudyConfig(ch5_folds=3, ch5_repeats=repeats, ch4_pushes=0)
+        return {key: task for key, (task,) in _tasks(config, "ch5", data, configs, ())}
+
+    one, three = keyed(1), keyed(3)
+    assert len(one) == 3 and len(three) == 9
+    assert set(one) <= set(three)  # a repeated run resumes one run's tasks
+    for (_, test), task in zip(
+        KFold(3, shuffle=True, random_state=0).split(data[1]), one.values(), strict=True
+    ):
+        assert task.repeat == 0 and np.array_equal(np.sort(task.test), np.sort(test))
+    later = [task for key, task in three.items() if key not in one]
+    assert sorted({t.repeat for t in later}) == [1, 2]
+    for r in (1, 2):  # each repeat is a partition of the rows, shuffled anew
+        tests = [t.test for t in later if t.repeat == r]
+        assert np.array_equal(np.sort(np.concatenate(tests)), np.arange(12))
+    assert not np.array_equal(later[0].test, one[next(iter(one))].test)
+    with pytest.raises(InputError, match="ch5_repeats"):
+        run(PushModelStudyConfig(ch5_repeats=0))

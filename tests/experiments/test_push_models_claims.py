@@ -1,9 +1,13 @@
-"""Chapter 5's claims judged fold by fold: known answers on hand-made fold rows.
+"""Chapter 5's claims judged split by split: known answers on hand-made split rows.
 
 Covers probaff.experiments.push_models.claims.
 """
 
+import math
+
+import numpy as np
 import pytest
+from scipy.stats import t
 
 from probaff.experiments.push_models.claims import (
     CLAIM_COLUMNS,
@@ -13,10 +17,15 @@ from probaff.experiments.push_models.claims import (
 )
 
 
-def _row(features, m, fold, rmse, nlpd=0.0, method="em"):
-    """A fold row: every effect's RMSE `rmse` (or six values), NLPD `nlpd` per effect."""
+def _row(features, m, fold, rmse, nlpd=0.0, method="em", repeat=None):
+    """A split row: every effect's RMSE `rmse` (or six values), NLPD `nlpd` per effect.
+
+    Without `repeat` the row is one run's, which names no repeat.
+    """
     values = list(rmse) if isinstance(rmse, (list, tuple)) else [rmse] * 6
+    extra = {} if repeat is None else {"repeat": repeat}
     return {
+        **extra,
         "features": features,
         "method": method,
         "M": m,
@@ -55,7 +64,8 @@ def test_claims_pair_folds_and_judge_each_comparison():
     assert all(set(CLAIM_COLUMNS) == set(r) for r in claims)
     by = {(r["claim"], r["a"], r["b"]): r for r in claims}
     o2 = by["context features help o2", "ocx, M=3", "o, M=3"]
-    assert o2["folds"] == 3 and o2["mean"] == pytest.approx(-10.0) and o2["ci95"] < 1e-9
+    assert (o2["repeats"], o2["folds"]) == (1, 3)
+    assert o2["mean"] == pytest.approx(-10.0) and o2["ci95"] < 1e-9
     assert o2["verdict"] == "holds"
     # M = 3 against M = 1 on all six effects: o2 unchanged between M, so 0 % with no spread:
     # no effect, and the thesis's -5.9 to -6.5 % ruled out
@@ -67,7 +77,7 @@ def test_claims_pair_folds_and_judge_each_comparison():
     assert not any(r["claim"].startswith("gate-on-context") for r in claims)
     text = "\n".join(claim_lines(claims))
     assert "- **context features help o2**: 4 comparisons over every M: 4 holds." in text
-    assert "| M = 3 is best | ocx, M=3 | ocx, M=1 | nlpd | M = 3 lowest | 3 | -3.00 |" in text
+    assert "| M = 3 is best | ocx, M=3 | ocx, M=1 | nlpd | M = 3 lowest | 1 | 3 | -3.00 |" in text
 
 
 def test_a_worse_split_is_refuted():
@@ -80,3 +90,24 @@ def test_a_worse_split_is_refuted():
     split = [r for r in claims if r["claim"].startswith("gate-on-context")]
     assert [r["b"] for r in split] == ["ocx, M=3", "oc, M=3"]
     assert all(r["mean"] == pytest.approx(20.0) and r["verdict"] == "refuted" for r in split)
+
+
+def test_repeats_pool_every_split_under_the_corrected_interval():
+    # 2 repeats of 3 folds: the NLPD of M = 3 against M = 1 differs by d per split
+    diffs = {(0, 0): -1.0, (0, 1): -2.0, (0, 2): -0.5, (1, 0): -1.5, (1, 1): -0.2, (1, 2): -2.5}
+    rows = []
+    for (r, f), d in diffs.items():
+        rows.append(_row("o", 1, f, 1.0, nlpd=1.0, repeat=r))
+        rows.append(_row("o", 3, f, 1.0, nlpd=1.0 + d / 6, repeat=r))  # summed over 6 effects
+    (best,) = [c for c in chapter5_claims(rows) if c["claim"] == "M = 3 is best"]
+    values = list(diffs.values())
+    want = t.ppf(0.975, 5) * np.std(values, ddof=1) * math.sqrt(1 / 6 + 1 / 2)
+    assert (best["repeats"], best["folds"]) == (2, 3)
+    assert best["mean"] == pytest.approx(np.mean(values))
+    assert best["ci95"] == pytest.approx(want)
+    # the same six values as one repeat's six folds: a smaller correction, 1 / (K - 1) = 1 / 5
+    one = [
+        _row(r["features"], r["M"], 3 * r["repeat"] + r["fold"], 1.0, r["nlpd"][0]) for r in rows
+    ]
+    (flat,) = [c for c in chapter5_claims(one) if c["claim"] == "M = 3 is best"]
+    assert flat["ci95"] == pytest.approx(want * math.sqrt(1 / 6 + 1 / 5) / math.sqrt(1 / 6 + 1 / 2))

@@ -1,11 +1,15 @@
-"""Chapter 5's claims judged with intervals over folds: holds, refuted, or not shown.
+"""Chapter 5's claims judged with intervals over splits: holds, refuted, or not shown.
 
-Each claim compares two cells of the study, (features, method, M) against another, fold by
-fold on the same held-out pushes, so the comparison is paired. An RMSE comparison is the
-relative change ``RMSE(a) / RMSE(b) - 1`` in %, averaged over the claim's effect dimensions
-(so metres and radians weigh alike); an NLPD comparison is the difference of the total NLPD
-(nats per held-out push, summed over the six effects). The mean over folds gets a 95 %
-Student-t interval, and the verdict reads the interval against the thesis's direction:
+Each claim compares two cells of the study, (features, method, M) against another, split by
+split on the same held-out pushes, so the comparison is paired. A split is one fold of one
+repeat of the cross-validation (``ch5_repeats`` repeats of ``ch5_folds`` folds). An RMSE
+comparison is the relative change ``RMSE(a) / RMSE(b) - 1`` in %, averaged over the claim's
+effect dimensions (so metres and radians weigh alike); an NLPD comparison is the difference of
+the total NLPD (nats per held-out push, summed over the six effects). The mean over the J
+splits gets a 95 % interval, Nadeau and Bengio's corrected resampled t
+(`probaff.eval.metrics.corrected_halfwidth`, variance ``sd^2 (1 / J + 1 / (K - 1))`` for K
+folds): the splits share training rows, and the plain t interval over them is too narrow. The
+verdict reads the interval against the thesis's direction:
 
 * ``holds``: the whole interval lies on the thesis's side of 0;
 * ``refuted``: the whole interval lies on the other side;
@@ -13,7 +17,7 @@ Student-t interval, and the verdict reads the interval against the thesis's dire
   (a number, or a range), so the effect the thesis reports is ruled out while no effect is
   not: the claim as published is refuted, its direction neither shown nor refuted;
 * ``not shown``: the interval holds 0 (and, where the thesis gives a number, that number too);
-* ``too few folds``: fewer than two folds, so no interval.
+* ``too few folds``: fewer than two splits, so no interval.
 
 The claims (thesis section 5.4): context features help o2 (f_o & f_c & f_x against f_o, o2's
 three effects, -11.8 %); M > 1 beats M = 1 on RMSE (-5.9 to -6.5 %); M = 3 is best (its NLPD
@@ -28,11 +32,18 @@ from typing import Any
 
 import numpy as np
 
-from probaff.eval.metrics import mean_halfwidth
+from probaff.eval.metrics import corrected_halfwidth
 from probaff.eval.tables import markdown_table
 from probaff.experiments.push_models.config import CH5_EFFECTS
 
-__all__ = ["CLAIM_COLUMNS", "VERDICTS", "chapter5_claims", "claim_lines", "verdict"]
+__all__ = [
+    "CLAIM_COLUMNS",
+    "VERDICTS",
+    "chapter5_claims",
+    "claim_lines",
+    "split_halfwidth",
+    "verdict",
+]
 
 CLAIM_COLUMNS = [
     "claim",
@@ -40,12 +51,13 @@ CLAIM_COLUMNS = [
     "b",
     "metric",
     "thesis",
+    "repeats",
     "folds",
     "mean",
     "ci95",
     "verdict",
 ]
-"""Columns of the claims table (``ch5_claims.csv``)."""
+"""Columns of the claims table (``ch5_claims.csv``): ``repeats`` of ``folds`` folds each."""
 
 VERDICTS = ("holds", "refuted", "below the thesis's size", "not shown", "too few folds")
 """What a comparison can find: see the module docstring; fewer than two folds give no
@@ -72,7 +84,7 @@ def verdict(
         mean: Mean paired difference over folds.
         halfwidth: Half-width of its 95 % interval.
         direction: The thesis's sign of the difference, -1 or +1.
-        folds: Folds the interval is over.
+        folds: Splits the interval is over (repeats times folds).
         thesis: The thesis's published difference as ``(low, high)`` in the units of
             `mean`, or None where it gives no number.
     """
@@ -88,14 +100,30 @@ def verdict(
     return "not shown"
 
 
-def _by_fold(
+Split = tuple[int, int]
+"""A split of the cross-validation: (repeat, fold)."""
+
+
+def split_halfwidth(values: Sequence[float], splits: Sequence[Split]) -> float:
+    """95 % half-width of the mean of one paired score per split (corrected resampled t).
+
+    Args:
+        values: One value per split, `(J,)`.
+        splits: The splits, ``(repeat, fold)`` each, `(J,)`; K is the number of folds.
+    """
+    folds = len({f for _, f in splits})
+    return corrected_halfwidth(values, 1 / (folds - 1) if folds > 1 else 0.0)
+
+
+def _by_split(
     results: list[dict[str, Any]], method: str
-) -> dict[tuple[str, int], dict[int, dict[str, Any]]]:
-    """Fold rows of `method`, by (features, M) and then fold."""
-    out: dict[tuple[str, int], dict[int, dict[str, Any]]] = {}
+) -> dict[tuple[str, int], dict[Split, dict[str, Any]]]:
+    """Split rows of `method`, by (features, M) and then (repeat, fold)."""
+    out: dict[tuple[str, int], dict[Split, dict[str, Any]]] = {}
     for r in results:
         if r["method"] == method:
-            out.setdefault((r["features"], int(r["M"])), {})[int(r["fold"])] = r
+            split = (int(r.get("repeat", 0)), int(r["fold"]))  # rows of one run have no repeat
+            out.setdefault((r["features"], int(r["M"])), {})[split] = r
     return out
 
 
@@ -109,7 +137,7 @@ def _nlpd_change(a: dict[str, Any], b: dict[str, Any], dims: Sequence[str]) -> f
 
 
 def _row(
-    cells: dict[tuple[str, int], dict[int, dict[str, Any]]],
+    cells: dict[tuple[str, int], dict[Split, dict[str, Any]]],
     claim: str,
     a: tuple[str, int],
     b: tuple[str, int],
@@ -119,24 +147,25 @@ def _row(
     *,
     direction: int,
 ) -> dict[str, Any] | None:
-    """One paired comparison of cells `a` and `b` over their shared folds (None if none)."""
+    """One paired comparison of cells `a` and `b` over their shared splits (None if none)."""
     fa, fb = cells.get(a, {}), cells.get(b, {})
-    folds = sorted(set(fa) & set(fb))
-    if not folds:
+    splits = sorted(set(fa) & set(fb))
+    if not splits:
         return None
     change = _rmse_change if metric.startswith("rmse") else _nlpd_change
-    values = [change(fa[f], fb[f], dims) for f in folds]
-    mean, hw = float(np.mean(values)), mean_halfwidth(values)
+    values = [change(fa[s], fb[s], dims) for s in splits]
+    mean, hw = float(np.mean(values)), split_halfwidth(values, splits)
     return {
         "claim": claim,
         "a": f"{a[0]}, M={a[1]}",
         "b": f"{b[0]}, M={b[1]}",
         "metric": metric,
         "thesis": thesis,
-        "folds": len(folds),
+        "repeats": len({r for r, _ in splits}),
+        "folds": len({f for _, f in splits}),
         "mean": mean,
         "ci95": hw,
-        "verdict": verdict(mean, hw, direction, len(folds), _THESIS_SIZES.get(thesis)),
+        "verdict": verdict(mean, hw, direction, len(splits), _THESIS_SIZES.get(thesis)),
     }
 
 
@@ -144,17 +173,19 @@ def chapter5_claims(results: list[dict[str, Any]], method: str = "em") -> list[d
     """Chapter 5's claims on the study's fold rows (``ch5_folds.csv``), one row per comparison.
 
     Args:
-        results: The chapter 5 fold rows: ``features``, ``method``, ``M``, ``fold``, ``rmse``
-            (6,) and ``nlpd`` (6,) in `CH5_EFFECTS` order.
+        results: The chapter 5 split rows: ``features``, ``method``, ``M``, ``repeat``
+            (0 where absent), ``fold``, ``rmse`` (6,) and ``nlpd`` (6,) in `CH5_EFFECTS`
+            order.
         method: The method judged (``"em"``: the gated mixture).
 
     Returns:
         Rows of `CLAIM_COLUMNS`: the claim, the cells compared (``a`` against ``b``), the
         metric (``rmse %`` over the named effects, or ``nlpd`` in nats), the thesis's value,
-        the folds, the mean paired difference, its 95 % half-width and the `verdict`.
+        the repeats and folds, the mean paired difference over the splits, its 95 %
+        half-width (`split_halfwidth`) and the `verdict`.
         Comparisons whose cells were not run are left out.
     """
-    cells = _by_fold(results, method)
+    cells = _by_split(results, method)
     feats = sorted({f for f, _ in cells})
     ms = sorted({m for _, m in cells})
     o2, more, best = "context features help o2", "M > 1 beats M = 1 on RMSE", "M = 3 is best"

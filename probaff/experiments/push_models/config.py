@@ -75,6 +75,11 @@ class PushModelStudyConfig(StudyConfig):
         ch5_pushes: Two-object pushes.
         ch5_experts: Values of M.
         ch5_folds: Cross-validation folds.
+        ch5_repeats: Repeats of the chapter 5 cross-validation, each with its own shuffle
+            (scikit-learn's `RepeatedKFold`; the first repeat is the folds of one run). The
+            claims' intervals are over every (repeat, fold), with Nadeau and Bengio's
+            correction for the splits' shared training rows
+            (`probaff.eval.metrics.corrected_halfwidth`).
         ch5_features: Names from `CH5_FEATURES`.
         methods: ``"em"`` and/or ``"vi"``.
         ch4_pushes: Single-object pushes near the battery (0 skips chapter 4).
@@ -106,6 +111,7 @@ class PushModelStudyConfig(StudyConfig):
     ch5_pushes: int = 321
     ch5_experts: tuple[int, ...] = (1, 2, 3, 4, 5, 6)
     ch5_folds: int = 3
+    ch5_repeats: int = 1
     ch5_features: tuple[str, ...] = ("o", "oc", "ocx", "gx-eoc")
     methods: tuple[str, ...] = ("em", "vi")
     ch4_pushes: int = 120
@@ -161,7 +167,7 @@ class PushModelStudyConfig(StudyConfig):
                 )
         if self.gate not in ("linear", "fourier"):
             raise InputError(f"unknown gate {self.gate!r}; use 'linear' or 'fourier'.")
-        for name in ("vi_inducing", "ch5_pushes", "ch5_folds", "ch4_folds"):
+        for name in ("vi_inducing", "ch5_pushes", "ch5_folds", "ch5_repeats", "ch4_folds"):
             check_count(name, getattr(self, name))
         check_count("ch4_pushes", self.ch4_pushes, minimum=0)
         for size in (*self.ch5_experts, *self.ch4_experts):

@@ -7,9 +7,12 @@ Chapter 4: about 120 single-object pushes near the battery, m = 1..4, 5-fold cro
 its features, the mixture fitted by EM and the clustered baseline (GMM clusters, one GP each,
 SVM gate).
 
-Every (experiment, features, method, M, fold) is one task whose scores are saved as soon as it
-finishes (`probaff.eval.tasks`), keyed also by a hash of the settings that shape it, so an
-interrupted study resumes where it stopped, never mixes settings, and can run on Dask. Tables
+Chapter 5's cross-validation can be repeated with new shuffles (``ch5_repeats``), so that its
+claims are judged over more splits than 3 folds give.
+
+Every (experiment, features, method, M, repeat, fold) is one task whose scores are saved as
+soon as it finishes (`probaff.eval.tasks`), keyed also by a hash of the settings that shape it,
+so an interrupted study resumes where it stopped, never mixes settings, and can run on Dask. Tables
 (CSV, Markdown) and figures (PNG) go to the output folder. The fits take the config's options
 as they are (`em`, `svi`, `gp`), with the study's seed.
 """
@@ -23,7 +26,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from sklearn.model_selection import KFold
+from sklearn.model_selection import RepeatedKFold
 
 from probaff._threads import limit_threads
 from probaff.data import GenerateConfig
@@ -76,7 +79,7 @@ class FoldTask:
         kind: ``"path"`` (EM for every M, VI from it) or ``"clustered"``.
         experiment: ``"ch5"`` or ``"ch4"``.
         features: Name of the feature configuration.
-        fold: Index of the cross-validation fold.
+        fold: Index of the cross-validation fold within its repeat.
         train: Training rows, `(N_train,)`.
         test: Held-out rows, `(N_test,)`.
         groups: Feature group -> ``(start, stop)`` columns.
@@ -87,6 +90,7 @@ class FoldTask:
         sizes: Values of M (path tasks).
         M: Number of clusters (clustered tasks).
         vi: Also fit VI from every EM mixture.
+        repeat: Index of the cross-validation's repeat (chapter 5's ``ch5_repeats``).
     """
 
     kind: str
@@ -103,6 +107,7 @@ class FoldTask:
     sizes: tuple[int, ...] = ()
     M: int = 0
     vi: bool = False
+    repeat: int = 0
 
     @property
     def slices(self) -> dict[str, slice]:
@@ -128,7 +133,12 @@ def _scores(pred: Any, y: torch.Tensor) -> dict[str, list[float]]:
 
 
 def _base_row(task: FoldTask) -> dict[str, Any]:
-    return {"experiment": task.experiment, "features": task.features, "fold": task.fold}
+    return {
+        "experiment": task.experiment,
+        "features": task.features,
+        "repeat": task.repeat,
+        "fold": task.fold,
+    }
 
 
 def _em_rows(
@@ -240,12 +250,14 @@ def _tag(config: PushModelStudyConfig, exp: str) -> str:
     """Short hash of every setting that shapes experiment `exp`'s results.
 
     Run-only fields (where and how the study runs) and the other experiment's fields are
-    left out, so changing chapter 4's settings never refits chapter 5.
+    left out, so changing chapter 4's settings never refits chapter 5. The number of repeats
+    is left out too: a task's key names its repeat, and more repeats only add tasks.
     """
     other = "ch4" if exp == "ch5" else "ch5"
     own_vi = ("vi_features",) if exp == "ch4" else ()
     exclude = {
         *own_vi,
+        "ch5_repeats",
         *(f.name for f in dataclasses.fields(config) if f.name.startswith(f"{other}_")),
     }
     return config.tag(exclude=exclude, version=_FIT_VERSION, length=8)
@@ -260,22 +272,24 @@ def _tasks(
 ) -> list[tuple[str, tuple[FoldTask]]]:
     """The tasks of experiment `exp` on its ``(features, Y)``, keyed for the result store."""
     features, Y = data
-    experts, folds = (
-        (config.ch5_experts, config.ch5_folds)
+    experts, folds, repeats = (
+        (config.ch5_experts, config.ch5_folds, config.ch5_repeats)
         if exp == "ch5"
-        else (
-            config.ch4_experts,
-            config.ch4_folds,
-        )
+        else (config.ch4_experts, config.ch4_folds, 1)
     )
-    splits = list(KFold(folds, shuffle=True, random_state=config.seed).split(np.zeros(len(Y))))
+    # the first repeat's folds are KFold(folds, shuffle=True, random_state=seed)'s
+    cv = RepeatedKFold(n_splits=folds, n_repeats=repeats, random_state=config.seed)
+    splits = list(cv.split(np.zeros(len(Y))))
     tag = _tag(config, exp)
     out: list[tuple[str, tuple[FoldTask]]] = []
     for name, (gate, expert_groups) in configs.items():
-        for f, (train, test) in enumerate(splits):
+        for i, (train, test) in enumerate(splits):
+            r, f = divmod(i, folds)
+            split = f"r{r}.fold{f}" if r else f"fold{f}"  # repeat 0 keeps one run's keys
             common: dict[str, Any] = {
                 "experiment": exp,
                 "features": name,
+                "repeat": r,
                 "fold": f,
                 "train": train,
                 "test": test,
@@ -286,11 +300,11 @@ def _tasks(
                 "study": config,
             }
             path = FoldTask(kind="path", **common, sizes=tuple(experts), vi=name in vi_features)
-            out.append((f"{exp}.{name}.em-path.fold{f}.{tag}", (path,)))
+            out.append((f"{exp}.{name}.em-path.{split}.{tag}", (path,)))
             if exp == "ch4":
                 for m in experts:
                     task = FoldTask(kind="clustered", **common, M=m)
-                    out.append((f"{exp}.{name}.clustered.M{m}.fold{f}.{tag}", (task,)))
+                    out.append((f"{exp}.{name}.clustered.M{m}.{split}.{tag}", (task,)))
     return out
 
 
