@@ -111,3 +111,16 @@ def test_repeats_pool_every_split_under_the_corrected_interval():
     ]
     (flat,) = [c for c in chapter5_claims(one) if c["claim"] == "M = 3 is best"]
     assert flat["ci95"] == pytest.approx(want * math.sqrt(1 / 6 + 1 / 5) / math.sqrt(1 / 6 + 1 / 2))
+
+
+def test_a_cell_missing_a_split_keeps_the_studys_folds():
+    rows = []
+    for r in range(2):
+        for f in range(3):
+            rows.append(_row("o", 1, f, 1.0, nlpd=1.0, repeat=r))
+            if (r, f) != (1, 2):  # M = 3 lacks one split (a task still running)
+                rows.append(_row("o", 3, f, 1.0, nlpd=1.0 - 0.1 * (r + f), repeat=r))
+    (best,) = [c for c in chapter5_claims(rows) if c["claim"] == "M = 3 is best"]
+    values = [-0.6 * (r + f) for r in range(2) for f in range(3) if (r, f) != (1, 2)]
+    want = t.ppf(0.975, 4) * np.std(values, ddof=1) * math.sqrt(1 / 5 + 1 / 2)
+    assert (best["repeats"], best["folds"]) == (2, 3) and best["ci95"] == pytest.approx(want)

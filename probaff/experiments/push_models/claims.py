@@ -42,6 +42,7 @@ __all__ = [
     "chapter5_claims",
     "claim_lines",
     "split_halfwidth",
+    "study_folds",
     "verdict",
 ]
 
@@ -104,15 +105,20 @@ Split = tuple[int, int]
 """A split of the cross-validation: (repeat, fold)."""
 
 
-def split_halfwidth(values: Sequence[float], splits: Sequence[Split]) -> float:
+def split_halfwidth(values: Sequence[float], folds: int) -> float:
     """95 % half-width of the mean of one paired score per split (corrected resampled t).
 
     Args:
-        values: One value per split, `(J,)`.
-        splits: The splits, ``(repeat, fold)`` each, `(J,)`; K is the number of folds.
+        values: One value per split (repeat, fold), `(J,)`.
+        folds: Folds K of each repeat of the cross-validation: a split holds out 1 / K of
+            the rows and trains on the rest, so ``n_test / n_train = 1 / (K - 1)``.
     """
-    folds = len({f for _, f in splits})
     return corrected_halfwidth(values, 1 / (folds - 1) if folds > 1 else 0.0)
+
+
+def study_folds(results: Sequence[dict[str, Any]]) -> int:
+    """Folds of each repeat of the cross-validation the split rows `results` come from."""
+    return 1 + max((int(r["fold"]) for r in results), default=0)
 
 
 def _by_split(
@@ -146,6 +152,7 @@ def _row(
     thesis: str,
     *,
     direction: int,
+    folds: int,
 ) -> dict[str, Any] | None:
     """One paired comparison of cells `a` and `b` over their shared splits (None if none)."""
     fa, fb = cells.get(a, {}), cells.get(b, {})
@@ -154,7 +161,7 @@ def _row(
         return None
     change = _rmse_change if metric.startswith("rmse") else _nlpd_change
     values = [change(fa[s], fb[s], dims) for s in splits]
-    mean, hw = float(np.mean(values)), split_halfwidth(values, splits)
+    mean, hw = float(np.mean(values)), split_halfwidth(values, folds)
     return {
         "claim": claim,
         "a": f"{a[0]}, M={a[1]}",
@@ -162,7 +169,7 @@ def _row(
         "metric": metric,
         "thesis": thesis,
         "repeats": len({r for r, _ in splits}),
-        "folds": len({f for _, f in splits}),
+        "folds": folds,
         "mean": mean,
         "ci95": hw,
         "verdict": verdict(mean, hw, direction, len(splits), _THESIS_SIZES.get(thesis)),
@@ -207,7 +214,8 @@ def chapter5_claims(results: list[dict[str, Any]], method: str = "em") -> list[d
             specs.append(
                 (gate, ("gx-eoc", m), (other, m), "rmse % (o1 dz)", _O1_DZ, "gx-eoc lowest")
             )
-    rows = [_row(cells, *spec, direction=-1) for spec in specs]
+    folds = study_folds([r for r in results if r["method"] == method])
+    rows = [_row(cells, *spec, direction=-1, folds=folds) for spec in specs]
     return [r for r in rows if r is not None]
 
 

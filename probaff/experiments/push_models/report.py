@@ -16,7 +16,7 @@ import numpy as np
 from probaff.data.noise import PoseNoise
 from probaff.eval.tables import markdown_table
 from probaff.experiments.config_cli import settings_view
-from probaff.experiments.push_models.claims import claim_lines, split_halfwidth
+from probaff.experiments.push_models.claims import claim_lines, split_halfwidth, study_folds
 from probaff.experiments.push_models.config import (
     CH4_EFFECTS,
     CH5_EFFECTS,
@@ -32,6 +32,7 @@ def summarise(results: list[dict[str, Any]], effects: tuple[str, ...]) -> list[d
     ``nlpd.total.ci95`` is the corrected resampled t half-width over the splits
     (`probaff.experiments.push_models.claims.split_halfwidth`).
     """
+    folds = study_folds(results)
     table: dict[tuple[str, str, int], list[dict[str, Any]]] = {}
     for r in results:
         table.setdefault((r["features"], r["method"], r["M"]), []).append(r)
@@ -44,8 +45,7 @@ def summarise(results: list[dict[str, Any]], effects: tuple[str, ...]) -> list[d
                 row[f"{metric}.{name}"] = float(mean[e])
         totals = [float(np.sum(r["nlpd"])) for r in rs]
         row["nlpd.total"] = float(np.mean(totals))
-        splits = [(int(r.get("repeat", 0)), int(r["fold"])) for r in rs]
-        row["nlpd.total.ci95"] = split_halfwidth(totals, splits)
+        row["nlpd.total.ci95"] = split_halfwidth(totals, folds)
         row["seconds"] = float(np.mean([r["seconds"] for r in rs]))
         rows.append(row)
     return rows
