@@ -1,7 +1,8 @@
 """Push-T perception from the diffusion policy's observation (``obs_type="pixels_agent_pos"``).
 
-Covers probaff.experiments.pusht.perception and the worker's image observation
-(probaff.experiments.pusht._worker, probaff.experiments.pusht.env.pixel_observations): the
+Covers probaff.experiments.pusht.perception, probaff.experiments.pusht.template and the worker's
+image observation (probaff.experiments.pusht._worker,
+probaff.experiments.pusht.env.pixel_observations): the
 image comes from the unmodified environment beside the state; the goal region, the T's outline
 and the block's pose are read off real frames and scored against the state; a frame where the
 block is hidden is flagged, not planned on; malformed images and observations are refused.
@@ -18,9 +19,9 @@ from probaff.experiments.pusht.env import PushTEnvError, PushTWorker, pixel_obse
 from probaff.experiments.pusht.perception import (
     PerceptionOptions,
     Scene,
-    TeeShape,
     perceive_block,
     perceive_scene,
+    refine_scene,
 )
 from probaff.experiments.pusht.pixels import (
     CLASSES,
@@ -32,6 +33,7 @@ from probaff.experiments.pusht.pixels import (
     pixel_to_world,
     world_to_pixel,
 )
+from probaff.experiments.pusht.template import TeeShape
 
 PX = FRAME_SIZE / WORLD_SIZE  # image px per world unit
 
@@ -376,3 +378,77 @@ def test_the_position_variance_is_bounded_by_one_sample_spacing():
     bounded = np.sqrt(np.diag(_laplace(fit, 3, np.full(2, 12.0 / spacing**2))))
     assert free[:2].max() > 5 * spacing  # tens of units, as in the frames it flagged
     assert bounded[:2].max() <= spacing / math.sqrt(12) * 1.0001
+
+
+def test_the_drawn_fraction_is_the_bilinear_shrink_of_the_screen_the_t_is_drawn_on():
+    """Known answer: the screen rasterised by its pixel centres, resized as OpenCV's bilinear."""
+    from scipy.ndimage import map_coordinates
+
+    from probaff.experiments.pusht.template import tee_distance, tee_fraction
+
+    pose, dims = np.array([250.3, 261.7, 0.61]), np.array([120.0, 30.0, 30.0, 90.0])
+    rows, cols = np.mgrid[0:512, 0:512]
+    centres = np.stack([cols.ravel(), rows.ravel()], axis=1).astype(float)
+    screen = (tee_distance(pose, dims, centres) <= 0).reshape(512, 512).astype(float)
+    i, j = np.mgrid[0:FRAME_SIZE, 0:FRAME_SIZE].reshape(2, -1)
+    points = pixel_to_world(i, j)
+    want = map_coordinates(screen, [points[:, 1], points[:, 0]], order=1)
+    got = tee_fraction(pose, dims, 0.0, points, 1e-6)
+    assert np.abs(got - want).max() < 1e-9 and 50 < got.sum() < 400
+    # a rim reaches as far beyond the outline as it says; a wide ramp blurs at the sample point
+    wide = tee_fraction(pose, dims, 0.0, points, 8.0)
+    assert np.allclose(wide, np.clip(0.5 - tee_distance(pose, dims, points) / 8.0, 0.0, 1.0))
+    assert tee_fraction(pose, dims, 2.0, points, 1e-6).sum() > got.sum()
+
+
+def test_more_frames_of_the_block_refine_the_outline(episode, scene):
+    frames = [f["pixels"] for f in episode["frames"]]
+    refined = refine_scene(scene, frames[0], [frames[0], frames[6], frames[11]])
+    assert refined is not scene
+    truth = np.array([120.0, 30.0, 30.0, 90.0])
+    # the screen lights every pixel whose centre the T covers: about a unit beyond each length
+    before = np.abs(scene.shape.as_array() - truth - 1.0).max()
+    after = np.abs(refined.shape.as_array() - truth - 1.0).max()
+    assert after < 1.5 and after <= before + 0.25, (before, after)
+    goal = np.array(episode["start"]["goal"])
+    assert np.hypot(*(refined.goal[:2] - goal[:2])) * PX < 0.5
+    for obs, state in zip(episode["frames"][::4], episode["states"][::4], strict=True):
+        est = perceive_block(obs["pixels"], refined)
+        assert est.ok and np.hypot(*(est.pose[:2] - state[2:4])) * PX < 1.0
+    # a frame whose block cannot be read leaves the scene as it was
+    empty = np.full_like(frames[0], 255)
+    assert refine_scene(scene, frames[0], [frames[6], empty]) is scene
+    with pytest.raises(InputError, match="block_frames must be 96 x 96"):
+        refine_scene(scene, frames[0], np.zeros((64, 64, 3), np.uint8))
+
+
+def test_the_observer_refines_the_scene_once_from_the_block_at_new_poses(pusht_python):
+    from probaff.experiments.pusht.observe import PixelObserver
+
+    w = PushTWorker(pusht_python)
+    try:
+        eye = PixelObserver(w, refine_frames=2)
+        seen = eye.reset(3)
+        first, tee = eye.scene, eye.tee
+        assert not seen.lost
+        seen = eye.step(np.array([seen.pose[:2].tolist()] * 12))  # into the block: it moves
+        assert not seen.lost and eye.scene is not first  # two views: refined
+        assert eye.tee is not tee  # the planner's T follows the refined outline
+        assert np.allclose(
+            np.ptp(eye.tee.outline, axis=0), np.ptp(eye.scene.shape.outline(), axis=0)
+        )
+        refined = eye.scene
+        eye.step(np.array([seen.agent.tolist()] * 4))
+        assert eye.scene is refined  # once per episode
+        eye.reset(3)
+        assert eye.scene is not refined  # a new episode starts anew: the same first scene
+        assert np.allclose(eye.scene.shape.as_array(), first.shape.as_array())
+        never = PixelObserver(w, refine_frames=0)
+        seen = never.reset(3)
+        start = never.scene
+        never.step(np.array([seen.pose[:2].tolist()] * 12))
+        assert never.scene is start
+    finally:
+        w.close()
+    with pytest.raises(InputError, match="refine_frames"):
+        PixelObserver(w, refine_frames=-1)

@@ -27,8 +27,8 @@ from probaff.experiments.pusht.geometry import (
     origin_pose,
 )
 from probaff.experiments.pusht.models import QuasiStaticTee
-from probaff.experiments.pusht.perception import TeeShape
 from probaff.experiments.pusht.primitives import PrimitiveSettings
+from probaff.experiments.pusht.template import TeeShape
 from probaff.experiments.pusht.transitions import ModelTransition, TeePushes
 
 

@@ -50,7 +50,7 @@ from probaff.experiments.pusht.geometry import (
     to_world,
 )
 from probaff.experiments.pusht.observe import OBSERVATIONS, Observed, PixelObserver
-from probaff.experiments.pusht.perception import PerceptionOptions, TeeShape
+from probaff.experiments.pusht.perception import PerceptionOptions
 from probaff.experiments.pusht.pixels import FRAME_SIZE, WORLD_SIZE
 from probaff.experiments.pusht.primitives import (
     PrimitiveSettings,
@@ -58,6 +58,7 @@ from probaff.experiments.pusht.primitives import (
     push_frames,
     sample_primitives,
 )
+from probaff.experiments.pusht.template import TeeShape
 
 __all__ = [
     "OBJECT_NAMES",

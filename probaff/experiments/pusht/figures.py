@@ -29,9 +29,9 @@ from probaff.experiments.pusht.geometry import (
     cog_pose,
     to_world,
 )
-from probaff.experiments.pusht.perception import TeeShape
 from probaff.experiments.pusht.pixels import WORLD_SIZE, world_to_pixel
 from probaff.experiments.pusht.scoring import DIFFUSION_POLICY
+from probaff.experiments.pusht.template import TeeShape
 
 __all__ = ["plot_episodes", "plot_frames", "plot_models", "plot_success_curve"]
 

@@ -18,7 +18,7 @@ The block frame has its origin at the centre of gravity, so the T's outline is
 Which T. `TeeGeometry` holds one T: its two boxes, its centre of gravity and its moment of
 inertia. `GYM_TEE` is gym-pusht's, from its source (the constants above); `TeeGeometry
 .from_shape` builds one from an outline perceived in the images (`probaff.experiments.pusht
-.perception.TeeShape`), of uniform density, since a camera sees no mass. The functions below
+.template.TeeShape`), of uniform density, since a camera sees no mass. The functions below
 take the T as their ``tee`` argument, `GYM_TEE` by default.
 """
 

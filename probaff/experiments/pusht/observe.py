@@ -42,6 +42,7 @@ from probaff.experiments.pusht.perception import (
     Scene,
     perceive_block,
     perceive_scene,
+    refine_scene,
 )
 from probaff.experiments.pusht.pixels import (
     CLASSES,
@@ -164,6 +165,13 @@ class PixelObserver:
         retreat_steps: Control steps each retreat holds its target.
         keep_frames: Frames planned on that `record` returns (evenly spaced, the first and
             the last included), each with its perceived and its true pose; 0 for none.
+        refine_frames: Frames of the block at distinct poses (the reset's first; poses at
+            least one sample spacing or 0.1 rad apart) after which the scene is perceived
+            once more from them all and the reset's frames (`refine_scene`); 0 never. Each
+            frame samples the T's outline afresh. With the block set on the goal (3 times on
+            each of 20 resets), fitting the outline to 3 such frames cut the perceived
+            block's mean offset from the perceived goal from 0.76 to 0.42 world units (root
+            mean square 1.36 to 1.06).
     """
 
     name = "pixels"
@@ -177,12 +185,16 @@ class PixelObserver:
         retreat: float = 80.0,
         retreat_steps: int = 6,
         keep_frames: int = 0,
+        refine_frames: int = 3,
     ) -> None:
         self.worker = worker
         self.options = options or PerceptionOptions()
         self.retries, self.retreat, self.retreat_steps = retries, retreat, retreat_steps
         self.keep_frames = check_count("keep_frames", keep_frames, minimum=0)
+        self.refine_frames = check_count("refine_frames", refine_frames, minimum=0)
         self.scene: Scene | None = None
+        self._goal_frames: list[np.ndarray] = []  # the frames the scene was perceived from
+        self._views: list[tuple[np.ndarray, np.ndarray]] | None = []  # (pose, pixels); None: done
         self.tee = GYM_TEE  # until the scene is perceived; never planned with
         self.goal = np.full(3, np.nan)
         self._last: np.ndarray | None = None  # last accepted origin pose
@@ -195,13 +207,14 @@ class PixelObserver:
         is perceived from the frames so far, up to `retries` times; after that the
         observation is `Observed.lost`.
         """
-        self._log, self._last = _Log(), None
+        self._log, self._last, self._views = _Log(), None, []
         answer = self.worker.ask("reset", seed=int(seed), obs_type="pixels_agent_pos")
         frames = pixel_observations(answer)
         coverage = [float(answer["coverage"])]
         for attempt in range(self.retries + 1):
             try:
-                self.scene = perceive_scene([f["pixels"] for f in frames], self.options)
+                self._goal_frames = [f["pixels"] for f in frames]
+                self.scene = perceive_scene(self._goal_frames, self.options)
                 break
             except InputError:  # the goal or the block is hidden: back away, look again
                 if attempt == self.retries or _ended(answer):
@@ -283,6 +296,7 @@ class PixelObserver:
             pixels, agent = check_observation(frames[-1], size)
             est = perceive_block(pixels, self.scene, self.options, guess=self._last)
         if est.ok:
+            est = self._refine(pixels, est)
             self._last = est.pose
         truth = cog_pose(np.array(answer["block"]))  # scoring only, never planned on
         pose = cog_pose(est.pose, self.tee) if est.ok else np.full(3, np.nan)
@@ -309,6 +323,34 @@ class PixelObserver:
             lost=not est.ok,
             **_flags(answer, coverage),
         )
+
+    def _refine(self, pixels: np.ndarray, est: BlockEstimate) -> BlockEstimate:
+        """Keep a frame of the block at a new pose; with `refine_frames` of them, refine.
+
+        Returns `est`, or the block perceived again in `pixels` with the refined scene.
+        """
+        if self._views is None or not self.refine_frames:
+            return est
+        spacing = WORLD_SIZE / pixels.shape[0]
+        for pose, _ in self._views:
+            turn = abs(math.atan2(math.sin(est.pose[2] - pose[2]), math.cos(est.pose[2] - pose[2])))
+            if np.hypot(*(est.pose[:2] - pose[:2])) < spacing and turn < 0.1:
+                return est
+        self._views.append((est.pose, pixels))
+        if len(self._views) < self.refine_frames:
+            return est
+        assert self.scene is not None
+        views, self._views = [p for _, p in self._views], None
+        refined = refine_scene(self.scene, self._goal_frames, views, self.options)
+        if refined is self.scene:
+            return est
+        again = perceive_block(pixels, refined, self.options, guess=est.pose)
+        if not again.ok:
+            return est
+        self.scene = refined
+        self.tee = TeeGeometry.from_shape(refined.shape)
+        self.goal = cog_pose(refined.goal, self.tee)
+        return again
 
     def record(self) -> dict[str, Any]:
         """What the observer adds to the episode's record (perception scored on the state)."""

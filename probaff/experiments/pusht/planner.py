@@ -364,6 +364,7 @@ def run_episode(
     done, success, lost = seen.terminated or seen.truncated, seen.terminated, seen.lost
     steps = seen.steps
     while not done and not lost:
+        goal, tee = eye.goal, eye.tee  # the observer may refine the perceived scene
         node = Node(seen.pose, seen.agent, seen.agent_vel)
         t0 = time.perf_counter()
         if transition is None:
