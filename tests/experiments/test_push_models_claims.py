@@ -86,6 +86,8 @@ def test_a_worse_split_is_refuted():
         for feats in ("ocx", "oc"):
             rows.append(_row(feats, 3, fold, 1.0 + noise))
         rows.append(_row("gx-eoc", 3, fold, 1.2 * (1.0 + noise)))  # 20 % worse on o1 dz
+        for feats in ("ocx", "oc", "gx-eoc"):  # one expert: no gate, so no comparison
+            rows.append(_row(feats, 1, fold, 1.0 + noise))
     claims = chapter5_claims(rows)
     split = [r for r in claims if r["claim"].startswith("gate-on-context")]
     assert [r["b"] for r in split] == ["ocx, M=3", "oc, M=3"]
