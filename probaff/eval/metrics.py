@@ -189,7 +189,8 @@ def _t_quantile(confidence: float, dof: int) -> float:
 
 
 def _sample_sd(v: Sequence[float]) -> float:
-    return math.sqrt(sum((x - sum(v) / len(v)) ** 2 for x in v) / (len(v) - 1))
+    mean = sum(v) / len(v)
+    return math.sqrt(sum((x - mean) ** 2 for x in v) / (len(v) - 1))
 
 
 def corrected_halfwidth(

@@ -299,6 +299,23 @@ def _goal_evidence(
     return pixel_to_world(rows, cols, size), goal.ravel(), (seen > 0).astype(float).ravel()
 
 
+def _goal_residual(
+    points: np.ndarray, observed: np.ndarray, weight: np.ndarray
+) -> Callable[[np.ndarray, float], np.ndarray]:
+    """The goal region's weighted residual of ``[pose (3), lengths (4)]`` and a ramp.
+
+    Args:
+        points: World points `(P, 2)`, as `_goal_evidence` returns them.
+        observed: The goal's fraction there `(P,)`.
+        weight: Their weights `(P,)`: 0 where no frame shows the pixel.
+    """
+
+    def res(p: np.ndarray, ramp: float) -> np.ndarray:
+        return weight * (tee_fraction(p[:3], p[3:], _GOAL_RIM, points, ramp) - observed)
+
+    return res
+
+
 def perceive_scene(frames: Any, options: PerceptionOptions | None = None) -> Scene:
     """Perceive the T's outline, the goal region and the block's rim from frames of an episode.
 
@@ -335,9 +352,7 @@ def perceive_scene(frames: Any, options: PerceptionOptions | None = None) -> Sce
     width = length - math.sqrt(max(length**2 - area, 0.0))
     dims0 = np.array([length, width, width, length - width])
 
-    def res(p: np.ndarray, ramp: float) -> np.ndarray:
-        return w * (tee_fraction(p[:3], p[3:], _GOAL_RIM, points, ramp) - observed)
-
+    res = _goal_residual(points, observed, w)
     starts = _start_poses(centroid, TeeShape(*dims0).centroid(), opts.starts)
     scale = np.r_[1.0, 1.0, 0.02, 1.0, 1.0, 1.0, 1.0]
     best = _fit_ramped(res, (np.r_[x, dims0] for x in starts), scale, opts.ramps, max_nfev=60)
@@ -452,11 +467,7 @@ def refine_scene(
                 f"{name} must be {scene.frame_size} x {scene.frame_size} like the scene's "
                 f"frames, got {images[0].shape[0]} x {images[0].shape[1]}."
             )
-    points, observed, w = _goal_evidence([class_fractions(f) for f in goal_images], opts)
-
-    def goal_res(p: np.ndarray, ramp: float) -> np.ndarray:
-        return w * (tee_fraction(p[:3], p[3:], _GOAL_RIM, points, ramp) - observed)
-
+    goal_res = _goal_residual(*_goal_evidence([class_fractions(f) for f in goal_images], opts))
     blocks = []
     for image in block_images:
         frac = class_fractions(image)
