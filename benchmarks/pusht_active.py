@@ -19,14 +19,25 @@ episodes, ``success_vs_pushes.png`` (success against training pushes, one line a
 one per core) write their own folders; ``--merge DIR ...`` reads their ``results.csv`` and
 writes the joint table and figure to ``--out`` without fitting anything.
 
+One collection is one draw of the training pushes, and which pushes a draw holds moves the
+planner's success at 60 pushes by tens of points (0.62 to 0.99 for random pushes over
+collection seeds 0-3). ``--collections K`` therefore repeats the whole comparison for the
+collection seeds ``--seed`` .. ``--seed + K - 1`` (each in ``--out/seed<s>``, episodes on the
+same reset seeds), and wherever a strategy and size have more than one collection (from
+``--collections`` or from merged runs of different ``--seed``) the output adds
+``collections.csv``: the mean success over collections with its 95 % t interval over them,
+their range, and the paired difference against ``random`` on the same collection seeds (the
+collections of one seed share their first ``--start`` random pushes); the figure then draws
+those means and intervals.
+
 Run time: an episode takes about 3 s when it succeeds early and up to about 15 s when it runs
 to the 300-step limit, on one core.
 
 Usage::
 
     python benchmarks/pusht_active.py [--sizes 20 40 60] [--episodes 0] [--seed 0]
-        [--strategies reduction,variance,random] [--python .venv-pusht/bin/python]
-        [--out results/pusht_active] [--merge DIR ...]
+        [--strategies reduction,variance,random] [--collections 1]
+        [--python .venv-pusht/bin/python] [--out results/pusht_active] [--merge DIR ...]
 """
 
 from __future__ import annotations
@@ -45,6 +56,7 @@ from probaff._cli_errors import report_error, run_cli
 from probaff._io import atomic_write_text
 from probaff._threads import limit_threads
 from probaff.errors import InputError, ProbaffError
+from probaff.eval.metrics import mean_halfwidth
 from probaff.eval.tables import markdown_table
 from probaff.experiments.pusht.active import STRATEGIES, ActiveOptions, collect_pushes
 from probaff.experiments.pusht.data import push_dataset, record_chunk, with_worker
@@ -56,8 +68,23 @@ from probaff.experiments.pusht.scoring import score
 from probaff.experiments.pusht.transitions import ModelTransition
 from probaff.models import EMOptions
 
-_COLUMNS = ["strategy", "train_pushes", "rmse_z", "rmse_theta", "nlpd", "coverage90"]
+_COLUMNS = ["strategy", "train_pushes", "seed", "rmse_z", "rmse_theta", "nlpd", "coverage90"]
 _EPISODE_COLUMNS = ["success_rate", "success_low", "success_high", "max_reward", "max_coverage"]
+_COLLECTION_COLUMNS = [
+    "strategy",
+    "train_pushes",
+    "collections",
+    "success_rate",
+    "success_low",
+    "success_high",
+    "success_min",
+    "success_max",
+    "max_reward",
+    "vs_random",
+    "vs_random_ci95",
+]
+"""``collections.csv``: success over collection seeds (mean, 95 % t interval, range), the mean
+maximum reward, and the paired difference in success against ``random``."""
 
 
 def _first(rows: dict[str, Any], n: int) -> dict[str, Any]:
@@ -89,7 +116,53 @@ def _read_results(folder: Path) -> list[dict[str, Any]]:
         cells = dict(zip(header, line.split(","), strict=True))
         rows.append(
             {k: (v if k == "strategy" else float(v)) for k, v in cells.items()}
-            | {"train_pushes": int(cells["train_pushes"])}
+            | {"train_pushes": int(cells["train_pushes"]), "seed": int(cells["seed"])}
+        )
+    return rows
+
+
+def over_collections(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """`_COLLECTION_COLUMNS` rows: each strategy and size over its collection seeds.
+
+    Args:
+        results: Rows of ``results.csv`` with episodes (``strategy``, ``train_pushes``,
+            ``seed``, ``success_rate``, ``max_reward``).
+
+    Returns:
+        One row per (strategy, size), in the order of `results`: the mean success over the
+        collections with its 95 % t interval over them (clipped to [0, 1]), the lowest and
+        highest, the mean maximum reward, and the mean paired difference in success
+        against ``random`` over the seeds both have, with its 95 % t half-width (NaN
+        without a ``random`` row of that size).
+    """
+    groups: dict[tuple[str, int], dict[int, dict[str, Any]]] = {}
+    for r in results:
+        groups.setdefault((str(r["strategy"]), int(r["train_pushes"])), {})[int(r["seed"])] = r
+    rows = []
+    for (strategy, n), by_seed in groups.items():
+        rates = [float(r["success_rate"]) for r in by_seed.values()]
+        mean, hw = sum(rates) / len(rates), mean_halfwidth(rates)
+        base = groups.get(("random", n), {})
+        diffs = [
+            float(by_seed[s]["success_rate"]) - float(base[s]["success_rate"])
+            for s in by_seed
+            if s in base
+        ]
+        paired = strategy != "random" and len(diffs) > 0
+        rows.append(
+            {
+                "strategy": strategy,
+                "train_pushes": n,
+                "collections": len(rates),
+                "success_rate": mean,
+                "success_low": max(mean - hw, 0.0),
+                "success_high": min(mean + hw, 1.0),
+                "success_min": min(rates),
+                "success_max": max(rates),
+                "max_reward": sum(float(r["max_reward"]) for r in by_seed.values()) / len(rates),
+                "vs_random": sum(diffs) / len(diffs) if paired else float("nan"),
+                "vs_random_ci95": mean_halfwidth(diffs) if paired else float("nan"),
+            }
         )
     return rows
 
@@ -100,16 +173,35 @@ def _write(out: Path, results: list[dict[str, Any]], about: str) -> None:
     columns = _COLUMNS + (_EPISODE_COLUMNS if episodes else [])
     csv = [",".join(columns)] + [",".join(str(r[c]) for c in columns) for r in results]
     atomic_write_text(out / "results.csv", "\n".join(csv) + "\n")
-    figure = ""
+    figure, pooled = "", []
     if episodes and results:
-        png = plot_success_curve(results, out / "success_vs_pushes.png", by="strategy")
-        figure = f"Figure: `{png}`."
+        many = len({int(r["seed"]) for r in results}) > 1
+        pooled = over_collections(results) if many else []
+        if pooled:
+            atomic_write_text(
+                out / "collections.csv",
+                "\n".join(
+                    [",".join(_COLLECTION_COLUMNS)]
+                    + [",".join(str(r[c]) for c in _COLLECTION_COLUMNS) for r in pooled]
+                )
+                + "\n",
+            )
+        png = plot_success_curve(pooled or results, out / "success_vs_pushes.png", by="strategy")
+        figure = f"Figure: `{png}`" + (
+            " (mean over collections, 95 % t intervals)." if pooled else "."
+        )
+    over = (
+        ["Over collection seeds:", "", markdown_table(pooled, _COLLECTION_COLUMNS, digits=3), ""]
+        if pooled
+        else []
+    )
     text = "\n".join(
         [
             "# Push-T training pushes: information gain against random",
             "",
             about,
             "",
+            *over,
             markdown_table(results, columns, digits=3),
             "",
             figure,
@@ -135,6 +227,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--episodes", type=int, default=0)
     ap.add_argument("--episode-seed", type=int, default=1000)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--collections", type=int, default=1, help="collection seeds from --seed")
     ap.add_argument("--python", default=None, help="the Push-T environment's Python")
     ap.add_argument("--out", default="results/pusht_active")
     ap.add_argument("--merge", nargs="+", default=None, help="folders of finished runs to join")
@@ -146,18 +239,44 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def _order(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    return sorted(
+        rows, key=lambda r: (r["train_pushes"], STRATEGIES.index(str(r["strategy"])), r["seed"])
+    )
+
+
 def run(args: argparse.Namespace) -> None:
     """The work of `main` on parsed flags (module doc)."""
     out = Path(args.out)
     if args.merge:
         rows = [r for folder in args.merge for r in _read_results(Path(folder))]
-        rows.sort(key=lambda r: (r["train_pushes"], STRATEGIES.index(str(r["strategy"]))))
-        _write(out, rows, f"Joined from {', '.join(f'`{f}`' for f in args.merge)}.")
+        _write(out, _order(rows), f"Joined from {', '.join(f'`{f}`' for f in args.merge)}.")
         return
     strategies = _strategies(args.strategies)
     sizes = sorted({check_count("--sizes", n) for n in args.sizes})
     seed = check_count("--seed", args.seed, minimum=0)
-    episodes = check_count("--episodes", args.episodes, minimum=0)
+    collections = check_count("--collections", args.collections)
+    check_count("--episodes", args.episodes, minimum=0)
+    command = "python benchmarks/pusht_active.py " + " ".join(sys.argv[1:])
+    if collections == 1:
+        _collection(args, strategies, sizes, seed, out, command.strip())
+        return
+    rows = []
+    for s in range(seed, seed + collections):
+        rows += _collection(args, strategies, sizes, s, out / f"seed{s}", command.strip())
+    _write(out, _order(rows), f"`{command.strip()}`: collection seeds {seed}-{s}.")
+
+
+def _collection(
+    args: argparse.Namespace,
+    strategies: list[str],
+    sizes: list[int],
+    seed: int,
+    out: Path,
+    command: str,
+) -> list[dict[str, Any]]:
+    """Collect, fit and score every strategy on collection seed `seed`; write to `out`."""
+    episodes = args.episodes
     em = EMOptions(max_iter=check_count("--em-max-iter", args.em_max_iter), n_restarts=2, seed=seed)
     settings = PrimitiveSettings()
     collected: dict[str, dict[str, Any]] = {}
@@ -227,15 +346,17 @@ def run(args: argparse.Namespace) -> None:
                     scored = score(with_worker(args.python, play))
                     row |= {k: scored[k] for k in _EPISODE_COLUMNS}
                 atomic_write_text(cell, json.dumps({"setup": setup, "row": row}) + "\n")
+            row["seed"] = seed  # cells stored before the seed column lack it
             results.append(row)
             print(json.dumps(row), flush=True)
-    command = "python benchmarks/pusht_active.py " + " ".join(sys.argv[1:])
     secs = {s: round(collected[s]["seconds"], 1) for s in strategies}
     _write(
         out,
         results,
-        f"`{command.strip()}`; collection seconds {secs}; {test_n} held-out random pushes.",
+        f"`{command}`; collection seed {seed}; collection seconds {secs}; {test_n} held-out "
+        "random pushes.",
     )
+    return results
 
 
 if __name__ == "__main__":
