@@ -45,7 +45,5 @@ def test_merge_joins_runs_in_strategy_order_with_the_success_figure(active, tmp_
         (["--sizes", "0"], "--sizes"),
     ],
 )
-def test_bad_flags_print_one_line_and_exit_2(active, tmp_path, capsys, flags, word):
-    assert active.main([*flags, "--out", str(tmp_path / "out")]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and word in err
+def test_bad_flags_print_one_line_and_exit_2(active, tmp_path, refused_flags, flags, word):
+    refused_flags(active.main, [*flags, "--out", str(tmp_path / "out")], word)
