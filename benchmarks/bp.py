@@ -41,7 +41,7 @@ from collections.abc import Callable
 import gtsam
 import numpy as np
 import torch
-from _timing import bench_device, synchronize
+from _timing import bench_device, best_times, synchronize
 
 from probaff._cli_errors import run_cli
 from probaff.maps import (
@@ -63,16 +63,6 @@ COUPLING = DEFAULT_COUPLING
 GIB = 1024**3
 
 
-def best_of(fn: Callable[[], object], repeats: int) -> float:
-    """Smallest wall time of `repeats` calls, in seconds."""
-    best = math.inf
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - start)
-    return best
-
-
 def per_iteration_ms(run: Callable[[int], object], short: int, long: int, repeats: int) -> float:
     """Milliseconds per iteration: difference of best times at two iteration counts.
 
@@ -80,8 +70,8 @@ def per_iteration_ms(run: Callable[[int], object], short: int, long: int, repeat
     """
     t_short, t_long = math.inf, math.inf
     for _ in range(repeats):
-        t_short = min(t_short, best_of(lambda: run(short), 1))
-        t_long = min(t_long, best_of(lambda: run(long), 1))
+        t_short = min(t_short, best_times(lambda: run(short), 1)[0])
+        t_long = min(t_long, best_times(lambda: run(long), 1)[0])
     return (t_long - t_short) / (long - short) * 1e3
 
 
@@ -265,7 +255,7 @@ def bench_candidates(boxes: int) -> None:
         result["bp"] = loopy_belief_propagation(unary, edges, pairwise, evidence)
         result["entropy"] = map_entropy(result["bp"].marginals)
 
-    bp_s = best_of(score, repeats=5)
+    bp_s = best_times(score, 5)[0]
     bp = result["bp"]
     print(
         f"    batched BP + entropies: {bp_s * 1e3:7.1f} ms  (converged={bp.converged}, "
@@ -277,14 +267,14 @@ def bench_candidates(boxes: int) -> None:
     def per_component() -> None:
         exact["marginals"] = exact_marginals(graph, evidence)
 
-    exact_s = best_of(per_component, repeats=2)
+    exact_s = best_times(per_component, 2)[0]
     print(
         f"    gtsam exact, every candidate, re-solving only the clamped component: "
         f"{exact_s * 1e3:7.1f} ms  -> BP is {exact_s / bp_s:.1f}x faster"
     )
     subset = 20
     clamps = [{v: value} for v in range(subset // 2) for value in (1, 0)]
-    whole_s = best_of(lambda: [whole_map_gtsam(graph, c) for c in clamps], repeats=2)
+    whole_s = best_times(lambda: [whole_map_gtsam(graph, c) for c in clamps], 2)[0]
     whole_all = whole_s / subset * evidence.shape[0]
     print(
         f"    gtsam exact on the whole conditioned map: {whole_s * 1e3:.1f} ms for "
@@ -303,7 +293,7 @@ def bench_candidates(boxes: int) -> None:
         auto["m"] = auto["r"].marginals
         auto["entropy"] = map_entropy(auto["m"])
 
-    auto_s = best_of(score_auto, repeats=5)
+    auto_s = best_times(score_auto, 5)[0]
     methods = sorted(set(auto["r"].component_methods))
     err_auto = (auto["m"].double() - exact["marginals"]).abs().max()
     print(

@@ -18,12 +18,12 @@ Usage: python benchmarks/perception.py [--repeats 3] [--seed 0] [--train 4]
 """
 
 import argparse
-import time
 from collections.abc import Callable
 from typing import TypeVar
 
 import numpy as np
 import torch
+from _timing import best_times
 from threadpoolctl import threadpool_limits
 
 from probaff._checks import check_count
@@ -47,13 +47,9 @@ GOAL = 0.5  # s, the most normals + segmentation + features + classification may
 
 
 def _best(fn: Callable[[], T], repeats: int) -> tuple[float, float, T]:
-    wall, cpu = np.inf, np.inf
-    out = fn()  # warm up
-    for _ in range(repeats):
-        t, c = time.perf_counter(), time.process_time()
-        out = fn()
-        wall = min(wall, time.perf_counter() - t)
-        cpu = min(cpu, time.process_time() - c)
+    """`best_times` of `fn` after one warm-up call, and that call's result (`fn` is pure)."""
+    out = fn()
+    wall, cpu = best_times(fn, repeats)
     return wall, cpu, out
 
 

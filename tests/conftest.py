@@ -82,3 +82,23 @@ def benchmark_script() -> Callable[[str], contextlib.AbstractContextManager[Modu
         the module `name`, registered in `sys.modules` (its dataclasses need it) until it exits.
     """
     return _benchmark_script
+
+
+@pytest.fixture
+def refused_flags(capsys: pytest.CaptureFixture[str]) -> Callable[..., str]:
+    """Check that a script's ``main`` refuses its command line.
+
+    Returns:
+        ``refused_flags(main, argv, *needles)``: asserts that ``main(argv)`` returns 2 having
+        printed one line on standard error that holds every needle, and returns that line.
+    """
+
+    def refused(main: Callable[[list[str]], int], argv: list[str], *needles: str) -> str:
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1, err
+        for needle in needles:
+            assert needle in err, err
+        return err
+
+    return refused

@@ -77,10 +77,8 @@ def test_smoke_run_writes_rows_tables_and_figure(peers, tmp_path):
     assert {p: p.stat().st_mtime_ns for p in mtimes} == mtimes
 
 
-def test_unknown_names_exit_2(peers, tmp_path, capsys):
-    assert peers.main(["--models", "nope", "--out", str(tmp_path)]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "nope" in err
+def test_unknown_names_exit_2(peers, tmp_path, capsys, refused_flags):
+    refused_flags(peers.main, ["--models", "nope", "--out", str(tmp_path)], "nope")
     assert peers.main(["--datasets", "synthetic,mnist", "--out", str(tmp_path)]) == 2
     assert "mnist" in capsys.readouterr().err
     assert not (tmp_path / "peers.csv").exists()

@@ -56,11 +56,8 @@ def test_table_flags_a_default_slower_than_one_thread_beyond_noise(threads):
         (["--pool-budget", "nan"], "--pool-budget"),
     ],
 )
-def test_bad_flags_exit_2_with_one_line(threads, capsys, flags, word):
-    assert threads.main(flags) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and word in err
-    assert err.startswith("mixture_threads: error:")
+def test_bad_flags_exit_2_with_one_line(threads, refused_flags, flags, word):
+    assert refused_flags(threads.main, flags, word).startswith("mixture_threads: error:")
 
 
 def test_pool_cells_past_the_budget_are_skipped(threads, capsys):

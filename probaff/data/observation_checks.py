@@ -33,15 +33,19 @@ __all__ = [
 DEFAULT_TABLE = (1.0, 0.8)
 """Table (length, width) in m that chapter 4's features assume without ``meta["table_size"]``."""
 
+_WORLD_NUMBERS: dict[str, tuple[str, str]] = {
+    "control_rate": ("> 0", "Hz"),
+    "record_rate": ("> 0", "Hz"),
+    "arm_base_yaw": ("", "rad"),
+}
+"""The numeric ``meta`` entries every dataset kind records of its world, checked last."""
 _META_NUMBERS: dict[str, dict[str, tuple[str, str]]] = {
     "push": {
         "push_height": ("> 0", "m"),
         "gripper_opening": ("> 0", "m"),
         "finger_radius": ("> 0", "m"),
         "cloud_noise": (">= 0", "m"),
-        "control_rate": ("> 0", "Hz"),
-        "record_rate": ("> 0", "Hz"),
-        "arm_base_yaw": ("", "rad"),
+        **_WORLD_NUMBERS,
     },
     "skill": {
         "lift": ("> 0", "m"),
@@ -49,9 +53,7 @@ _META_NUMBERS: dict[str, dict[str, tuple[str, str]]] = {
         "gripper_span": ("> 0", "m"),
         "grasp_fraction": ("> 0", "1"),
         "plane_y": ("", "m"),
-        "control_rate": ("> 0", "Hz"),
-        "record_rate": ("> 0", "Hz"),
-        "arm_base_yaw": ("", "rad"),
+        **_WORLD_NUMBERS,
     },
 }
 """The numeric ``meta`` entries of each dataset kind: (bound, unit) of each."""

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+import numpy as np
 import torch
 from torch.distributions import Distribution, Independent, MixtureSameFamily, Normal
 
@@ -20,6 +21,7 @@ __all__ = [
     "corrected_halfwidth",
     "interval_coverage",
     "marginal_components",
+    "mean_and_halfwidth",
     "mean_halfwidth",
     "nlpd",
     "rmse",
@@ -243,3 +245,19 @@ def mean_halfwidth(values: Sequence[float], confidence: float = 0.95) -> float:
         InputError: For a level outside (0, 1).
     """
     return corrected_halfwidth(values, 0.0, confidence)
+
+
+def mean_and_halfwidth(values: Sequence[float], confidence: float = 0.95) -> tuple[float, float]:
+    """The mean of `values` and its `mean_halfwidth`, as a table reports a score over trials.
+
+    Args:
+        values: Independent observations, e.g. one score per trial (at least one).
+        confidence: Two-sided confidence level in (0, 1).
+
+    Returns:
+        ``(mean, half-width)``; the half-width is 0 for a single value.
+
+    Raises:
+        InputError: For a level outside (0, 1).
+    """
+    return float(np.mean(values)), mean_halfwidth(values, confidence)

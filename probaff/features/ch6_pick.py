@@ -40,6 +40,7 @@ __all__ = [
     "REQUIRES",
     "SIDEVIEW_EFFECT_COLUMNS",
     "PickInteractions",
+    "check_skill",
     "check_skill_arrays",
     "pick_interactions",
     "tcp_reaction",
@@ -90,6 +91,24 @@ def _fingers(
         points.append(p)
         normals.append(q)
     return np.concatenate(points, axis=1), np.concatenate(normals, axis=1), T_hand
+
+
+def check_skill(ds: SkillDataset, skill: str, caller: str) -> None:
+    """Refuse a skill dataset of another skill than `skill`.
+
+    Args:
+        ds: A side-view skill dataset.
+        skill: The skill `caller` reads (``"pick"`` or ``"place"``).
+        caller: The refusing function's name, for the message.
+
+    Raises:
+        InputError: Naming `caller`, the skill it needs and the dataset's.
+    """
+    if ds.skill != skill:
+        raise InputError(
+            f"{caller} needs a {skill} dataset, got a {ds.skill!r} one; generate it "
+            f"with a {skill} scene (probaff scenes lists them)."
+        )
 
 
 def check_skill_arrays(ds: SkillDataset, names: tuple[str, ...]) -> None:
@@ -153,11 +172,7 @@ def pick_interactions(
             or NaN or inf in an array the rows read (naming the array and its first such row).
     """
     geometry = resolve_geometry(geometry)
-    if ds.skill != "pick":
-        raise InputError(
-            f"pick_interactions needs a pick dataset, got a {ds.skill!r} one; generate it "
-            "with a pick scene (probaff scenes lists them)."
-        )
+    check_skill(ds, "pick", "pick_interactions")
     REQUIRES.check(ds)
     check_skill_arrays(ds, ("size", "state_before", "state_after", "target_xz"))
     world = load_sideview() if world is None else world

@@ -42,7 +42,7 @@ import numpy as np
 from probaff.data.skill_schema import SkillDataset
 from probaff.errors import InputError
 from probaff.features.action_frame import effect_in_action_frame, sideview_transform
-from probaff.features.ch6_pick import check_skill_arrays, tcp_reaction
+from probaff.features.ch6_pick import check_skill, check_skill_arrays, tcp_reaction
 from probaff.features.chain_geometry import Ch6Geometry, InteractionRows, resolve_geometry
 from probaff.features.requirements import FEATURE_REQUIREMENTS
 from probaff.sim.sideview_config import SideViewSpec, load_sideview
@@ -124,11 +124,7 @@ def place_interactions(
             whose commanded lowering is not down.
     """
     geometry = resolve_geometry(geometry)
-    if ds.skill != "place":
-        raise InputError(
-            f"place_interactions needs a place dataset, got a {ds.skill!r} one; generate it "
-            "with a place scene (probaff scenes lists them)."
-        )
+    check_skill(ds, "place", "place_interactions")
     if len(ds) == 0:
         raise InputError("the dataset has no places; generate at least one.")
     REQUIRES.check(ds)

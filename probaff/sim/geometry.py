@@ -17,6 +17,7 @@ from probaff._checks import check_count, check_finite, check_shape
 from probaff.sim.specs import ObjectSpec
 
 __all__ = [
+    "body_pose",
     "contact_depth",
     "convex_penetration",
     "footprint_penetration",
@@ -27,6 +28,11 @@ __all__ = [
     "rect_disc_penetration",
     "to_push_frame",
 ]
+
+
+def body_pose(body: pymunk.Body) -> tuple[float, float, float]:
+    """The world pose ``(x, y, angle)`` of `body` (m, m, rad), as the simulators record it."""
+    return (body.position.x, body.position.y, body.angle)
 
 
 def contact_depth(space: pymunk.Space, shape: pymunk.Shape) -> float:

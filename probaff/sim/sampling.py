@@ -12,12 +12,17 @@ from probaff.sim.specs import ObjectSpec
 from probaff.sim.tabletop import SceneInstance
 from probaff.sim.tabletop_config import SceneSpec, TabletopSpec
 
-__all__ = ["object_shape", "sample_scene"]
+__all__ = ["draw_in_range", "object_shape", "sample_scene"]
 
 _CLEARANCE = 0.003  # minimum gap (m) between bodies in a sampled start configuration
 
 
-def _uniform(rng: np.random.Generator, r: tuple[float, float]) -> float:
+def draw_in_range(rng: np.random.Generator, r: tuple[float, float]) -> float:
+    """A uniform draw from the range `r` ``(low, high)``.
+
+    A range of one value (``low == high``) gives that value and leaves `rng` as it is, so a
+    template that fixes a quantity draws the same sequence for every other one.
+    """
     return float(r[0]) if r[0] == r[1] else float(rng.uniform(r[0], r[1]))
 
 
@@ -74,13 +79,13 @@ def sample_scene(
     first = scene.objects[0]
     objs = [catalogue[first.choices[int(rng.integers(len(first.choices)))]]]
     assert first.x is not None and first.y is not None
-    c1 = np.array([_uniform(rng, first.x), _uniform(rng, first.y)])
-    poses = [(c1[0], c1[1], _uniform(rng, first.yaw))]
-    phi = _uniform(rng, scene.push.direction)
+    c1 = np.array([draw_in_range(rng, first.x), draw_in_range(rng, first.y)])
+    poses = [(c1[0], c1[1], draw_in_range(rng, first.yaw))]
+    phi = draw_in_range(rng, scene.push.direction)
     d = np.array([math.cos(phi), math.sin(phi)])
     yp = np.array([-d[1], d[0]])
-    offset = _uniform(rng, scene.push.lateral_offset)
-    gap = _uniform(rng, scene.push.start_gap)
+    offset = draw_in_range(rng, scene.push.lateral_offset)
+    gap = draw_in_range(rng, scene.push.start_gap)
     back = footprint_support(objs[0], poses[0][2], -d) + world.gripper.finger_radius + gap
     start = c1 + offset * yp - back * d
 
@@ -89,16 +94,17 @@ def sample_scene(
         objs.append(obj)
         if spec.in_push_frame:
             assert spec.along is not None and spec.lateral is not None
-            c = c1 + _uniform(rng, spec.along) * d + _uniform(rng, spec.lateral) * yp
-            poses.append((c[0], c[1], phi + _uniform(rng, spec.yaw)))
+            c = c1 + draw_in_range(rng, spec.along) * d + draw_in_range(rng, spec.lateral) * yp
+            poses.append((c[0], c[1], phi + draw_in_range(rng, spec.yaw)))
         else:
             assert spec.x is not None and spec.y is not None
-            poses.append((_uniform(rng, spec.x), _uniform(rng, spec.y), _uniform(rng, spec.yaw)))
+            x, y = draw_in_range(rng, spec.x), draw_in_range(rng, spec.y)
+            poses.append((x, y, draw_in_range(rng, spec.yaw)))
 
     walls = []
     for w in scene.walls:
-        c = c1 + _uniform(rng, w.along) * d + _uniform(rng, w.lateral) * yp
-        a = phi + math.pi / 2 + _uniform(rng, w.angle)
+        c = c1 + draw_in_range(rng, w.along) * d + draw_in_range(rng, w.lateral) * yp
+        a = phi + math.pi / 2 + draw_in_range(rng, w.angle)
         u = 0.5 * w.length * np.array([math.cos(a), math.sin(a)])
         walls.append([*(c - u), *(c + u)])
 

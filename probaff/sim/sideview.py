@@ -30,7 +30,7 @@ import pymunk
 
 from probaff._checks import check_count, check_finite, check_positive, check_shape
 from probaff.errors import ConfigError, InputError
-from probaff.sim.geometry import convex_penetration
+from probaff.sim.geometry import body_pose, convex_penetration
 from probaff.sim.inputs import check_objects, check_type, floats, numeric_fields
 from probaff.sim.pusher import TrackedPusher
 from probaff.sim.registry import WorldKind, register_world
@@ -272,10 +272,6 @@ class SideViewRun:
     snap_supported: np.ndarray
 
 
-def _pose(body: pymunk.Body) -> tuple[float, float, float]:
-    return (body.position.x, body.position.y, body.angle)
-
-
 class _Gripper:
     """The palm and its two fingers in a space."""
 
@@ -360,7 +356,7 @@ class _Gripper:
 
     def tcp(self) -> tuple[float, float, float]:
         """Actual world (x, z, phi) of the tcp."""
-        return _pose(self.palm.body)
+        return body_pose(self.palm.body)
 
     def opening(self) -> float:
         """Actual gap between the finger pads (m)."""
@@ -456,13 +452,13 @@ def simulate_rest(
     dt = 1.0 / phys.control_rate / phys.substeps
     every = max(1, round(phys.control_rate / phys.record_rate))
     n = max(1, round(duration * phys.control_rate))
-    times, objs = [0.0], [[_pose(b) for b in bodies]]
+    times, objs = [0.0], [[body_pose(b) for b in bodies]]
     for i in range(n):
         for _ in range(phys.substeps):
             space.step(dt)
         if (i + 1) % every == 0 or i == n - 1:
             times.append((i + 1) / phys.control_rate)
-            objs.append([_pose(b) for b in bodies])
+            objs.append([body_pose(b) for b in bodies])
     return np.array(times), np.array(objs)
 
 
@@ -615,12 +611,12 @@ class _Objects:
         """Freeze the pose of each body that fell off the table and remove it from the space."""
         for k, b in enumerate(self.bodies):
             if self.fallen[k] is None and b.position.y < _FALLEN_Z:
-                self.fallen[k] = _pose(b)
+                self.fallen[k] = body_pose(b)
                 self.space.remove(b, *b.shapes)
 
     def poses(self) -> list[tuple[float, float, float]]:
         """World ``(x, z, phi)`` of every object, a fallen one where it fell."""
-        return [self.fallen[k] or _pose(b) for k, b in enumerate(self.bodies)]
+        return [self.fallen[k] or body_pose(b) for k, b in enumerate(self.bodies)]
 
 
 def _snapshot_arrays(snaps: list[tuple], k: int) -> dict[str, np.ndarray]:

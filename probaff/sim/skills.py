@@ -25,6 +25,7 @@ from probaff.errors import ConfigError, InputError, UnreachablePoseError
 from probaff.sim.arm import Arm, load_arm
 from probaff.sim.inputs import check_items, check_rng, check_type
 from probaff.sim.runner import trapezoid_progress
+from probaff.sim.sampling import draw_in_range
 from probaff.sim.sideview import SideViewRun, SideViewScene, simulate_sideview
 from probaff.sim.sideview_config import SideViewSceneSpec, SideViewSpec, load_sideview
 from probaff.sim.specs import ObjectSpec
@@ -473,10 +474,6 @@ def place(scene: SideViewScene, world: SideViewSpec | None = None) -> SkillOutco
     return _single(scene, "place", world)
 
 
-def _uniform(rng: np.random.Generator, r: tuple[float, float]) -> float:
-    return float(r[0]) if r[0] == r[1] else float(rng.uniform(r[0], r[1]))
-
-
 def _draw(
     spec: SideViewSceneSpec, world: SideViewSpec, rng: np.random.Generator
 ) -> SideViewScene | None:
@@ -488,7 +485,7 @@ def _draw(
     for i, pl in enumerate(spec.objects):
         present = rng.random() < pl.probability
         obj = pl.choices[int(rng.integers(len(pl.choices)))]
-        dx = _uniform(rng, pl.x)
+        dx = draw_in_range(rng, pl.x)
         if not present or (pl.on is not None and pl.on not in index):
             continue
         if pl.on is None:
@@ -513,9 +510,9 @@ def _draw(
     else:
         assert spec.held is not None
         held = spec.held
-        offset = _uniform(rng, spec.target_offset)
-        table_x = _uniform(rng, spec.table_x)
-        release = _uniform(rng, world.place.release_height)
+        offset = draw_in_range(rng, spec.target_offset)
+        table_x = draw_in_range(rng, spec.table_x)
+        release = draw_in_range(rng, world.place.release_height)
         support = last
         if support < 0:
             x, top = table_x, 0.0

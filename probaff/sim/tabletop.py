@@ -24,6 +24,7 @@ from probaff._checks import check_count, check_finite, check_positive, check_sha
 from probaff.errors import InputError
 from probaff.sim.friction import Part, add_sliding_body
 from probaff.sim.geometry import (
+    body_pose,
     contact_depth,
     footprint_penetration,
     friction_points,
@@ -308,10 +309,6 @@ class _Contacts:
             self.objects[i, j] = self.objects[j, i] = True
 
 
-def _pose(body: pymunk.Body) -> tuple[float, float, float]:
-    return (body.position.x, body.position.y, body.angle)
-
-
 def _check_push(world: object, scene: object, hand_path: object) -> np.ndarray:
     """`hand_path` as a finite (T_c, 3) array, after checking the world and the scene."""
     world = check_type("world", world, TabletopSpec, "load_tabletop()")
@@ -421,17 +418,17 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
     hx, hy = 0.5 * world.table_size[0], 0.5 * world.table_size[1]
 
     K = len(bodies)
-    before = np.array([_pose(b) for b in bodies])
+    before = np.array([body_pose(b) for b in bodies])
     frozen: list[tuple[float, float, float] | None] = [None] * K
     t_rec, hand_rec, obj_rec, cmd_rec = [], [], [], []
-    ticks_hand, ticks_cmd = [_pose(hand)], [_pose(pusher.control)]
+    ticks_hand, ticks_cmd = [body_pose(hand)], [body_pose(pusher.control)]
     lag = 0.0
 
     def record(t: float) -> None:
         t_rec.append(t)
-        hand_rec.append(_pose(hand))
-        cmd_rec.append(_pose(pusher.control))
-        obj_rec.append([frozen[k] or _pose(b) for k, b in enumerate(bodies)])
+        hand_rec.append(body_pose(hand))
+        cmd_rec.append(body_pose(pusher.control))
+        obj_rec.append([frozen[k] or body_pose(b) for k, b in enumerate(bodies)])
 
     record(0.0)
     for i in range(len(path) - 1):
@@ -439,18 +436,18 @@ def simulate_push(world: TabletopSpec, scene: SceneInstance, hand_path: np.ndarr
         for _ in range(phys.substeps):
             space.step(dt)
         lag = max(lag, pusher.lag(path[i + 1]))
-        ticks_hand.append(_pose(hand))
-        ticks_cmd.append(_pose(pusher.control))
+        ticks_hand.append(body_pose(hand))
+        ticks_cmd.append(body_pose(pusher.control))
         for k, b in enumerate(bodies):
             if frozen[k] is None and (abs(b.position.x) > hx or abs(b.position.y) > hy):
-                frozen[k] = _pose(b)  # its centre passed the edge: it tips over and falls
+                frozen[k] = body_pose(b)  # its centre passed the edge: it tips over and falls
                 space.remove(*parts[k])
         if (i + 1) % every == 0:
             record((i + 1) / rate)
     if (len(path) - 1) % every:
         record((len(path) - 1) / rate)
 
-    after = np.array([frozen[k] or _pose(b) for k, b in enumerate(bodies)])
+    after = np.array([frozen[k] or body_pose(b) for k, b in enumerate(bodies)])
     fell = np.array([f is not None for f in frozen])
     return PushOutcome(
         state_before=before,

@@ -9,6 +9,7 @@ from probaff.errors import InputError
 from probaff.eval.metrics import (
     corrected_halfwidth,
     interval_coverage,
+    mean_and_halfwidth,
     mean_halfwidth,
     nlpd,
     rmse,
@@ -80,3 +81,14 @@ def test_corrected_halfwidth_widens_the_plain_t_interval_by_nadeau_and_bengio():
     for bad in (-0.5, math.nan, math.inf):
         with pytest.raises(InputError, match="test_to_train"):
             corrected_halfwidth(values, bad)
+
+
+def test_mean_and_halfwidth_pairs_the_mean_with_its_t_interval():
+    values = [0.3, -0.1, 0.4, 0.2, 0.0, 0.5]
+    mean, half = mean_and_halfwidth(values)
+    assert type(mean) is float and mean == pytest.approx(statistics.mean(values))
+    assert half == mean_halfwidth(values)
+    assert mean_and_halfwidth(values, 0.5)[1] == mean_halfwidth(values, 0.5) < half
+    assert mean_and_halfwidth([2.0]) == (2.0, 0.0)
+    with pytest.raises(InputError, match=r"confidence must lie in \(0, 1\)"):
+        mean_and_halfwidth(values, 1.5)

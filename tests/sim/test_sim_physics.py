@@ -17,7 +17,7 @@ from probaff.sim import (
     load_tabletop,
     simulate_push,
 )
-from probaff.sim.geometry import contact_depth
+from probaff.sim.geometry import body_pose, contact_depth
 from probaff.sim.runner import straight_path
 
 BOX = ObjectSpec("test_box", "box", (0.20, 0.12), 0.0, 0.05, 0.5, 0.4, 1.0)
@@ -205,6 +205,13 @@ def test_execute_given_push_and_refuse_unreachable():
     assert sample.outcome.effect[0, 1] > 0.1
     with pytest.raises(UnreachablePoseError, match=r"push 1 .* reachable workspace"):
         sim.execute([ok, far])
+
+
+def test_body_pose_is_position_and_angle():
+    body = pymunk.Body(1.0, 1.0)
+    body.position, body.angle = (0.25, -0.5), 7.0  # the angle is not wrapped
+    pose = body_pose(body)
+    assert pose == (0.25, -0.5, 7.0) and all(type(v) is float for v in pose)
 
 
 def test_contact_depth_sees_overlaps_in_either_collision_order():

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from probaff.eval.metrics import mean_halfwidth
+from probaff.eval.metrics import mean_and_halfwidth
 from probaff.eval.tables import markdown_table
 from probaff.experiments.modular.config import THESIS, TRAININGS, ModularStudyConfig
 from probaff.experiments.modular.trials import (
@@ -126,11 +126,6 @@ _CALIBRATION_COLUMNS = [
 _STEPPED_BASELINES = ("stepped_forward", "stepped_planned")
 
 
-def _stat(values: list[float]) -> tuple[float, float]:
-    """Mean over trials and its 95 % half-width."""
-    return float(np.mean(values)), mean_halfwidth(values)
-
-
 def _by(records: list[dict[str, Any]], part: str) -> dict[int, list[dict[str, Any]]]:
     """Records of `part` grouped by training size."""
     out: dict[int, list[dict[str, Any]]] = {}
@@ -157,9 +152,9 @@ def summarise_backward(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 np.abs(np.array(r["hand"][model]["mean"]) - np.array(r["hand"]["true"])).mean(0)
                 for r in rs
             ]
-            along, along_ci = _stat([100 * e[1] for e in err])
-            off, off_ci = _stat([100 * e[0] for e in err])
-            turn, turn_ci = _stat([e[2] for e in err])
+            along, along_ci = mean_and_halfwidth([100 * e[1] for e in err])
+            off, off_ci = mean_and_halfwidth([100 * e[0] for e in err])
+            turn, turn_ci = mean_and_halfwidth([e[2] for e in err])
             rows.append(
                 {
                     "n_train": n,
@@ -217,7 +212,7 @@ def summarise_two_objects(records: list[dict[str, Any]]) -> list[dict[str, Any]]
                     put = np.linalg.norm(true[:, k, :2], axis=1) < _STILL
                     still.setdefault(k, []).extend((100 * np.abs(mean[put, k, 1])).tolist())
             for (k, axis), values in per.items():
-                e, ci = _stat(values)
+                e, ci = mean_and_halfwidth(values)
                 rows.append(
                     {
                         "n_train": n,
@@ -282,7 +277,7 @@ def summarise_skills(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
                         misjudged += int(((np.abs(mean[sel, 0]) > half) != ok[sel]).sum())
                     if not per_trial:
                         continue
-                    e, ci = _stat(per_trial)
+                    e, ci = mean_and_halfwidth(per_trial)
                     row: dict[str, Any] = {
                         "skill": skill,
                         "n_train": n,
@@ -345,8 +340,8 @@ def _chain_rows(records: list[dict[str, Any]], part: str, training: str) -> list
                     cov.append(float(_coverage(true, np.array(c["lo"]), np.array(c["hi"]))[obj]))
                     touched.append(float(np.mean(np.array(c["touched"])[:, obj])))
                     moved.append(float(np.mean(np.linalg.norm(true[:, obj, :2], axis=1) >= _STILL)))
-                e, e_ci = _stat(err)
-                c90, c_ci = _stat(cov)
+                e, e_ci = mean_and_halfwidth(err)
+                c90, c_ci = mean_and_halfwidth(cov)
                 rows.append(
                     {
                         "training": training,
@@ -398,9 +393,9 @@ def summarise_stepped(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
         for model in (*STEPPED_MODELS, "whole_push"):
             errs = [_stepped_errors(r, model).mean(0) for r in rs]  # (K, 3) per trial
             for k in range(errs[0].shape[0]):
-                along, along_ci = _stat([100 * e[k, 1] for e in errs])
-                off, off_ci = _stat([100 * e[k, 0] for e in errs])
-                euclid, euclid_ci = _stat([100 * e[k, 2] for e in errs])
+                along, along_ci = mean_and_halfwidth([100 * e[k, 1] for e in errs])
+                off, off_ci = mean_and_halfwidth([100 * e[k, 0] for e in errs])
+                euclid, euclid_ci = mean_and_halfwidth([100 * e[k, 2] for e in errs])
                 rows.append(
                     {
                         "n_train": n,
@@ -439,7 +434,7 @@ def summarise_stepped_paired(records: list[dict[str, Any]]) -> list[dict[str, An
                 for r in rs
             ]
             for k in range(diffs[0].shape[0] if diffs else 0):
-                d, ci = _stat([100 * float(v[k]) for v in diffs])
+                d, ci = mean_and_halfwidth([100 * float(v[k]) for v in diffs])
                 rows.append(
                     {
                         "n_train": n,
@@ -469,8 +464,8 @@ def summarise_stepped_calibration(records: list[dict[str, Any]]) -> list[dict[st
             got = [c[name] for c in cals if name in c and c[name]["rows"]]
             if not got:
                 continue
-            nl, nl_ci = _stat([float(np.mean(c["nlpd"])) for c in got])
-            cov, cov_ci = _stat([float(np.mean(c["coverage"])) for c in got])
+            nl, nl_ci = mean_and_halfwidth([float(np.mean(c["nlpd"])) for c in got])
+            cov, cov_ci = mean_and_halfwidth([float(np.mean(c["coverage"])) for c in got])
             rows.append(
                 {
                     "n_train": n,

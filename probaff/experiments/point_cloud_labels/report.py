@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from probaff.errors import InputError
-from probaff.eval.metrics import mean_halfwidth
+from probaff.eval.metrics import mean_and_halfwidth
 from probaff.eval.tables import markdown_table
 from probaff.experiments.point_cloud_labels.config import THESIS_SEGMENTS, PointCloudStudyConfig
 from probaff.perception.labels import LABELS, THESIS_PR, LabelClassifier, LabelCVResult
@@ -150,10 +150,6 @@ def summarise_labels(
     return rows
 
 
-def _stat(values: list[float]) -> tuple[float, float]:
-    return float(np.mean(values)), mean_halfwidth(values)
-
-
 def summarise_refinement(
     data: dict[str, np.ndarray],
     probabilities: np.ndarray,
@@ -207,7 +203,7 @@ def summarise_refinement(
             ("pa", "purity_after"),
             ("ca", "completeness_after"),
         ):
-            row[name], row[f"{name}_ci"] = _stat(cols[key])
+            row[name], row[f"{name}_ci"] = mean_and_halfwidth(cols[key])
         rows.append(row)
     return rows, trees
 
@@ -311,7 +307,7 @@ def summarise_merge(
         row: dict[str, Any] = {"proximity": proximity, "views": n, "scenes": len(scores)}
         row["segments"] = float(np.mean([s[4] for s in scores])) if scores else math.nan
         for k, name in enumerate(("purity", "completeness", "accuracy", "weighted_accuracy")):
-            row[name], row[f"{name}_ci"] = _stat([s[k] for s in scores])
+            row[name], row[f"{name}_ci"] = mean_and_halfwidth([s[k] for s in scores])
         rows.append(row)
     return rows
 
