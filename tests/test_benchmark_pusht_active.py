@@ -49,7 +49,9 @@ def test_runs_of_several_collection_seeds_are_pooled_and_paired(active, tmp_path
     assert active.main(["--merge", *map(str, runs), "--out", str(out)]) == 0
     lines = (out / "collections.csv").read_text().splitlines()
     header = lines[0].split(",")
-    rows = {tuple(r[:2]): dict(zip(header, r)) for r in (ln.split(",") for ln in lines[1:])}
+    rows = {
+        tuple(r[:2]): dict(zip(header, r, strict=True)) for r in (ln.split(",") for ln in lines[1:])
+    }
     assert len(rows) == 6
     red = rows["reduction", "60"]
     assert int(red["collections"]) == 2
