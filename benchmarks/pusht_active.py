@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from pathlib import Path
@@ -56,7 +57,7 @@ from probaff._cli_errors import report_error, run_cli
 from probaff._io import atomic_write_text
 from probaff._threads import limit_threads
 from probaff.errors import InputError, ProbaffError
-from probaff.eval.metrics import mean_halfwidth
+from probaff.eval.metrics import mean_and_halfwidth
 from probaff.eval.tables import markdown_table
 from probaff.experiments.pusht.active import STRATEGIES, ActiveOptions, collect_pushes
 from probaff.experiments.pusht.data import push_dataset, record_chunk, with_worker
@@ -141,7 +142,7 @@ def over_collections(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
     rows = []
     for (strategy, n), by_seed in groups.items():
         rates = [float(r["success_rate"]) for r in by_seed.values()]
-        mean, hw = sum(rates) / len(rates), mean_halfwidth(rates)
+        mean, hw = mean_and_halfwidth(rates)
         base = groups.get(("random", n), {})
         diffs = [
             float(by_seed[s]["success_rate"]) - float(base[s]["success_rate"])
@@ -149,6 +150,7 @@ def over_collections(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
             if s in base
         ]
         paired = strategy != "random" and len(diffs) > 0
+        gain, gain_hw = mean_and_halfwidth(diffs) if paired else (math.nan, math.nan)
         rows.append(
             {
                 "strategy": strategy,
@@ -160,8 +162,8 @@ def over_collections(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 "success_min": min(rates),
                 "success_max": max(rates),
                 "max_reward": sum(float(r["max_reward"]) for r in by_seed.values()) / len(rates),
-                "vs_random": sum(diffs) / len(diffs) if paired else float("nan"),
-                "vs_random_ci95": mean_halfwidth(diffs) if paired else float("nan"),
+                "vs_random": gain,
+                "vs_random_ci95": gain_hw,
             }
         )
     return rows
