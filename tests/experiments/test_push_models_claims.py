@@ -9,10 +9,12 @@ import numpy as np
 import pytest
 from scipy.stats import t
 
+from probaff.errors import ProbaffError
 from probaff.experiments.push_models.claims import (
     CLAIM_COLUMNS,
     chapter5_claims,
     claim_lines,
+    repeats_won,
     verdict,
 )
 
@@ -155,3 +157,30 @@ def test_a_cell_missing_a_split_keeps_the_studys_folds():
     values = [-0.6 * (r + f) for r in range(2) for f in range(3) if (r, f) != (1, 2)]
     want = t.ppf(0.975, 4) * np.std(values, ddof=1) * math.sqrt(1 / 5 + 1 / 2)
     assert (best["repeats"], best["folds"]) == (2, 3) and best["ci95"] == pytest.approx(want)
+
+
+def test_repeats_won_counts_the_repeats_whose_own_mean_has_the_thesis_sign():
+    # repeat 0: mean -1 (won), repeat 1: mean +0.5 (lost), repeat 2: mean 0 (a tie, lost)
+    values = [-2.0, 0.0, 1.0, 0.0, 1.0, -1.0]
+    repeats = [0, 0, 1, 1, 2, 2]
+    assert repeats_won(values, repeats, -1) == pytest.approx(1 / 3)
+    assert repeats_won(values, repeats, +1) == pytest.approx(1 / 3)
+    assert math.isnan(repeats_won([], [], -1))
+    with pytest.raises(ProbaffError, match="one entry per split"):
+        repeats_won([1.0], [0, 1], -1)
+    with pytest.raises(ProbaffError, match="direction"):
+        repeats_won([1.0], [0], 0)
+
+
+def test_claims_report_how_often_one_cross_validation_shows_the_gate_split():
+    # gx-eoc beats oc on o1 dz in repeats 0 and 1 (by 10 %) and loses in repeat 2 (by 5 %):
+    # two of three single cross-validations would have shown the thesis's ranking
+    rows = []
+    for repeat, ratio in enumerate((0.9, 0.9, 1.05)):
+        for fold in range(3):
+            rows.append(_row("oc", 2, fold, 1.0, repeat=repeat))
+            rows.append(_row("gx-eoc", 2, fold, [1.0, ratio, 1.0, 1.0, 1.0, 1.0], repeat=repeat))
+    (gate,) = [c for c in chapter5_claims(rows) if c["claim"].startswith("gate-on-context")]
+    assert gate["b"] == "oc, M=2" and gate["repeats"] == 3
+    assert gate["won"] == pytest.approx(2 / 3)
+    assert gate["mean"] == pytest.approx(100 * (0.9 + 0.9 + 1.05) / 3 - 100)

@@ -19,6 +19,11 @@ verdict reads the interval against the thesis's direction:
 * ``not shown``: the interval holds 0 (and, where the thesis gives a number, that number too);
 * ``too few folds``: fewer than two splits, so no interval.
 
+Beside the verdict, ``won`` (`repeats_won`) is the share of the repeats whose own mean lies on
+the thesis's side of 0: how often one cross-validation, run once as the thesis ran it, would
+have shown the claim's direction. It is not a test (the repeats share their pushes); it reads
+how a single published run of a claim that an interval leaves open could come out.
+
 The claims (thesis section 5.4): context features help o2 (f_o & f_c & f_x against f_o, o2's
 three effects, -11.8 %); M > 1 beats M = 1 on RMSE (-5.9 to -6.5 %); M = 3 is best (the thesis's
 "best average prediction": its RMSE, the relative change averaged over the six effects, below
@@ -30,11 +35,13 @@ is no gate, and ``gx-eoc`` is ``oc``).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
+from probaff.errors import InputError
 from probaff.eval.metrics import corrected_halfwidth
 from probaff.eval.tables import markdown_table
 from probaff.experiments.push_models.config import CH5_EFFECTS
@@ -44,6 +51,7 @@ __all__ = [
     "VERDICTS",
     "chapter5_claims",
     "claim_lines",
+    "repeats_won",
     "split_halfwidth",
     "study_folds",
     "verdict",
@@ -60,8 +68,10 @@ CLAIM_COLUMNS = [
     "mean",
     "ci95",
     "verdict",
+    "won",
 ]
-"""Columns of the claims table (``ch5_claims.csv``): ``repeats`` of ``folds`` folds each."""
+"""Columns of the claims table (``ch5_claims.csv``): ``repeats`` of ``folds`` folds each;
+``won`` is `repeats_won`'s share."""
 
 VERDICTS = ("holds", "refuted", "below the thesis's size", "not shown", "too few folds")
 """What a comparison can find: see the module docstring; fewer than two folds give no
@@ -117,6 +127,36 @@ def split_halfwidth(values: Sequence[float], folds: int) -> float:
             the rows and trains on the rest, so ``n_test / n_train = 1 / (K - 1)``.
     """
     return corrected_halfwidth(values, 1 / (folds - 1) if folds > 1 else 0.0)
+
+
+def repeats_won(values: Sequence[float], repeats: Sequence[int], direction: int) -> float:
+    """Share of the repeats whose mean paired difference has the thesis's sign.
+
+    Args:
+        values: One paired difference per split, `(J,)`.
+        repeats: The repeat of each split, `(J,)`.
+        direction: The thesis's sign of the difference, -1 or +1.
+
+    Returns:
+        The share in [0, 1] of the distinct repeats whose mean over their folds is on the
+        thesis's side of 0 (a tie at 0 counts against); NaN without splits.
+
+    Raises:
+        InputError: If `values` and `repeats` differ in length or `direction` is not +-1.
+    """
+    if len(values) != len(repeats):
+        raise InputError(
+            f"repeats_won: values and repeats must have one entry per split, got {len(values)} "
+            f"and {len(repeats)}."
+        )
+    if direction not in (-1, 1):
+        raise InputError(f"repeats_won: direction must be -1 or +1, got {direction!r}.")
+    by_repeat: dict[int, list[float]] = {}
+    for v, r in zip(values, repeats, strict=True):
+        by_repeat.setdefault(int(r), []).append(float(v))
+    if not by_repeat:
+        return math.nan
+    return float(np.mean([direction * np.mean(v) > 0 for v in by_repeat.values()]))
 
 
 def study_folds(results: Sequence[dict[str, Any]]) -> int:
@@ -176,6 +216,7 @@ def _row(
         "mean": mean,
         "ci95": hw,
         "verdict": verdict(mean, hw, direction, len(splits), _THESIS_SIZES.get(thesis)),
+        "won": repeats_won(values, [r for r, _ in splits], direction),
     }
 
 
@@ -192,7 +233,8 @@ def chapter5_claims(results: list[dict[str, Any]], method: str = "em") -> list[d
         Rows of `CLAIM_COLUMNS`: the claim, the cells compared (``a`` against ``b``), the
         metric (``rmse %`` over the named effects, or ``nlpd`` in nats), the thesis's value,
         the repeats and folds, the mean paired difference over the splits, its 95 %
-        half-width (`split_halfwidth`) and the `verdict`.
+        half-width (`split_halfwidth`), the `verdict` and the share of repeats won
+        (`repeats_won`).
         Comparisons whose cells were not run are left out.
     """
     cells = _by_split(results, method)
