@@ -240,8 +240,8 @@ def test_demo_draws_the_held_out_scene(tmp_path, capsys):
     assert summary["file"] == str(png)
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert png.stat().st_size > 20_000  # four panels of thousands of points, not a blank page
-    assert summary["scenes"] == 4
-    assert summary["segments"] > 5 and summary["train_segments"] > 3 * 5
+    assert summary["scenes"] == 8
+    assert summary["segments"] > 5 and summary["train_segments"] > 7 * 5
     assert 0 <= summary["unassigned"] < summary["points"]
     for key in ("precision_pct", "recall_pct", "new_precision_pct", "new_recall_pct"):
         assert math.isfinite(summary[key]) and 0.0 <= summary[key] <= 100.0
