@@ -56,7 +56,7 @@ from probaff.experiments.pusht.primitives import (
 )
 
 _MAX_STEPS = 300
-_VERSION = 1
+_VERSION = 2
 _PX = FRAME_SIZE / WORLD_SIZE  # image px per world unit
 
 

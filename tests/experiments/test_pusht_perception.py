@@ -364,18 +364,18 @@ def test_goal_hidden_must_be_a_fraction(value):
 
 def test_the_position_variance_is_bounded_by_one_sample_spacing():
     """A fit whose x and y columns of J coincide (no sample on one orientation's ramp)."""
-    from probaff.experiments.pusht.perception import _Fit, _laplace
+    from probaff.experiments.pusht.fitting import Fit, laplace_cov
 
     rng = np.random.default_rng(0)
     jac = rng.normal(size=(200, 3))
     residual = 0.05 * rng.normal(size=200)
-    fit = _Fit(np.zeros(3), 0.0, jac, residual)
+    fit = Fit(np.zeros(3), 0.0, jac, residual)
     s2 = float(np.sum(residual**2)) / 197
-    np.testing.assert_allclose(_laplace(fit, 3), s2 * np.linalg.inv(jac.T @ jac), rtol=1e-8)
+    np.testing.assert_allclose(laplace_cov(fit, 3), s2 * np.linalg.inv(jac.T @ jac), rtol=1e-8)
     jac[:, 1] = jac[:, 0] + 1e-4 * rng.normal(size=200)  # x and y move the same pixels alike
     spacing = WORLD_SIZE / FRAME_SIZE
-    free = np.sqrt(np.diag(_laplace(_Fit(np.zeros(3), 0.0, jac, residual), 3)))
-    bounded = np.sqrt(np.diag(_laplace(fit, 3, np.full(2, 12.0 / spacing**2))))
+    free = np.sqrt(np.diag(laplace_cov(Fit(np.zeros(3), 0.0, jac, residual), 3)))
+    bounded = np.sqrt(np.diag(laplace_cov(fit, 3, np.full(2, 12.0 / spacing**2))))
     assert free[:2].max() > 5 * spacing  # tens of units, as in the frames it flagged
     assert bounded[:2].max() <= spacing / math.sqrt(12) * 1.0001
 
@@ -452,3 +452,36 @@ def test_the_observer_refines_the_scene_once_from_the_block_at_new_poses(pusht_p
         w.close()
     with pytest.raises(InputError, match="refine_frames"):
         PixelObserver(w, refine_frames=-1)
+
+
+def test_the_outline_covariance_is_carried_into_the_pose_as_the_implicit_function_says():
+    """Known answer: for a residual linear in pose and lengths, S = -(A^T A)^-1 A^T B."""
+    from probaff.experiments.pusht.fitting import outline_cov
+
+    rng = np.random.default_rng(1)
+    a, b = rng.normal(size=(300, 3)), rng.normal(size=(300, 4))
+    weight = np.ones(300)
+    shape_cov = np.diag([1.0, 0.5, 2.0, 0.25])
+    got = outline_cov(lambda p, d: a @ p + b @ d, np.zeros(3), np.full(4, 30.0), weight, shape_cov)
+    sens = -np.linalg.solve(a.T @ a, a.T @ b)
+    np.testing.assert_allclose(got, sens @ shape_cov @ sens.T, rtol=1e-8, atol=1e-12)
+    # pixels of weight 0 do not count
+    weight[:150] = 0.0
+    part = outline_cov(lambda p, d: a @ p + b @ d, np.zeros(3), np.full(4, 30.0), weight, shape_cov)
+    half = -np.linalg.solve(a[150:].T @ a[150:], a[150:].T @ b[150:])
+    np.testing.assert_allclose(part, half @ shape_cov @ half.T, rtol=1e-8, atol=1e-12)
+
+
+def test_the_block_pose_carries_the_outlines_uncertainty(episode, scene):
+    import dataclasses
+
+    cov = scene.shape_cov
+    assert cov is not None and cov.shape == (4, 4) and np.all(np.isfinite(cov))
+    assert np.all(np.linalg.eigvalsh(cov) >= -1e-9) and np.all(np.diag(cov) > 0)
+    bare = dataclasses.replace(scene, shape_cov=None)
+    pixels = episode["frames"][4]["pixels"]
+    with_outline, without = perceive_block(pixels, scene), perceive_block(pixels, bare)
+    np.testing.assert_allclose(with_outline.pose, without.pose)
+    assert with_outline.status == without.status == "ok"
+    extra = with_outline.cov - without.cov
+    assert np.all(np.linalg.eigvalsh(extra) >= -1e-12) and np.trace(extra) > 0

@@ -41,14 +41,20 @@ image, or fitted poorly) are not errors: `perceive_block` returns them with a st
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from probaff.errors import InputError
+from probaff.experiments.pusht.fitting import (
+    fit_least_squares,
+    fit_ramped,
+    laplace_cov,
+    length_cov,
+    outline_cov,
+)
 from probaff.experiments.pusht.pixels import (
     FRAME_SIZE,
     WORLD_SIZE,
@@ -123,6 +129,16 @@ class PerceptionOptions:
                 f"{self.starts} and {self.margin}."
             )
 
+    @property
+    def smooth_ramp(self) -> float:
+        """The ramp (world units) at which covariances are read: the last but one of `ramps`.
+
+        The finest stage draws the T on a screen of one world unit per pixel, so its
+        residual is flat in a length or a position between two whole units; a ramp of about
+        one unit is smooth there (`probaff.experiments.pusht.fitting.length_cov`).
+        """
+        return self.ramps[-2] if len(self.ramps) > 1 else self.ramps[-1]
+
 
 @dataclass(frozen=True)
 class Scene:
@@ -134,6 +150,10 @@ class Scene:
         goal_cov: (3, 3) its covariance (the Laplace approximation of the fit).
         block_rim: How far the block's drawn colour reaches beyond its outline (world units).
         frame_size: Side of the images it was perceived from (px).
+        shape_cov: (4, 4) covariance of the outline's four lengths (`TeeShape.as_array`
+            order, world units^2): the Laplace approximation of the fit plus a block
+            jackknife over the outline's edges (`length_cov`); None where not known, and then
+            no block pose carries the outline's uncertainty.
     """
 
     shape: TeeShape
@@ -141,6 +161,7 @@ class Scene:
     goal_cov: np.ndarray
     block_rim: float
     frame_size: int = FRAME_SIZE
+    shape_cov: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -150,7 +171,10 @@ class BlockEstimate:
     Attributes:
         pose: (3,) ``(x, y, theta)``: world units, radians in ``(-pi, pi]``.
         cov: (3, 3) its covariance: the Laplace approximation of the template fit plus a
-            block jackknife over the outline's edges.
+            block jackknife over the outline's edges, plus the scene's outline uncertainty
+            (`Scene.shape_cov`) carried through the fit (`outline_cov`). The outline's
+            error is shared by every frame of an episode; the status's checks read the
+            frame's own part only.
         status: ``"ok"``; ``"not_visible"`` (too little of the block's colour in the image);
             ``"occluded"`` (too much of the fitted T under the pusher); ``"poor_fit"`` (the
             template does not explain the image, or the pose is too uncertain).
@@ -181,52 +205,6 @@ class BlockEstimate:
 
 def _wrap(theta: float) -> float:
     return float(math.atan2(math.sin(theta), math.cos(theta)))
-
-
-@dataclass
-class _Fit:
-    x: np.ndarray
-    cost: float
-    jac: np.ndarray
-    residual: np.ndarray
-
-
-def _fit(fun: Any, x0: np.ndarray, scale: np.ndarray, max_nfev: int | None = None) -> _Fit:
-    res = least_squares(fun, x0, x_scale=scale, method="lm", max_nfev=max_nfev, diff_step=1e-3)
-    return _Fit(np.asarray(res.x, dtype=float), float(res.cost), res.jac, res.fun)
-
-
-def _fit_ramped(
-    residual: Callable[[np.ndarray, float], np.ndarray],
-    starts: Iterable[np.ndarray],
-    scale: np.ndarray,
-    ramps: Sequence[float],
-    max_nfev: int,
-) -> _Fit:
-    """The best of fits from `starts` at the widest ramp, refined through the narrower ones."""
-    best: _Fit | None = None
-    for x0 in starts:
-        fit = _fit(lambda p: residual(p, ramps[0]), x0, scale, max_nfev=max_nfev)
-        if best is None or fit.cost < best.cost:
-            best = fit
-    assert best is not None
-    for ramp in ramps[1:]:
-        best = _fit(lambda p, ramp=ramp: residual(p, ramp), best.x, scale)
-    return best
-
-
-def _laplace(fit: _Fit, n_params: int, prior: np.ndarray | None = None) -> np.ndarray:
-    """Covariance ``(J^T J / s^2 + P)^-1`` of a least-squares fit, s^2 its residual variance.
-
-    `prior`, the diagonal of `P` (one precision per parameter, 0 for none), bounds what the
-    fit cannot pin down; without it the result is the Laplace ``s^2 (J^T J)^-1``.
-    """
-    n = fit.residual.size
-    s2 = max(float(np.sum(fit.residual**2)) / max(n - n_params, 1), 1e-300)
-    precision = fit.jac.T @ fit.jac / s2
-    if prior is not None:
-        precision = precision + np.diag(np.r_[prior, np.zeros(n_params - len(prior))])
-    return np.asarray(np.linalg.pinv(precision), dtype=float)
 
 
 def _window(mask: np.ndarray, margin: int) -> tuple[slice, slice]:
@@ -355,24 +333,27 @@ def perceive_scene(frames: Any, options: PerceptionOptions | None = None) -> Sce
     res = _goal_residual(points, observed, w)
     starts = _start_poses(centroid, TeeShape(*dims0).centroid(), opts.starts)
     scale = np.r_[1.0, 1.0, 0.02, 1.0, 1.0, 1.0, 1.0]
-    best = _fit_ramped(res, (np.r_[x, dims0] for x in starts), scale, opts.ramps, max_nfev=60)
+    best = fit_ramped(res, (np.r_[x, dims0] for x in starts), scale, opts.ramps, max_nfev=60)
     shape = TeeShape(*(float(v) for v in np.abs(best.x[3:])))
     goal_pose = np.array([best.x[0], best.x[1], _wrap(best.x[2])])
-    goal_cov = _laplace(best, 7)[:3, :3]
+    goal_cov = laplace_cov(best, 7)[:3, :3]
+    shape_cov = length_cov(
+        lambda p: res(p, opts.smooth_ramp), best, edge_groups(best.x[:3], shape, points), scale
+    )
     drawn = tee_fraction(best.x[:3], best.x[3:], _GOAL_RIM, points, opts.ramps[-1])
     hidden = float((drawn * (1.0 - w)).sum() / max(drawn.sum(), 1e-9))
     tried: list[tuple[np.ndarray, BlockEstimate]] = []
     for frac in fractions:
         est = _fit_block(frac, shape, None, opts, rim_free=True)
         if est is not None and est.status == "ok" and hidden <= opts.goal_hidden:
-            return Scene(shape, goal_pose, goal_cov, float(est.extra["rim"]), size)
+            return Scene(shape, goal_pose, goal_cov, float(est.extra["rim"]), size, shape_cov)
         if est is not None and np.all(np.isfinite(est.pose)):
             tried.append((frac, est))
     if tried:  # the goal alone does not pin the outline down: the block covers part of it
         frac, est = min(tried, key=lambda t: t[1].rms)
-        joint = _joint_fit(res, best.x, [(frac, est)], opts)
+        joint = _joint_fit(res, points, best.x, [(frac, est)], opts)
         if joint is not None:
-            return Scene(joint[0], joint[1], goal_cov, joint[2], size)
+            return Scene(joint[0], joint[1], goal_cov, joint[2], size, joint[3])
     raise InputError(
         "no frame shows the block well enough to perceive its rim; pass more of the "
         "episode's frames."
@@ -381,10 +362,11 @@ def perceive_scene(frames: Any, options: PerceptionOptions | None = None) -> Sce
 
 def _joint_fit(
     goal_residual: Callable[[np.ndarray, float], np.ndarray],
+    goal_points: np.ndarray,
     goal_fit: np.ndarray,
     blocks: Sequence[tuple[np.ndarray, BlockEstimate]],
     opts: PerceptionOptions,
-) -> tuple[TeeShape, np.ndarray, float] | None:
+) -> tuple[TeeShape, np.ndarray, float, np.ndarray] | None:
     """The outline fitted to the goal region and the block in one or more frames at once.
 
     Where the block lies over the goal region at the reset, the region's visible part leaves
@@ -395,14 +377,16 @@ def _joint_fit(
 
     Args:
         goal_residual: The goal region's weighted residual of ``[pose, lengths]`` and a ramp.
+        goal_points: (P, 2) the world points of that residual's pixels.
         goal_fit: (7,) the goal-only fit ``[x, y, theta, lengths]``.
         blocks: For each frame, its (N, N, 4) class fractions and its block fit (with the
             goal-only outline, or the last one; `extra["rim"]` the rim it used).
         opts: Fit settings.
 
     Returns:
-        The outline, the goal's pose and the block's rim, if the block's fit with them is
-        accepted (`_fit_block`'s checks) in every frame.
+        The outline, the goal's pose, the block's rim and the lengths' (4, 4) covariance
+        (`length_cov`, each edge left out of the goal and every frame at once), if the
+        block's fit with them is accepted (`_fit_block`'s checks) in every frame.
     """
     pixels = [_block_pixels(frac, opts) for frac, _ in blocks]
     k = len(blocks)
@@ -418,8 +402,16 @@ def _joint_fit(
     rim0 = float(np.mean([est.extra["rim"] for _, est in blocks]))
     x0 = np.concatenate([goal_fit[:3], goal_fit[3:], [rim0], *(est.pose for _, est in blocks)])
     scale = np.array([1.0, 1.0, 0.02, 1.0, 1.0, 1.0, 1.0, 0.5] + [1.0, 1.0, 0.02] * k)
-    fit = _fit_ramped(res, [x0], scale, opts.ramps, max_nfev=80)
+    fit = fit_ramped(res, [x0], scale, opts.ramps, max_nfev=80)
     shape = TeeShape(*(float(v) for v in np.abs(fit.x[3:7])))
+    groups = np.concatenate(
+        [edge_groups(fit.x[:3], shape, goal_points)]
+        + [
+            edge_groups(fit.x[8 + 3 * i : 11 + 3 * i], shape, points)
+            for i, (points, _, _) in enumerate(pixels)
+        ]
+    )
+    shape_cov = length_cov(lambda p: res(p, opts.smooth_ramp), fit, groups, scale)
     rims = []
     for i, (frac, _) in enumerate(blocks):
         guess = fit.x[8 + 3 * i : 11 + 3 * i]
@@ -427,7 +419,8 @@ def _joint_fit(
         if check is None or check.status != "ok":
             return None
         rims.append(float(check.extra["rim"]))
-    return shape, np.array([fit.x[0], fit.x[1], _wrap(fit.x[2])]), float(np.mean(rims))
+    goal = np.array([fit.x[0], fit.x[1], _wrap(fit.x[2])])
+    return shape, goal, float(np.mean(rims)), shape_cov
 
 
 def refine_scene(
@@ -467,7 +460,8 @@ def refine_scene(
                 f"{name} must be {scene.frame_size} x {scene.frame_size} like the scene's "
                 f"frames, got {images[0].shape[0]} x {images[0].shape[1]}."
             )
-    goal_res = _goal_residual(*_goal_evidence([class_fractions(f) for f in goal_images], opts))
+    evidence = _goal_evidence([class_fractions(f) for f in goal_images], opts)
+    goal_res = _goal_residual(*evidence)
     blocks = []
     for image in block_images:
         frac = class_fractions(image)
@@ -475,10 +469,11 @@ def refine_scene(
         if est is None or not est.ok:
             return scene
         blocks.append((frac, est))
-    joint = _joint_fit(goal_res, np.r_[scene.goal, scene.shape.as_array()], blocks, opts)
+    start = np.r_[scene.goal, scene.shape.as_array()]
+    joint = _joint_fit(goal_res, evidence[0], start, blocks, opts)
     if joint is None:
         return scene
-    return Scene(joint[0], joint[1], scene.goal_cov, joint[2], scene.frame_size)
+    return Scene(joint[0], joint[1], scene.goal_cov, joint[2], scene.frame_size, joint[3])
 
 
 def perceive_block(
@@ -511,9 +506,10 @@ def perceive_block(
             f"was perceived from, got {img.shape[0]} x {img.shape[1]}."
         )
     frac = class_fractions(img)
-    est = _fit_block(frac, scene.shape, scene.block_rim, opts, guess=guess)
+    outline = scene.shape_cov
+    est = _fit_block(frac, scene.shape, scene.block_rim, opts, guess=guess, shape_cov=outline)
     if guess is not None and est is not None and not est.ok:  # lost track: search again
-        est = _fit_block(frac, scene.shape, scene.block_rim, opts)
+        est = _fit_block(frac, scene.shape, scene.block_rim, opts, shape_cov=outline)
     if est is None:
         nan = np.full(3, np.nan)
         return BlockEstimate(nan, np.full((3, 3), np.nan), "not_visible", 0.0, 0.0, math.nan)
@@ -544,8 +540,13 @@ def _fit_block(
     *,
     guess: np.ndarray | None = None,
     rim_free: bool = False,
+    shape_cov: np.ndarray | None = None,
 ) -> BlockEstimate | None:
-    """Fit the T to the block's colour fraction `frac[..., 2]`; None if it shows nowhere."""
+    """Fit the T to the block's colour fraction `frac[..., 2]`; None if it shows nowhere.
+
+    With `shape_cov` (the outline's (4, 4) covariance) the pose's covariance also carries
+    the outline's uncertainty (`outline_cov`); the status reads the frame's own part.
+    """
     size = frac.shape[0]
     block = frac[..., 2]
     pixel_area = (WORLD_SIZE / size) ** 2
@@ -572,7 +573,7 @@ def _fit_block(
     def res(p: np.ndarray, ramp: float) -> np.ndarray:
         return weight * (model(p, ramp) - observed)
 
-    best = _fit_ramped(res, (np.r_[x, rim0][:n] for x in starts), scale, opts.ramps, max_nfev=20)
+    best = fit_ramped(res, (np.r_[x, rim0][:n] for x in starts), scale, opts.ramps, max_nfev=20)
     predicted = model(best.x, opts.ramps[-1])
     hidden = float((predicted * (1.0 - weight)).sum() / max(predicted.sum(), 1e-9))
     seen = weight > 0
@@ -585,14 +586,14 @@ def _fit_block(
         def res_g(p: np.ndarray, keep: np.ndarray = keep) -> np.ndarray:
             return keep * (model(p, opts.ramps[-1]) - observed)
 
-        subsets.append(_fit(res_g, best.x, scale, max_nfev=12).x[:3])
+        subsets.append(fit_least_squares(res_g, best.x, scale, max_nfev=12).x[:3])
     sub = np.asarray(subsets)
     sub[:, 2] = best.x[2] + np.array([_wrap(t - best.x[2]) for t in sub[:, 2]])
     dev = sub - sub.mean(0)
     # a point-sampled edge lies within one sample spacing: at most that uniform uncertainty
     spacing = WORLD_SIZE / size
     quantised = np.array([12.0, 12.0]) / spacing**2
-    cov = _laplace(best, n, quantised)[:3, :3] + (len(sub) - 1) / len(sub) * dev.T @ dev
+    cov = laplace_cov(best, n, quantised)[:3, :3] + (len(sub) - 1) / len(sub) * dev.T @ dev
     std = np.sqrt(np.maximum(np.diag(cov), 0.0))
     px = size / WORLD_SIZE
     if hidden > opts.max_hidden:
@@ -608,6 +609,15 @@ def _fit_block(
         status = "poor_fit"
     else:
         status = "ok"
+    if shape_cov is not None:
+        r = best.x[3] if rim_free else rim0
+        cov = cov + outline_cov(
+            lambda p, d: tee_fraction(p, d, r, points, opts.smooth_ramp),
+            best.x[:3],
+            dims,
+            weight,
+            shape_cov,
+        )
     pose = np.array([best.x[0], best.x[1], _wrap(best.x[2])])
     extra = {
         "rim": float(best.x[3]) if rim_free else rim0,
