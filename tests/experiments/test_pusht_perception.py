@@ -485,3 +485,11 @@ def test_the_block_pose_carries_the_outlines_uncertainty(episode, scene):
     assert with_outline.status == without.status == "ok"
     extra = with_outline.cov - without.cov
     assert np.all(np.linalg.eigvalsh(extra) >= -1e-12) and np.trace(extra) > 0
+
+
+@pytest.mark.parametrize("bad", [np.eye(3), np.full((4, 4), np.nan), [[1.0] * 3] * 3, "wide"])
+def test_a_scene_refuses_a_malformed_outline_covariance(bad):
+    args = (TeeShape(120.0, 30.0, 30.0, 90.0), np.zeros(3), np.eye(3), 1.0)
+    with pytest.raises(InputError, match=r"Scene\.shape_cov"):
+        Scene(*args, shape_cov=bad)
+    assert isinstance(Scene(*args, shape_cov=[[0.5] * 4] * 4).shape_cov, np.ndarray)

@@ -163,6 +163,21 @@ class Scene:
     frame_size: int = FRAME_SIZE
     shape_cov: np.ndarray | None = None
 
+    def __post_init__(self) -> None:
+        cov = self.shape_cov
+        if cov is None:
+            return
+        try:
+            arr = np.asarray(cov, dtype=float)
+        except (TypeError, ValueError):
+            arr = np.empty(0)
+        if arr.shape != (4, 4) or not np.all(np.isfinite(arr)):
+            raise InputError(
+                "Scene.shape_cov must be a (4, 4) array of finite numbers (the covariance of "
+                f"the outline's four lengths) or None, got {cov!r}."
+            )
+        object.__setattr__(self, "shape_cov", arr)
+
 
 @dataclass(frozen=True)
 class BlockEstimate:
