@@ -8,9 +8,10 @@ its predictive variance over ``--reference`` primitives drawn as the planner dra
 ``variance`` (the largest predictive variance); ``random`` is the baseline. At every size in
 ``--sizes``, the mixture of GP experts is fitted on each collection's first pushes (the study's
 EM: ``--experts``, ``--em-max-iter``) and scored on ``--test-pushes`` held-out random pushes
-(RMSE, NLPD, 90 % coverage), and, with ``--episodes`` above 0, the learned-model planner runs
-that many episodes (reset seeds ``--episode-seed + i``, the same for both) and is scored as
-LeRobot scores (success with its Wilson interval, mean maximum reward, coverage).
+(RMSE, NLPD, 90 % coverage), and, with ``--episodes`` above 0, the learned-model planner
+(risk weight ``--risk``, `SearchSettings.risk`, 0 by default) runs that many episodes (reset
+seeds ``--episode-seed + i``, the same for both) and is scored as LeRobot scores (success
+with its Wilson interval, mean maximum reward, coverage).
 
 Outputs in ``--out`` (default ``results/pusht_active``): ``pushes_<strategy>.json`` (the
 collections, reused when their setup matches), ``results.csv``, ``summary.md`` and, with
@@ -36,7 +37,7 @@ to the 300-step limit, on one core.
 Usage::
 
     python benchmarks/pusht_active.py [--sizes 20 40 60] [--episodes 0] [--seed 0]
-        [--strategies reduction,variance,random] [--collections 1]
+        [--strategies reduction,variance,random] [--collections 1] [--risk 0]
         [--python .venv-pusht/bin/python] [--out results/pusht_active] [--merge DIR ...]
 """
 
@@ -52,7 +53,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from probaff._checks import check_count
+from probaff._checks import check_count, check_positive
 from probaff._cli_errors import report_error, run_cli
 from probaff._io import atomic_write_text
 from probaff._threads import limit_threads
@@ -226,6 +227,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--experts", type=int, default=3)
     ap.add_argument("--em-max-iter", type=int, default=10)
     ap.add_argument("--test-pushes", type=int, default=200)
+    ap.add_argument(
+        "--risk", type=float, default=0.0, help="the planner's risk weight (SearchSettings.risk)"
+    )
     ap.add_argument("--episodes", type=int, default=0)
     ap.add_argument("--episode-seed", type=int, default=1000)
     ap.add_argument("--seed", type=int, default=0)
@@ -259,6 +263,7 @@ def run(args: argparse.Namespace) -> None:
     seed = check_count("--seed", args.seed, minimum=0)
     collections = check_count("--collections", args.collections)
     check_count("--episodes", args.episodes, minimum=0)
+    check_positive("--risk", args.risk, allow_zero=True)
     command = "python benchmarks/pusht_active.py " + " ".join(sys.argv[1:])
     if collections == 1:
         _collection(args, strategies, sizes, seed, out, command.strip())
@@ -279,6 +284,7 @@ def _collection(
 ) -> list[dict[str, Any]]:
     """Collect, fit and score every strategy on collection seed `seed`; write to `out`."""
     episodes = args.episodes
+    search = SearchSettings(risk=args.risk)
     em = EMOptions(max_iter=check_count("--em-max-iter", args.em_max_iter), n_restarts=2, seed=seed)
     settings = PrimitiveSettings()
     collected: dict[str, dict[str, Any]] = {}
@@ -316,7 +322,7 @@ def _collection(
                 "em": repr(em),
                 "test": [seed, test_n],
                 "episodes": [episodes, args.episode_seed],
-            }
+            } | ({"risk": search.risk} if search.risk else {})  # cells of risk 0 predate it
             stored = json.loads(cell.read_text()) if cell.is_file() else {}
             if stored.get("setup") == setup:
                 row = stored["row"]
@@ -328,7 +334,6 @@ def _collection(
                     )
                 row = {"strategy": strategy, "train_pushes": n} | evaluate(model, Xt, Yt)
                 if episodes:
-                    search = SearchSettings()
 
                     def play(
                         w: Any, model: Any = model, search: Any = search

@@ -85,6 +85,8 @@ def test_a_table_without_the_seed_column_is_refused(active, tmp_path, capsys):
         (["--merge", "no_such_folder"], "--merge"),
         (["--sizes", "0"], "--sizes"),
         (["--collections", "0"], "--collections"),
+        (["--risk", "-1"], "--risk"),
+        (["--risk", "nan"], "--risk"),
     ],
 )
 def test_bad_flags_print_one_line_and_exit_2(active, tmp_path, refused_flags, flags, word):
