@@ -28,8 +28,8 @@ __all__ = ["demo"]
 _DEMO_SCENES = 8
 """Scenes sampled: scene 0 is held out, scenes 1-7 train the classifiers. Over demo seeds 0-7
 the new model's held-out precision / recall averaged 70.2 / 75.0 % trained on 3 scenes, 72.5 /
-79.0 % on 7 and 74.4 / 76.2 % on 11 (one scene's score moves by 15 points from seed to seed);
-7 buy most of it for about 8 s more."""
+79.0 % on 7 and 74.4 / 76.2 % on 11 (one scene's precision ranges over more than 40 points
+across those seeds); 7 buy most of it for about 8 s more."""
 _DEMO_PERCEPTION = PerceptionConfig(pans_deg=(0.0,))  # the head's centre view only, as smoke
 
 

@@ -53,7 +53,8 @@ def fit_ramped(
     """The best of fits from `starts` at the widest ramp, refined through the narrower ones."""
     best: Fit | None = None
     for x0 in starts:
-        fit = fit_least_squares(lambda p: residual(p, ramps[0]), x0, scale, max_nfev=max_nfev)
+        first = functools.partial(_at_ramp, residual, ramps[0])
+        fit = fit_least_squares(first, x0, scale, max_nfev=max_nfev)
         if best is None or fit.cost < best.cost:
             best = fit
     assert best is not None
@@ -66,6 +67,14 @@ def _at_ramp(
     residual: Callable[[np.ndarray, float], np.ndarray], ramp: float, p: np.ndarray
 ) -> np.ndarray:
     return residual(p, ramp)
+
+
+def _central_jacobian(
+    fun: Callable[[np.ndarray], np.ndarray], x: np.ndarray, steps: np.ndarray
+) -> np.ndarray:
+    """(R, P) central differences of `fun` `(P,) -> (R,)` at `x`, half-steps `steps` `(P,)`."""
+    cols = [(fun(x + h) - fun(x - h)) / (2 * h.sum()) for h in np.diag(np.asarray(steps, float))]
+    return np.column_stack(cols)
 
 
 def laplace_cov(fit: Fit, n_params: int, prior: np.ndarray | None = None) -> np.ndarray:
@@ -107,10 +116,7 @@ def length_cov(
         scale: The fit's parameter scales (the difference steps are half of them).
     """
     r0 = residual(fit.x)
-    steps = np.diag(0.5 * scale)
-    jac = np.column_stack(
-        [(residual(fit.x + h) - residual(fit.x - h)) / (2 * h.sum()) for h in steps]
-    )
+    jac = _central_jacobian(residual, fit.x, 0.5 * scale)
     laplace = laplace_cov(Fit(fit.x, 0.5 * float(r0 @ r0), jac, r0), fit.x.size)[3:7, 3:7]
     subsets = []
     for g in range(int(groups.max()) + 1):
@@ -145,12 +151,8 @@ def outline_cov(
         weight: (P,) the residual's pixel weights.
         shape_cov: (4, 4) the lengths' covariance.
     """
-
-    def grad(fun: Callable[[np.ndarray], np.ndarray], x: np.ndarray, h: np.ndarray) -> np.ndarray:
-        cols = [weight * (fun(x + hk) - fun(x - hk)) / (2 * hk.sum()) for hk in np.diag(h)]
-        return np.column_stack(cols)
-
-    jac = grad(lambda p: drawn(p, dims), pose, np.array([0.5, 0.5, 0.005]))
-    d = grad(lambda q: drawn(pose, q), dims, np.full(4, 0.5))
+    w = weight[:, None]
+    jac = w * _central_jacobian(lambda p: drawn(p, dims), pose, np.array([0.5, 0.5, 0.005]))
+    d = w * _central_jacobian(lambda q: drawn(pose, q), dims, np.full(4, 0.5))
     sens = -np.linalg.pinv(jac.T @ jac) @ (jac.T @ d)
     return np.asarray(sens @ shape_cov @ sens.T, dtype=float)

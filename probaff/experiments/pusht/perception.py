@@ -352,15 +352,14 @@ def perceive_scene(frames: Any, options: PerceptionOptions | None = None) -> Sce
     shape = TeeShape(*(float(v) for v in np.abs(best.x[3:])))
     goal_pose = np.array([best.x[0], best.x[1], _wrap(best.x[2])])
     goal_cov = laplace_cov(best, 7)[:3, :3]
-    shape_cov = length_cov(
-        lambda p: res(p, opts.smooth_ramp), best, edge_groups(best.x[:3], shape, points), scale
-    )
     drawn = tee_fraction(best.x[:3], best.x[3:], _GOAL_RIM, points, opts.ramps[-1])
     hidden = float((drawn * (1.0 - w)).sum() / max(drawn.sum(), 1e-9))
     tried: list[tuple[np.ndarray, BlockEstimate]] = []
     for frac in fractions:
         est = _fit_block(frac, shape, None, opts, rim_free=True)
         if est is not None and est.status == "ok" and hidden <= opts.goal_hidden:
+            groups = edge_groups(best.x[:3], shape, points)
+            shape_cov = length_cov(lambda p: res(p, opts.smooth_ramp), best, groups, scale)
             return Scene(shape, goal_pose, goal_cov, float(est.extra["rim"]), size, shape_cov)
         if est is not None and np.all(np.isfinite(est.pose)):
             tried.append((frac, est))
@@ -419,6 +418,13 @@ def _joint_fit(
     scale = np.array([1.0, 1.0, 0.02, 1.0, 1.0, 1.0, 1.0, 0.5] + [1.0, 1.0, 0.02] * k)
     fit = fit_ramped(res, [x0], scale, opts.ramps, max_nfev=80)
     shape = TeeShape(*(float(v) for v in np.abs(fit.x[3:7])))
+    rims = []
+    for i, (frac, _) in enumerate(blocks):
+        guess = fit.x[8 + 3 * i : 11 + 3 * i]
+        check = _fit_block(frac, shape, None, opts, guess=guess, rim_free=True)
+        if check is None or check.status != "ok":
+            return None
+        rims.append(float(check.extra["rim"]))
     groups = np.concatenate(
         [edge_groups(fit.x[:3], shape, goal_points)]
         + [
@@ -427,13 +433,6 @@ def _joint_fit(
         ]
     )
     shape_cov = length_cov(lambda p: res(p, opts.smooth_ramp), fit, groups, scale)
-    rims = []
-    for i, (frac, _) in enumerate(blocks):
-        guess = fit.x[8 + 3 * i : 11 + 3 * i]
-        check = _fit_block(frac, shape, None, opts, guess=guess, rim_free=True)
-        if check is None or check.status != "ok":
-            return None
-        rims.append(float(check.extra["rim"]))
     goal = np.array([fit.x[0], fit.x[1], _wrap(fit.x[2])])
     return shape, goal, float(np.mean(rims)), shape_cov
 
