@@ -13,7 +13,7 @@ from tqdm.auto import tqdm
 from probaff._checks import check_count
 from probaff.errors import ClusterError, InputError, ProbaffError
 
-__all__ = ["check_scheduler", "check_workers", "dask_client", "run_batch"]
+__all__ = ["check_batch", "check_scheduler", "check_workers", "dask_client", "run_batch"]
 
 
 def check_workers(workers: int | None) -> int | None:
@@ -74,6 +74,22 @@ def check_scheduler(scheduler: str | None) -> str | None:
             "as tcp://127.0.0.1:8786."
         ) from None
     return scheduler
+
+
+def check_batch(workers: int | None, scheduler: str | None) -> tuple[int | None, str | None]:
+    """Check where a batch runs: `check_scheduler`'s address form, then `check_workers`.
+
+    Args:
+        workers: ``None`` (one local worker per core), 0 (this process) or a worker count.
+        scheduler: ``None`` (a local cluster) or a Dask scheduler address.
+
+    Returns:
+        ``(workers, scheduler)``, `workers` as a builtin `int` (or ``None``).
+
+    Raises:
+        InputError: Naming ``scheduler`` or ``workers``.
+    """
+    return check_workers(workers), check_scheduler(scheduler)
 
 
 @contextlib.contextmanager
@@ -172,7 +188,7 @@ def run_batch(
             dies is not an error: Dask runs its unfinished tasks on the other workers, and
             the shared arguments it held are sent again.
     """
-    workers = check_workers(workers)
+    workers, scheduler = check_batch(workers, scheduler)
     shared = dict(shared or {})
     weigh = size or (lambda key: 1)
     serial = workers == 0 and not scheduler

@@ -35,16 +35,26 @@ def read_user_text(path: str | os.PathLike[str], name: str, missing: str) -> str
         raise InputError(f"{name} cannot be read ({exc}).") from None
 
 
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
+def atomic_write_bytes(
+    path: str | os.PathLike[str], data: bytes, *, name: str | None = None
+) -> None:
     """Write `data` to `path` through a flushed temporary file and a rename.
 
-    Missing parent folders are created. Public writers check their path first with
-    `probaff._checks.check_output_file`, so that a bad one is named in an `InputError`.
+    Missing parent folders are created.
+
+    Args:
+        path: The file.
+        data: Its new content.
+        name: How an error names the path (e.g. ``"result file"``). Given, the path is
+            checked first (`probaff._checks.check_output_file`), so that a bad one is named in
+            an `InputError`; public writers give it.
 
     Raises:
+        InputError: With `name`, for a path that is a folder, lies under a regular file or in
+            a folder that cannot be written.
         OSError: If the file cannot be written (a file in the way, a full disk, ...).
     """
-    path = Path(path)
+    path = check_output_file(name, path) if name is not None else Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     try:
@@ -58,9 +68,9 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
         raise
 
 
-def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
-    """Write UTF-8 `text` to `path` atomically (see `atomic_write_bytes`)."""
-    atomic_write_bytes(path, text.encode("utf-8"))
+def atomic_write_text(path: str | os.PathLike[str], text: str, *, name: str | None = None) -> None:
+    """Write UTF-8 `text` to `path` atomically (see `atomic_write_bytes`, and its `name`)."""
+    atomic_write_bytes(path, text.encode("utf-8"), name=name)
 
 
 def atomic_save_figure(fig: Any, path: str | os.PathLike[str], **savefig_kwargs: Any) -> None:

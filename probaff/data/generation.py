@@ -23,7 +23,7 @@ from typing import Any, cast
 import numpy as np
 
 from probaff._checks import check_count, check_output_dir
-from probaff._dask import check_scheduler, check_workers, run_batch
+from probaff._dask import check_batch, run_batch
 from probaff.data.config import GenerateConfig
 from probaff.data.kinds import DEFAULT_KIND, DatasetKind, dataset_kind
 from probaff.data.skill_schema import SkillDataset
@@ -167,8 +167,7 @@ def _run(
             f"scene {config.scene!r} is a {world.label} scene, which makes {config.kind} "
             "datasets; generate it with probaff.data.generate (or `probaff generate`)."
         )
-    workers = check_workers(workers)
-    check_scheduler(scheduler)
+    workers, scheduler = check_batch(workers, scheduler)
     path = check_output_dir("out", out)
     data_kind = dataset_kind(config.kind)
     manifest = _prepare(path, config, data_kind, resume)

@@ -8,7 +8,6 @@ import os
 from collections.abc import Iterable, Sequence
 from typing import Any
 
-from probaff._checks import check_output_file
 from probaff._io import atomic_write_text
 
 __all__ = ["csv_table", "group_rows", "markdown_table", "write_csv"]
@@ -84,7 +83,6 @@ def write_csv(path: str | os.PathLike[str], rows: Sequence[dict[str, Any]]) -> s
         InputError: If `path` is a folder, lies under a regular file or in a folder that
             cannot be written.
     """
-    target = check_output_file("path", path)
     flat = [{k: v for k, v in r.items() if not isinstance(v, list)} for r in rows]
-    atomic_write_text(target, csv_table(flat))
+    atomic_write_text(path, csv_table(flat), name="path")
     return os.fspath(path)

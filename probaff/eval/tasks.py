@@ -16,8 +16,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from probaff._checks import check_output_file
-from probaff._dask import check_scheduler, check_workers, run_batch
+from probaff._dask import run_batch
 from probaff._io import atomic_write_text
 from probaff.errors import DatasetError, InputError
 
@@ -74,13 +73,16 @@ class ResultStore:
             InputError: If the result file's path is a folder, lies under a regular file or
                 in a folder that cannot be written.
         """
-        path = check_output_file("result file", self.path(key))
+        path = self.path(key)
         if self.measured:
             times = {k: result[k] for k in self.measured if k in result}
             result = {k: v for k, v in result.items() if k not in self.measured}
-            timing = check_output_file("measurement file", self.measured_root / path.name)
-            atomic_write_text(timing, json.dumps(times, sort_keys=True, indent=1))
-        atomic_write_text(path, json.dumps(result, sort_keys=True, indent=1))
+            atomic_write_text(
+                self.measured_root / path.name,
+                json.dumps(times, sort_keys=True, indent=1),
+                name="measurement file",
+            )
+        atomic_write_text(path, json.dumps(result, sort_keys=True, indent=1), name="result file")
 
     def load(self, key: str) -> dict[str, Any]:
         """The saved result of task `key`, its measured fields included.
@@ -157,8 +159,6 @@ def run_tasks(
     Returns:
         The results of all tasks, in the order of `tasks`.
     """
-    workers = check_workers(workers)
-    check_scheduler(scheduler)
     keys = [k for k, _ in tasks]
     if len(set(keys)) != len(keys):
         raise InputError("task keys must be unique.")

@@ -29,7 +29,7 @@ from types import MappingProxyType
 from typing import Any, ClassVar, Generic, TypeVar
 
 from probaff._checks import check_count, check_output_dir
-from probaff._dask import check_scheduler, check_workers
+from probaff._dask import check_batch
 from probaff._io import atomic_write_text
 from probaff.data import GenerateConfig, generate
 from probaff.errors import InputError
@@ -137,8 +137,7 @@ class StudyConfig:
         """
         seed = check_count("seed", self.seed, minimum=0)
         normal = dict(self.check())
-        workers = check_workers(self.workers)
-        check_scheduler(self.scheduler)
+        workers, _ = check_batch(self.workers, self.scheduler)
         check_output_dir("out", self.out)
         return rebuild(self, seed=seed, workers=workers, **normal)
 
