@@ -68,6 +68,21 @@ def test_bad_keys(tmp_path):
         ResultStore(tmp_path).path("a/b")
 
 
+@pytest.mark.parametrize(
+    ("settings", "word"),
+    [
+        ({"workers": -1}, "workers"),
+        ({"workers": 1.5}, "workers"),
+        ({"scheduler": " "}, "scheduler"),
+    ],
+)
+def test_bad_batch_settings_are_refused_even_when_every_task_is_saved(tmp_path, settings, word):
+    store = ResultStore(tmp_path)
+    run_tasks(square, [("a", (2,))], store, progress=False)
+    with pytest.raises(InputError, match=word):
+        run_tasks(square, [("a", (2,))], store, progress=False, **settings)
+
+
 def test_damaged_or_blocked_result_files_are_named(tmp_path):
     store = ResultStore(tmp_path / "results")
     store.save("a", {"x": 1})
