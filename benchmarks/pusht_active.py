@@ -9,9 +9,11 @@ its predictive variance over ``--reference`` primitives drawn as the planner dra
 ``--sizes``, the mixture of GP experts is fitted on each collection's first pushes (the study's
 EM: ``--experts``, ``--em-max-iter``) and scored on ``--test-pushes`` held-out random pushes
 (RMSE, NLPD, 90 % coverage), and, with ``--episodes`` above 0, the learned-model planner
-(risk weight ``--risk``, `SearchSettings.risk`, 0 by default) runs that many episodes (reset
-seeds ``--episode-seed + i``, the same for both) and is scored as LeRobot scores (success
-with its Wilson interval, mean maximum reward, coverage).
+(risk weight ``--risk``, `SearchSettings.risk`, 0 by default; the search's budget and step
+price ``--search-candidates``, ``--search-beam`` and ``--search-step-cost``, `SearchSettings`'s
+defaults unless given) runs that many episodes (reset seeds ``--episode-seed + i``, the same
+for both) and is scored as LeRobot scores (success with its Wilson interval, mean maximum
+reward, coverage).
 
 Outputs in ``--out`` (default ``results/pusht_active``): ``pushes_<strategy>.json`` (the
 collections, reused when their setup matches), ``results.csv``, ``summary.md`` and, with
@@ -38,12 +40,14 @@ Usage::
 
     python benchmarks/pusht_active.py [--sizes 20 40 60] [--episodes 0] [--seed 0]
         [--strategies reduction,variance,random] [--collections 1] [--risk 0]
+        [--search-candidates 192] [--search-beam 8] [--search-step-cost 0.02]
         [--python .venv-pusht/bin/python] [--out results/pusht_active] [--merge DIR ...]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import sys
@@ -230,6 +234,24 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--risk", type=float, default=0.0, help="the planner's risk weight (SearchSettings.risk)"
     )
+    ap.add_argument(
+        "--search-candidates",
+        type=int,
+        default=SearchSettings.candidates,
+        help="first pushes the planner samples (SearchSettings.candidates)",
+    )
+    ap.add_argument(
+        "--search-beam",
+        type=int,
+        default=SearchSettings.beam,
+        help="first pushes it expands (SearchSettings.beam)",
+    )
+    ap.add_argument(
+        "--search-step-cost",
+        type=float,
+        default=SearchSettings.step_cost,
+        help="its price of a control step, px (SearchSettings.step_cost)",
+    )
     ap.add_argument("--episodes", type=int, default=0)
     ap.add_argument("--episode-seed", type=int, default=1000)
     ap.add_argument("--seed", type=int, default=0)
@@ -264,6 +286,9 @@ def run(args: argparse.Namespace) -> None:
     collections = check_count("--collections", args.collections)
     check_count("--episodes", args.episodes, minimum=0)
     check_positive("--risk", args.risk, allow_zero=True)
+    check_count("--search-candidates", args.search_candidates)
+    check_count("--search-beam", args.search_beam)
+    check_positive("--search-step-cost", args.search_step_cost, allow_zero=True)
     command = "python benchmarks/pusht_active.py " + " ".join(sys.argv[1:])
     if collections == 1:
         _collection(args, strategies, sizes, seed, out, command.strip())
@@ -284,7 +309,18 @@ def _collection(
 ) -> list[dict[str, Any]]:
     """Collect, fit and score every strategy on collection seed `seed`; write to `out`."""
     episodes = args.episodes
-    search = SearchSettings(risk=args.risk)
+    search = SearchSettings(
+        candidates=args.search_candidates,
+        beam=args.search_beam,
+        risk=args.risk,
+        step_cost=args.search_step_cost,
+    )
+    default = SearchSettings()
+    changed = {  # cells of the default search keep their setup
+        f.name: getattr(search, f.name)
+        for f in dataclasses.fields(search)
+        if getattr(search, f.name) != getattr(default, f.name)
+    }
     em = EMOptions(max_iter=check_count("--em-max-iter", args.em_max_iter), n_restarts=2, seed=seed)
     settings = PrimitiveSettings()
     collected: dict[str, dict[str, Any]] = {}
@@ -322,7 +358,7 @@ def _collection(
                 "em": repr(em),
                 "test": [seed, test_n],
                 "episodes": [episodes, args.episode_seed],
-            } | ({"risk": search.risk} if search.risk else {})  # cells of risk 0 predate it
+            } | changed
             stored = json.loads(cell.read_text()) if cell.is_file() else {}
             if stored.get("setup") == setup:
                 row = stored["row"]

@@ -87,6 +87,9 @@ def test_a_table_without_the_seed_column_is_refused(active, tmp_path, capsys):
         (["--collections", "0"], "--collections"),
         (["--risk", "-1"], "--risk"),
         (["--risk", "nan"], "--risk"),
+        (["--search-candidates", "0"], "--search-candidates"),
+        (["--search-beam", "-2"], "--search-beam"),
+        (["--search-step-cost", "inf"], "--search-step-cost"),
     ],
 )
 def test_bad_flags_print_one_line_and_exit_2(active, tmp_path, refused_flags, flags, word):
