@@ -77,7 +77,7 @@ def check_scheduler(scheduler: str | None) -> str | None:
 
 
 def check_batch(workers: int | None, scheduler: str | None) -> tuple[int | None, str | None]:
-    """Check where a batch runs: `check_scheduler`'s address form, then `check_workers`.
+    """Check where a batch runs: `check_workers`, then `check_scheduler`'s address form.
 
     Args:
         workers: ``None`` (one local worker per core), 0 (this process) or a worker count.

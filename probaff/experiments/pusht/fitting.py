@@ -52,8 +52,8 @@ def fit_ramped(
 ) -> Fit:
     """The best of fits from `starts` at the widest ramp, refined through the narrower ones."""
     best: Fit | None = None
+    first = functools.partial(_at_ramp, residual, ramps[0])
     for x0 in starts:
-        first = functools.partial(_at_ramp, residual, ramps[0])
         fit = fit_least_squares(first, x0, scale, max_nfev=max_nfev)
         if best is None or fit.cost < best.cost:
             best = fit
