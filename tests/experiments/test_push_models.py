@@ -19,10 +19,14 @@ def test_script_smoke_and_resume(tmp_path):
     files = run_smoke("push_models", out)
     ch5 = ("ch5_summary.csv", "ch5_claims.csv", "ch5_rmse_vs_M.png", "ch5_clusters.png")
     ch5 += ("ch5_ard_relevance.png",)
-    assert_wrote(files, out, (*ch5, "ch4_summary.csv", "ch4_clusters.png", "summary.md"))
+    trials = ("ch5_trials.csv", "ch5_trial_summary.csv", "ch5_trial_claims.csv")
+    assert_wrote(files, out, (*ch5, *trials, "ch4_summary.csv", "ch4_clusters.png", "summary.md"))
     text = (out / "summary.md").read_text()
     assert "| ocx | em | 2 |" in text and "| gx-eoc | vi | 1 |" in text
     assert "- **M > 1 beats M = 1 on RMSE**: 2 comparisons over every M" in text  # judged
+    trial = text[text.index("## Chapter 5 on fresh data: 2 independent trials") :]
+    assert "- **M > 1 beats M = 1 on RMSE**: 2 comparisons over every M" in trial
+    assert len(list((out / "tasks").glob("ch5-trials.t*.json"))) == 2
     tasks = sorted((out / "tasks").glob("*.json"))
     assert_resumes(lambda: run_smoke("push_models", out), tasks)  # resumes: no refits
 

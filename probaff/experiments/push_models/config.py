@@ -51,6 +51,8 @@ SMOKE: Mapping[str, Any] = MappingProxyType(
         "ch5_experts": (1, 2),
         "ch5_folds": 2,
         "ch5_features": ("ocx", "gx-eoc"),
+        "ch5_trials": 2,
+        "ch5_trial_test": 16,
         "ch4_pushes": 24,
         "ch4_experts": (1, 2),
         "ch4_folds": 2,
@@ -80,6 +82,13 @@ class PushModelStudyConfig(StudyConfig):
             claims' intervals are over every (repeat, fold), with Nadeau and Bengio's
             correction for the splits' shared training rows
             (`probaff.eval.metrics.corrected_halfwidth`).
+        ch5_trials: Independent trials of chapter 5 on fresh data (0: none). Trial k fits
+            every `ch5_features` path (M in `ch5_experts`, EM only) on ``ch5_pushes`` pushes of
+            its own and scores it on ``ch5_trial_test`` more, all simulated anew with seeds of
+            the trial's (`trial_data`). No two trials share a push, so the claims judged over
+            trials (``ch5_trial_claims.csv``) take the plain t interval: a sharper test than
+            the splits of one dataset, which share rows and need the corrected interval.
+        ch5_trial_test: Held-out pushes of each trial.
         ch5_features: Names from `CH5_FEATURES`.
         methods: ``"em"`` and/or ``"vi"``.
         ch4_pushes: Single-object pushes near the battery (0 skips chapter 4).
@@ -112,6 +121,8 @@ class PushModelStudyConfig(StudyConfig):
     ch5_experts: tuple[int, ...] = (1, 2, 3, 4, 5, 6)
     ch5_folds: int = 3
     ch5_repeats: int = 1
+    ch5_trials: int = 0
+    ch5_trial_test: int = 500
     ch5_features: tuple[str, ...] = ("o", "oc", "ocx", "gx-eoc")
     methods: tuple[str, ...] = ("em", "vi")
     ch4_pushes: int = 120
@@ -170,6 +181,8 @@ class PushModelStudyConfig(StudyConfig):
         for name in ("vi_inducing", "ch5_pushes", "ch5_folds", "ch5_repeats", "ch4_folds"):
             check_count(name, getattr(self, name))
         check_count("ch4_pushes", self.ch4_pushes, minimum=0)
+        check_count("ch5_trials", self.ch5_trials, minimum=0)
+        check_count("ch5_trial_test", self.ch5_trial_test)
         for size in (*self.ch5_experts, *self.ch4_experts):
             check_count("number of experts", size)
         for folds in (self.ch5_folds, self.ch4_folds):
