@@ -27,7 +27,7 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import torch
@@ -252,8 +252,15 @@ def _fit_clustered(task: FoldTask, X: np.ndarray, Y: np.ndarray) -> dict[str, An
     return {"rows": [row]}
 
 
-def run_task(task: FoldTask, *, data: dict[str, tuple[np.ndarray, np.ndarray]]) -> dict[str, Any]:
-    """One task of the study on its experiment's ``(X, Y)`` from `data` (Dask imports it)."""
+def run_task(
+    task: FoldTask | TrialTask, *, data: dict[str, tuple[np.ndarray, np.ndarray]]
+) -> dict[str, Any]:
+    """One task of the study on its experiment's ``(X, Y)`` from `data` (Dask imports it).
+
+    A trial (`TrialTask`) simulates its own data instead (`run_trial`).
+    """
+    if isinstance(task, TrialTask):
+        return run_trial(task)
     X, Y = data[task.experiment]
     return (_fit_path if task.kind == "path" else _fit_clustered)(task, X, Y)
 
@@ -270,6 +277,19 @@ class TrialTask:
 
     trial: int
     study: PushModelStudyConfig
+    experiment: ClassVar[str] = TRIALS
+
+    def cost(self, n_features: int) -> float:
+        """Rough relative cost (as `FoldTask.cost`): a path per feature set on the trial."""
+        n, study = self.study.ch5_pushes, self.study
+        return (
+            len(study.ch5_features)
+            * n
+            * n
+            * (1.0 + n_features / 50.0)
+            * len(study.ch5_experts)
+            * 10.0
+        )
 
 
 def trial_data(study: PushModelStudyConfig, trial: int) -> tuple[GenerateConfig, GenerateConfig]:
@@ -421,7 +441,7 @@ def _datasets(study: StudyRun[PushModelStudyConfig]) -> dict[str, tuple[Any, np.
 
 def _all_tasks(
     config: PushModelStudyConfig, data: dict[str, tuple[Any, np.ndarray]]
-) -> list[tuple[str, tuple[FoldTask]]]:
+) -> list[tuple[str, tuple[FoldTask | TrialTask]]]:
     """Every task of the study, longest first so that the workers finish together."""
     vi = config.vi_features if "vi" in config.methods else ()
     tasks = _tasks(
@@ -431,7 +451,11 @@ def _all_tasks(
         ch4 = {k: (CH4_FEATURES[k], CH4_FEATURES[k]) for k in config.ch4_features}
         tasks += _tasks(config, "ch4", data["ch4"], ch4, ())
     width = {exp: features.values.shape[1] for exp, (features, _) in data.items()}
-    return sorted(tasks, key=lambda t: -t[1][0].cost(width[t[1][0].experiment]))
+    width[TRIALS] = width["ch5"]
+    tag = _tag(config, TRIALS)
+    every: list[tuple[str, tuple[FoldTask | TrialTask]]] = [*tasks]
+    every += [(f"{TRIALS}.t{k}.{tag}", (TrialTask(k, config),)) for k in range(config.ch5_trials)]
+    return sorted(every, key=lambda t: -t[1][0].cost(width[t[1][0].experiment]))
 
 
 def run(config: PushModelStudyConfig) -> dict[str, Any]:
@@ -465,11 +489,7 @@ def run(config: PushModelStudyConfig) -> dict[str, Any]:
     study.table("ch5_claims.csv", summary["ch5_claims"])
     md = header(config) + chapter5_section(summary["ch5"], summary["ch5_claims"])
     if config.ch5_trials:
-        tag = _tag(config, TRIALS)
-        keys = [f"{TRIALS}.t{k}.{tag}" for k in range(config.ch5_trials)]
-        trials = [(key, (TrialTask(k, config),)) for k, key in enumerate(keys)]
-        done = study.tasks(run_trial, trials, desc="chapter 5 trials")
-        rows = [row for task in done for row in task["rows"]]
+        rows = [r for r in results if r["experiment"] == TRIALS]
         summary["ch5_trials"] = summarise(rows, CH5_EFFECTS)
         summary["ch5_trial_claims"] = chapter5_claims(rows)
         study.table("ch5_trials.csv", rows)
