@@ -67,7 +67,8 @@ def test_claims_over_trials_take_the_plain_t_interval():
 
 
 @pytest.mark.parametrize(
-    ("field", "value"), [("ch5_trials", -1), ("ch5_trials", 1.5), ("ch5_trial_test", 0)]
+    ("field", "value"),
+    [("ch5_trials", -1), ("ch5_trials", 1.5), ("ch5_trials", 100_001), ("ch5_trial_test", 0)],
 )
 def test_bad_trial_counts_are_refused(field, value):
     with pytest.raises(InputError, match=field):

@@ -19,6 +19,7 @@ __all__ = [
     "CH4_FEATURES",
     "CH5_EFFECTS",
     "CH5_FEATURES",
+    "MAX_TRIALS",
     "SMOKE",
     "PushModelStudyConfig",
     "effect_noise_floor",
@@ -44,6 +45,10 @@ CH5_EFFECTS = ("o1.dy", "o1.dz", "o1.dth", "o2.dy", "o2.dz", "o2.dth")
 
 CH4_EFFECTS = ("dy", "dz", "dth")
 """Names of chapter 4's three effects."""
+
+MAX_TRIALS = 100_000
+"""Most independent trials of one study (``ch5_trials``): each study seed's trials take
+their own range of dataset seeds (`probaff.experiments.push_models.run.trial_data`)."""
 
 SMOKE: Mapping[str, Any] = MappingProxyType(
     {
@@ -181,7 +186,8 @@ class PushModelStudyConfig(StudyConfig):
         for name in ("vi_inducing", "ch5_pushes", "ch5_folds", "ch5_repeats", "ch4_folds"):
             check_count(name, getattr(self, name))
         check_count("ch4_pushes", self.ch4_pushes, minimum=0)
-        check_count("ch5_trials", self.ch5_trials, minimum=0)
+        if check_count("ch5_trials", self.ch5_trials, minimum=0) > MAX_TRIALS:
+            raise InputError(f"ch5_trials must be at most {MAX_TRIALS}, got {self.ch5_trials}.")
         check_count("ch5_trial_test", self.ch5_trial_test)
         for size in (*self.ch5_experts, *self.ch4_experts):
             check_count("number of experts", size)

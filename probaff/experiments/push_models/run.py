@@ -44,6 +44,7 @@ from probaff.experiments.push_models.config import (
     CH4_FEATURES,
     CH5_EFFECTS,
     CH5_FEATURES,
+    MAX_TRIALS,
     PushModelStudyConfig,
     effect_noise_floor,
 )
@@ -282,27 +283,22 @@ class TrialTask:
     def cost(self, n_features: int) -> float:
         """Rough relative cost (as `FoldTask.cost`): a path per feature set on the trial."""
         n, study = self.study.ch5_pushes, self.study
-        return (
-            len(study.ch5_features)
-            * n
-            * n
-            * (1.0 + n_features / 50.0)
-            * len(study.ch5_experts)
-            * 10.0
-        )
+        path = n * n * (1.0 + n_features / 50.0) * len(study.ch5_experts) * 10.0
+        return path * len(study.ch5_features)
 
 
 def trial_data(study: PushModelStudyConfig, trial: int) -> tuple[GenerateConfig, GenerateConfig]:
     """The training and held-out datasets of trial `trial`: two-object pushes, seeds of its own.
 
     Trial k of a study of seed s simulates ``ch5_pushes`` training pushes with seed
-    ``10_000_000 + 2 (100_000 s + k)`` and ``ch5_trial_test`` held-out pushes with the next
+    ``10_000_000 + 2 (MAX_TRIALS s + k)`` and ``ch5_trial_test`` held-out pushes with the next
     seed, with the study's pose noise and without trajectories (the features do not read
     them). Every dataset seed spawns independent streams (`probaff.data.make_shard`), so no
-    trial shares a push with another trial or with the study's own dataset.
+    trial shares a push with another trial, with the study's own dataset or with another
+    study seed's trials (``ch5_trials`` is at most `MAX_TRIALS`).
     """
     noise = PoseNoise() if study.pose_noise else None
-    seed = _TRIAL_SEED + 2 * (100_000 * study.seed + trial)
+    seed = _TRIAL_SEED + 2 * (MAX_TRIALS * study.seed + trial)
     train, test = (
         GenerateConfig("two_objects", n, seed=seed + i, trajectories=False, pose_noise=noise)
         for i, n in enumerate((study.ch5_pushes, study.ch5_trial_test))
