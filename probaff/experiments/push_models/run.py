@@ -472,9 +472,8 @@ def run(config: PushModelStudyConfig) -> dict[str, Any]:
     config, out = study.config, study.out
     data = _datasets(study)
     arrays = {exp: (features.values, Y) for exp, (features, Y) in data.items()}
-    done = study.tasks(
-        run_task, _all_tasks(config, data), desc="push models", shared={"data": arrays}
-    )
+    tasks = _all_tasks(config, data)
+    done = study.tasks(run_task, tasks, desc="push models", shared={"data": arrays})
     results = [row for task in done for row in task["rows"]]
     summary: dict[str, Any] = {"config": dataclasses.asdict(config)}
     ch5 = [r for r in results if r["experiment"] == "ch5"]
