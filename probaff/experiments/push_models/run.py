@@ -253,6 +253,16 @@ def _fit_clustered(task: FoldTask, X: np.ndarray, Y: np.ndarray) -> dict[str, An
     return {"rows": [row]}
 
 
+def _ch5_effects(ds: Any) -> np.ndarray:
+    """(N, 6) chapter 5's effects (`CH5_EFFECTS`) of a two-object push dataset."""
+    return ds["effect"][:, :2].reshape(len(ds), 6)
+
+
+def _bounds(groups: dict[str, slice]) -> dict[str, tuple[int, int]]:
+    """Feature group -> ``(start, stop)`` columns, as `FoldTask.groups` holds them."""
+    return {k: (v.start, v.stop) for k, v in groups.items()}
+
+
 def run_task(
     task: FoldTask | TrialTask, *, data: dict[str, tuple[np.ndarray, np.ndarray]]
 ) -> dict[str, Any]:
@@ -322,7 +332,7 @@ def run_trial(task: TrialTask) -> dict[str, Any]:
         ]
     features = [chapter5_features(ds) for ds in sets]
     X = np.vstack([f.values for f in features])
-    Y = np.vstack([ds["effect"][:, :2].reshape(len(ds), 6) for ds in sets])
+    Y = np.vstack([_ch5_effects(ds) for ds in sets])
     n = len(sets[0])
     rows: list[dict[str, Any]] = []
     for name in study.ch5_features:
@@ -334,7 +344,7 @@ def run_trial(task: TrialTask) -> dict[str, Any]:
             fold=0,
             train=np.arange(n),
             test=np.arange(n, len(Y)),
-            groups={k: (v.start, v.stop) for k, v in features[0].groups.items()},
+            groups=_bounds(features[0].groups),
             gate_features=gate,
             expert_features=experts,
             noise_floor=effect_noise_floor(study.pose_noise, 2),
@@ -355,7 +365,7 @@ def _tag(config: PushModelStudyConfig, exp: str) -> str:
     tasks. The trials (`TRIALS`) fit EM alone on data of their own, so the folds and the VI
     settings do not shape them, and the trials' settings do not shape the cross-validation.
     """
-    other = "ch4" if exp == "ch5" or exp == TRIALS else "ch5"
+    other = "ch4" if exp in ("ch5", TRIALS) else "ch5"
     exclude = {
         "ch5_repeats",
         "ch5_trials",
@@ -400,7 +410,7 @@ def _tasks(
                 "fold": f,
                 "train": train,
                 "test": test,
-                "groups": {k: (v.start, v.stop) for k, v in features.groups.items()},
+                "groups": _bounds(features.groups),
                 "gate_features": tuple(gate),
                 "expert_features": tuple(expert_groups),
                 "noise_floor": effect_noise_floor(config.pose_noise, 2 if exp == "ch5" else 1),
@@ -424,7 +434,7 @@ def _datasets(study: StudyRun[PushModelStudyConfig]) -> dict[str, tuple[Any, np.
         "two_objects",
         local=True,
     )
-    data = {"ch5": (chapter5_features(ds5), ds5["effect"][:, :2].reshape(len(ds5), 6))}
+    data = {"ch5": (chapter5_features(ds5), _ch5_effects(ds5))}
     if config.ch4_pushes:
         ds4 = study.dataset(
             GenerateConfig("near_obstacle", config.ch4_pushes, seed=config.seed, pose_noise=noise),
