@@ -150,6 +150,15 @@ def test_summarise_merge_needs_points_for_the_points_proximity():
         summarise_merge([{"index": 0, "views": []}], [], (1,), ("points",), [])
 
 
+def test_config_boosting_carries_the_tree_settings(tmp_path):
+    config = PointCloudStudyConfig(
+        out=str(tmp_path), seed=3, boosting_rounds=7, boosting_threshold="0.4"
+    )
+    opt = config.boosting
+    assert (opt.max_iter, opt.seed, opt.threshold, opt.calibration) == (7, 3, 0.4, "sigmoid")
+    assert PointCloudStudyConfig(boosting_calibration="isotonic").boosting.calibration == "isotonic"
+
+
 @pytest.mark.parametrize(
     ("overrides", "message"),
     [
@@ -169,6 +178,8 @@ def test_summarise_merge_needs_points_for_the_points_proximity():
         ({"merge_proximities": ()}, "merge_proximities must hold distinct names among points"),
         ({"boosting_threshold": "best"}, "boosting_threshold must be one of 'fixed', 'f1'"),
         ({"boosting_threshold": "1.5"}, r"boosting_threshold must be .* a number in \(0, 1\)"),
+        ({"boosting_calibration": "platt"}, "boosting_calibration must be one of isotonic"),
+        ({"boosting_rounds": 0}, "boosting_rounds must be a positive integer"),
     ],
 )
 def test_bad_config(tmp_path, overrides, message):

@@ -69,6 +69,9 @@ class PointCloudStudyConfig(StudyConfig):
             precision and recall of an inner CV by scene on the training scenes, largest),
             ``"f1"``, ``"fixed"`` (0.5, the study's numbers before the thresholds) or a
             number in (0, 1) written as text (``"0.6"``).
+        boosting_calibration: How the trees of the model comparison calibrate their scores
+            (`BoostingOptions.calibration`): ``"sigmoid"`` (Platt scaling, the default) or
+            ``"isotonic"`` (the study's numbers before it).
     """
 
     out: str = "results/point_cloud_labels"
@@ -84,6 +87,7 @@ class PointCloudStudyConfig(StudyConfig):
     merge_proximities: tuple[str, ...] = PROXIMITIES
     boosting_rounds: int = 200
     boosting_threshold: str = "balanced"
+    boosting_calibration: str = "sigmoid"
 
     SMOKE: ClassVar[Mapping[str, Any]] = SMOKE
 
@@ -132,8 +136,7 @@ class PointCloudStudyConfig(StudyConfig):
                 f"merge_scenes={merged} exceeds n_scenes={self.n_scenes}; the merge scenes "
                 "are among the first n_scenes."
             )
-        check_count("boosting_rounds", self.boosting_rounds)
-        self.threshold  # noqa: B018 -- raises for a bad boosting_threshold
+        self.boosting  # noqa: B018 -- raises for bad boosting_* settings
         proximities = self.merge_proximities
         if (
             not proximities
@@ -165,6 +168,24 @@ class PointCloudStudyConfig(StudyConfig):
             return BoostingOptions(threshold=value).threshold
         except InputError as err:
             raise InputError(str(err).replace("threshold", "boosting_threshold")) from None
+
+    @property
+    def boosting(self) -> BoostingOptions:
+        """The model comparison's tree settings: the ``boosting_*`` fields and `seed`.
+
+        Raises:
+            InputError: Naming the ``boosting_*`` field out of range.
+        """
+        check_count("boosting_rounds", self.boosting_rounds)
+        try:
+            return BoostingOptions(
+                max_iter=self.boosting_rounds,
+                seed=self.seed,
+                threshold=self.threshold,
+                calibration=self.boosting_calibration,
+            )
+        except InputError as err:
+            raise InputError(str(err).replace("calibration", "boosting_calibration")) from None
 
     @property
     def scanned(self) -> int:

@@ -80,7 +80,6 @@ from probaff.experiments.point_cloud_labels.report import (
 )
 from probaff.experiments.point_cloud_labels.scans import merge_task, read_arrays, scan_task
 from probaff.experiments.point_cloud_labels.truth_figure import plot_labels_against_truth
-from probaff.perception.label_boosting import BoostingOptions
 from probaff.perception.labels import LabelCVResult, cross_validate_labels
 
 __all__ = ["run"]
@@ -215,9 +214,7 @@ def run(config: PointCloudStudyConfig) -> dict[str, Any]:
             n_splits=config.n_splits,
             seed=config.seed,
             min_points=m,
-            options=BoostingOptions(
-                max_iter=config.boosting_rounds, seed=config.seed, threshold=config.threshold
-            ),
+            options=config.boosting,
         )
         for m in (0, *config.label_min_points)
     ]
