@@ -19,9 +19,9 @@ Calibration (`BoostingOptions.calibration`): isotonic regression maps the trees'
 step function, so many segments share one probability and a threshold moves in steps; Platt's
 sigmoid is smooth and monotone in the score. In the chapter 2 study (30 scenes, CV by scene,
 all segments, ``"balanced"`` thresholds) sigmoid calibration scored mean precision / recall
-85.21 / 86.51 % against isotonic's 84.57 / 87.43 with the folds of seed 0, 84.93 / 86.61
-against 83.98 / 87.28 (seed 1) and 84.40 / 86.75 against 84.34 / 86.76 (seed 2): precision
-higher at every seed (+0.55 points on average) for 0.5 points of recall. On the demo's single
+85.21 / 86.51 % against isotonic's 84.57 / 87.43 with the study's folds (seed 0). Over the
+folds of seeds 0-4 its precision was higher at every seed, 84.79 against 84.39 % on average,
+for recall 86.59 against 87.24 %; it reached 85 % at seeds 0 and 3. On the demo's single
 held-out scene, with 7 training scenes, the two tie: 72.5 / 77.7 against 72.4 / 79.3 % averaged
 over demo seeds 0-7.
 
