@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -150,42 +151,32 @@ class PointCloudStudyConfig(StudyConfig):
         return {}
 
     @property
-    def threshold(self) -> str | float:
-        """`boosting_threshold` as `BoostingOptions.threshold` takes it (a rule or a number).
-
-        Raises:
-            InputError: Naming ``boosting_threshold``, unless it is a rule of
-                `THRESHOLD_RULES` or a number in (0, 1).
-        """
-        text = self.boosting_threshold
-        value: str | float = text
-        if isinstance(text, str) and text not in THRESHOLD_RULES:
-            try:
-                value = float(text)
-            except ValueError:
-                value = text
-        try:
-            return BoostingOptions(threshold=value).threshold
-        except InputError as err:
-            raise InputError(str(err).replace("threshold", "boosting_threshold")) from None
-
-    @property
     def boosting(self) -> BoostingOptions:
         """The model comparison's tree settings: the ``boosting_*`` fields and `seed`.
+
+        ``boosting_threshold`` is text: a rule of `THRESHOLD_RULES`, or a number in (0, 1).
 
         Raises:
             InputError: Naming the ``boosting_*`` field out of range.
         """
         check_count("boosting_rounds", self.boosting_rounds)
+        text = self.boosting_threshold
+        threshold: str | float = text
+        if isinstance(text, str) and text not in THRESHOLD_RULES:
+            try:
+                threshold = float(text)
+            except ValueError:
+                threshold = text
         try:
             return BoostingOptions(
                 max_iter=self.boosting_rounds,
                 seed=self.seed,
-                threshold=self.threshold,
+                threshold=threshold,
                 calibration=self.boosting_calibration,
             )
         except InputError as err:
-            raise InputError(str(err).replace("calibration", "boosting_calibration")) from None
+            message = re.sub(r"\b(threshold|calibration)\b", r"boosting_\1", str(err))
+            raise InputError(message) from None
 
     @property
     def scanned(self) -> int:
