@@ -12,7 +12,7 @@ import pytest
 
 from probaff.errors import InputError
 from probaff.experiments.point_cloud_labels.causes import CAUSES, attribute_errors, cause_table
-from probaff.experiments.point_cloud_labels.intervals import scene_intervals
+from probaff.experiments.point_cloud_labels.intervals import interval_text, scene_intervals
 from probaff.experiments.point_cloud_labels.truth_figure import plot_labels_against_truth
 from probaff.perception.labels import LABELS
 
@@ -137,3 +137,15 @@ def test_scene_intervals_take_per_segment_thresholds():
         scene_intervals(truth, prob, groups, thresholds=cut[:, :5])
     with pytest.raises(InputError, match="thresholds must be finite"):
         scene_intervals(truth, prob, groups, thresholds=np.nan)
+
+
+def test_a_label_without_positives_drops_out_of_the_mean_and_the_row_reads_as_text():
+    truth = np.zeros((4, 6), dtype=bool)
+    truth[:2, 0] = truth[1:3, 1] = True  # labels 2-5 have no positive: no recall
+    decided = truth.copy()
+    decided[3, 0] = True  # label 0: precision 2/3; nothing else predicted wrong
+    (row,) = scene_intervals(truth, decided.astype(float), np.arange(4), n_boot=200)[-1:]
+    assert row["precision_pct"] == pytest.approx((200 / 3 + 100) / 2)
+    assert row["recall_pct"] == 100.0 == row["recall_lo"] == row["recall_hi"]
+    assert row["precision_lo"] < row["precision_pct"] <= row["precision_hi"] == 100.0
+    assert interval_text(row) == (f"83.3 [{row['precision_lo']:.1f}, 100.0] / 100.0 [100.0, 100.0]")

@@ -256,11 +256,22 @@ def test_demo_draws_the_held_out_scene(tmp_path, capsys):
     assert 0 <= summary["unassigned"] < summary["points"]
     for key in ("precision_pct", "recall_pct", "new_precision_pct", "new_recall_pct"):
         assert math.isfinite(summary[key]) and 0.0 <= summary[key] <= 100.0
+    # each mean comes with its 95 % interval over the held-out scene's segments
+    for model, prefix in (("thesis", ""), ("new", "new_")):
+        row = summary["intervals"][model]
+        for name in ("precision", "recall"):
+            assert row[f"{name}_pct"] == summary[f"{prefix}{name}_pct"]
+            assert 0.0 <= row[f"{name}_lo"] <= row[f"{name}_pct"] <= row[f"{name}_hi"] <= 100.0
+        assert row["precision_hi"] - row["precision_lo"] > 1.0  # one scene: not a point
     out = capsys.readouterr().out.splitlines()
     assert len(out) == 2
     assert f"{summary['segments']} segments" in out[0]
-    assert f"{summary['precision_pct']:.1f} / {summary['recall_pct']:.1f} %" in out[1]
-    assert f"{summary['new_precision_pct']:.1f} / {summary['new_recall_pct']:.1f} %" in out[1]
+    for model in ("thesis", "new"):
+        row = summary["intervals"][model]
+        assert (
+            f"{row['precision_pct']:.1f} [{row['precision_lo']:.1f}, {row['precision_hi']:.1f}] "
+            f"/ {row['recall_pct']:.1f} [{row['recall_lo']:.1f}, {row['recall_hi']:.1f}] %"
+        ) in out[1]
     # The held-out scene is the study's scene 0 scanned with the smoke perception (same stream).
     record = scan_task(0, 0, SMOKE["perception"], None)
     assert len(record["object_ids"]) == summary["segments"]

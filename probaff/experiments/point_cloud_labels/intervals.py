@@ -8,7 +8,7 @@ choice of 2000, which settles the interval's ends to about 0.2 points). Resampli
 not segments, keeps the segments of one scene together, as they share its layout.
 A label's precision is undefined without a predicted positive and its recall without a true
 positive; the mean takes the labels where each is defined, and an interval's ends skip the
-draws where it is undefined.
+draws where it is undefined. `interval_text` writes a row as ``P [lo, hi] / R [lo, hi]``.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from probaff._checks import check_count, check_shape
 from probaff.affordance_labels import LABELS
 from probaff.errors import InputError
 
-__all__ = ["scene_intervals"]
+__all__ = ["interval_text", "scene_intervals"]
 
 
 def _rates(tp: np.ndarray, pp: np.ndarray, ap: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -116,3 +116,11 @@ def scene_intervals(
         }
         for j, name in enumerate((*LABELS, "average"))
     ]
+
+
+def interval_text(row: dict[str, Any]) -> str:
+    """A `scene_intervals` row as ``P [lo, hi] / R [lo, hi]`` (percent, one decimal)."""
+    return (
+        f"{row['precision_pct']:.1f} [{row['precision_lo']:.1f}, {row['precision_hi']:.1f}] / "
+        f"{row['recall_pct']:.1f} [{row['recall_lo']:.1f}, {row['recall_hi']:.1f}]"
+    )

@@ -16,6 +16,7 @@ from typing import Any
 from probaff.eval.tables import markdown_table
 from probaff.experiments.point_cloud_labels.causes import CAUSES
 from probaff.experiments.point_cloud_labels.comparison import ModelComparison
+from probaff.experiments.point_cloud_labels.intervals import interval_text
 from probaff.perception.labels import THESIS_PR
 
 __all__ = ["cause_rows", "model_rows", "model_section"]
@@ -75,13 +76,6 @@ def cause_rows(comparisons: list[ModelComparison]) -> list[dict[str, Any]]:
     return [{"min_points": c.min_points, **row} for c in comparisons for row in c.breakdown]
 
 
-def _pr(row: dict[str, Any]) -> str:
-    return (
-        f"{row['precision_pct']:.1f} [{row['precision_lo']:.1f}, {row['precision_hi']:.1f}] / "
-        f"{row['recall_pct']:.1f} [{row['recall_lo']:.1f}, {row['recall_hi']:.1f}]"
-    )
-
-
 def model_section(comparisons: list[ModelComparison], n_scenes: int) -> str:
     """The summary's Markdown for the models and the breakdown.
 
@@ -115,7 +109,7 @@ def model_section(comparisons: list[ModelComparison], n_scenes: int) -> str:
         for k, label in enumerate(labels):
             row: dict[str, Any] = {"label": label}
             for model in models:
-                row[model] = _pr(c.scores[model][k])
+                row[model] = interval_text(c.scores[model][k])
             row["thesis_table_2_2"] = f"{THESIS_PR[label][0]} / {THESIS_PR[label][1]}"
             rows.append(row)
         subset = "all segments" if not c.min_points else f"segments of >= {c.min_points} points"
