@@ -153,6 +153,10 @@ class StudyRegistry(Mapping[str, ModuleType]):
         self._discover()
         return iter(self.studies)
 
+    def __repr__(self) -> str:
+        """``StudyRegistry('PACKAGE', [NAME, ...])``: the package and its studies by name."""
+        return f"{type(self).__name__}({self.package!r}, {list(self)!r})"
+
     def __len__(self) -> int:
         self._discover()
         return len(self.studies)

@@ -90,6 +90,8 @@ def test_the_studies_of_probaff_are_its_study_folders():
         study = STUDIES[name]
         assert study.__name__ == STUDIES.study(name).package == f"probaff.experiments.{name}"
         assert study.run and study.SMOKE is study.Config.SMOKE
+    # its repr (shown by the API reference) names the package and the studies, no address
+    assert repr(STUDIES) == f"StudyRegistry('probaff.experiments', {folders!r})"
 
 
 def test_a_new_study_folder_beside_the_others_is_found(tmp_path, monkeypatch, capsys):
