@@ -52,6 +52,7 @@ from probaff.experiments.affordance_map.demo import demo as affordance_demo
 from probaff.experiments.modular.demo import demo as modular_demo
 from probaff.experiments.planning.demo import demo as planning_demo
 from probaff.experiments.point_cloud_labels.demo import demo as point_cloud_demo
+from probaff.experiments.point_cloud_labels.intervals import interval_text
 from probaff.experiments.push_models.figures import plot_predictive_density, plot_pushes
 from probaff.features import chapter5_features
 from probaff.models import GPOptions, MixtureOfGPExperts, fit_em
@@ -353,9 +354,8 @@ def _summary_lines(result: dict[str, Any]) -> list[str]:
         ),
         (
             "office labels",
-            f"precision / recall {labels['precision_pct']:.1f} / {labels['recall_pct']:.1f} % "
-            f"(logistic regressions), {labels['new_precision_pct']:.1f} / "
-            f"{labels['new_recall_pct']:.1f} % (trees)",
+            f"precision / recall {interval_text(labels['intervals']['thesis'])} % (logistic "
+            f"regressions), {interval_text(labels['intervals']['new'])} % (trees)",
         ),
     ]
     return [

@@ -148,4 +148,9 @@ def test_a_label_without_positives_drops_out_of_the_mean_and_the_row_reads_as_te
     assert row["precision_pct"] == pytest.approx((200 / 3 + 100) / 2)
     assert row["recall_pct"] == 100.0 == row["recall_lo"] == row["recall_hi"]
     assert row["precision_lo"] < row["precision_pct"] <= row["precision_hi"] == 100.0
-    assert interval_text(row) == (f"83.3 [{row['precision_lo']:.1f}, 100.0] / 100.0 [100.0, 100.0]")
+    assert interval_text(row) == f"83.3 [{row['precision_lo']:.1f}, 100.0] / 100.0 [100.0, 100.0]"
+    # nothing predicted and nothing true: both means are undefined and read n/a
+    nothing = np.zeros((4, 6), dtype=bool)
+    (empty,) = scene_intervals(nothing, nothing.astype(float), np.arange(4), n_boot=20)[-1:]
+    assert math.isnan(empty["precision_pct"]) and math.isnan(empty["recall_pct"])
+    assert interval_text(empty) == "n/a / n/a"

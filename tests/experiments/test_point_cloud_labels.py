@@ -25,7 +25,7 @@ from study_helpers import ROOT, assert_resumes, assert_wrote
 from probaff.errors import DatasetError, InputError
 from probaff.experiments.point_cloud_labels import SMOKE, PointCloudStudyConfig, run
 from probaff.experiments.point_cloud_labels.causes import CAUSES
-from probaff.experiments.point_cloud_labels.demo import demo
+from probaff.experiments.point_cloud_labels.demo import _undefined_note, demo
 from probaff.experiments.point_cloud_labels.figures import (
     plot_entropy_tree,
     plot_label_probabilities,
@@ -282,6 +282,12 @@ def test_demo_draws_the_held_out_scene(tmp_path, capsys):
 def test_demo_rejects_a_bad_seed(tmp_path):
     with pytest.raises(InputError, match="seed"):
         demo(tmp_path, seed=-1, progress=False)
+
+
+def test_a_held_out_view_without_labels_says_why_its_means_read_n_a():
+    # demo seed 9's centre view: 19 segments, none with a label, none predicted
+    assert _undefined_note(np.zeros((19, 6), dtype=bool)).startswith(" (n/a: this view's")
+    assert _undefined_note(np.eye(6, dtype=bool)) == ""
 
 
 def test_scanned_scene_rejects_bad_input(tmp_path):

@@ -65,6 +65,16 @@ def _held_out_scores(truth: np.ndarray, decided: np.ndarray, seed: int) -> dict[
     return rows[-1]
 
 
+def _undefined_note(truth: np.ndarray) -> str:
+    """Why a mean may read n/a: a held-out view whose segments carry no label at all."""
+    if truth.any():
+        return ""
+    return (
+        " (n/a: this view's segments carry no label; recall needs a labelled segment, precision "
+        "a predicted label)"
+    )
+
+
 def demo(out: str | Path, *, seed: int = 0, progress: bool = True) -> dict[str, Any]:
     """One scanned office scene, segmented and labelled by a classifier of other scenes.
 
@@ -158,6 +168,6 @@ def demo(out: str | Path, *, seed: int = 0, progress: bool = True) -> dict[str, 
         "held-out precision / recall (mean over labels, [95 % interval over the scene's "
         f"segments]): logistic regressions (p >= 0.5) {interval_text(scores)} %, new model "
         f"(trees + context, own thresholds) {interval_text(new_scores)} % (thesis, over its "
-        f"whole dataset: {thesis_p} / {thesis_r} %); figure: {file}"
+        f"whole dataset: {thesis_p} / {thesis_r} %){_undefined_note(view.labels)}; figure: {file}"
     )
     return summary

@@ -119,8 +119,15 @@ def scene_intervals(
 
 
 def interval_text(row: dict[str, Any]) -> str:
-    """A `scene_intervals` row as ``P [lo, hi] / R [lo, hi]`` (percent, one decimal)."""
-    return (
-        f"{row['precision_pct']:.1f} [{row['precision_lo']:.1f}, {row['precision_hi']:.1f}] / "
-        f"{row['recall_pct']:.1f} [{row['recall_lo']:.1f}, {row['recall_hi']:.1f}]"
-    )
+    """A `scene_intervals` row as ``P [lo, hi] / R [lo, hi]`` (percent, one decimal).
+
+    An undefined precision or recall (NaN: no predicted, or no true, positive) reads ``n/a``.
+    """
+
+    def one(name: str) -> str:
+        value = row[f"{name}_pct"]
+        if not np.isfinite(value):
+            return "n/a"
+        return f"{value:.1f} [{row[f'{name}_lo']:.1f}, {row[f'{name}_hi']:.1f}]"
+
+    return f"{one('precision')} / {one('recall')}"
