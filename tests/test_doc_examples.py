@@ -27,6 +27,9 @@ ENTRY_POINTS = (
     "probaff.models.MixtureOfGPExpertsRegressor",
     "probaff.sim.PushSimulator",
     "probaff.planning.edge_transition",
+    "probaff.planning.tool_push.ToolPushPlanner",
+    "probaff.perception.scan_segments",
+    "probaff.perception.BoostedLabelClassifier",
 )
 FLAGS = doctest.NORMALIZE_WHITESPACE
 GETTING_STARTED = Path(__file__).resolve().parents[1] / "docs" / "getting_started.md"

@@ -9,12 +9,14 @@ Modules:
     segment_context: support, load, free space and contact-group descriptors of segments.
     labels: six per-label logistic regressions, cross-validated by scene.
     label_boosting: calibrated gradient-boosted trees per label.
+    scan_labels: one office scene scanned from the robot's head to labelled segments.
     open3d_backend: Open3D's normals, neighbours, DBSCAN and ray casting, for comparison.
     refinement: Algorithm 1, iterative 2-means entropy minimisation of label vectors.
     merge: merging the segments of several views.
 """
 
 from probaff.perception.exploration import Exploration, explore, grid_distances
+from probaff.perception.label_boosting import BoostedLabelClassifier, BoostingOptions
 from probaff.perception.labels import (
     THESIS_PR,
     LabelClassifier,
@@ -34,6 +36,7 @@ from probaff.perception.refinement import (
     refine_segments,
 )
 from probaff.perception.region_growing import Segmentation, region_growing
+from probaff.perception.scan_labels import PerceptionConfig, ScanSegments, head_pose, scan_segments
 from probaff.perception.segment_features import FEATURE_NAMES, SegmentFeatures, segment_features
 
 __all__ = [
@@ -43,6 +46,8 @@ __all__ = [
     "PROXIMITIES",
     "THESIS_PR",
     "UNKNOWN",
+    "BoostedLabelClassifier",
+    "BoostingOptions",
     "Exploration",
     "LabelCVResult",
     "LabelClassifier",
@@ -50,7 +55,9 @@ __all__ = [
     "MergedSegments",
     "Normals",
     "OccupancyGrid",
+    "PerceptionConfig",
     "Reliability",
+    "ScanSegments",
     "SegmentFeatures",
     "Segmentation",
     "SplitNode",
@@ -59,11 +66,13 @@ __all__ = [
     "estimate_normals",
     "explore",
     "grid_distances",
+    "head_pose",
     "label_entropy",
     "merge_views",
     "purity_completeness",
     "refine_segments",
     "region_growing",
     "reliability",
+    "scan_segments",
     "segment_features",
 ]

@@ -217,6 +217,24 @@ class BoostedLabelClassifier:
 
     Raises:
         InputError: For options that are not `BoostingOptions`.
+
+    Example:
+        Six labels, each a threshold of one feature, on segments of 8 scenes: `fit` chooses
+        each label's threshold by an inner CV that keeps every scene of its `groups` whole,
+        then trains on all of them (30 boosting rounds, not the default 200, to be quick):
+
+        >>> import numpy as np
+        >>> from probaff.perception import BoostedLabelClassifier, BoostingOptions
+        >>> rng = np.random.default_rng(0)
+        >>> X = rng.normal(size=(800, 25))  # (segments, features)
+        >>> Y = X[:, :6] > 0.5  # label k: feature k above 0.5
+        >>> scenes = np.repeat(np.arange(8), 100)
+        >>> model = BoostedLabelClassifier(BoostingOptions(max_iter=30))
+        >>> model = model.fit(X[:600], Y[:600], groups=scenes[:600])  # scenes 0-5
+        >>> model.predict_proba(X[600:]).shape, model.thresholds.shape
+        ((200, 6), (6,))
+        >>> bool((model.predict(X[600:]) == Y[600:]).mean() > 0.95)  # scenes 6 and 7
+        True
     """
 
     def __init__(self, options: BoostingOptions | None = None) -> None:

@@ -128,6 +128,29 @@ class ToolPushPlanner(SearchPlanner[Search]):
 
     The planners are `plan_tool_push` and `plan_single_push`; a call checks its arguments and
     runs the search, predicting the candidates of each step in one call of the transition.
+
+    Example:
+        Plan two pushes of the tool that bring the target into the receiving arm's reach,
+        with the simulator as the transition (`probaff.planning.SimulatorTransition`, the
+        oracle; ``LearnedTransition(fit_tool_push_model(ds), world)`` gives the thesis's
+        learned planner) and fewer candidates than the thesis's 100, 10, 100;
+        `run_tool_push_trial` executes a plan with the arm and scores it:
+
+        >>> import numpy as np
+        >>> from probaff.planning import SimulatorTransition, ToolPushState, plan_tool_push
+        >>> from probaff.planning.tool_push import SampleSizes, draw_tool_push_episode
+        >>> from probaff.sim import load_tabletop
+        >>> episode = draw_tool_push_episode(seed=0)
+        >>> [o.name for o in episode.objects]  # the tool, then the target
+        ['cracker_box', 'phone_box']
+        >>> state = ToolPushState(episode.objects, episode.poses)  # world (x, y, theta) each
+        >>> sizes = SampleSizes(first=8, keep=2, second=8)
+        >>> transition = SimulatorTransition(load_tabletop())
+        >>> plan = plan_tool_push(transition, state, np.random.default_rng(0), sizes=sizes)
+        >>> plan.push_origin.shape, plan.predicted.shape  # (pushes, x y), (pushes, objects, pose)
+        ((2, 2), (2, 2, 3))
+        >>> plan.n_candidates, plan.transition_calls  # 8 first pushes, 8 from each of 2 kept
+        ((8, 16), 2)
     """
 
     def __call__(
