@@ -246,13 +246,14 @@ def test_damaged_scan_arrays_are_named(tmp_path):
 
 
 def test_demo_draws_the_held_out_scene(tmp_path, capsys):
-    summary = demo(tmp_path / "pcl", seed=0, progress=False)
+    # three training scenes here; probaff demo's own run (test_demo) trains on seven
+    summary = demo(tmp_path / "pcl", seed=0, scenes=4, progress=False)
     png = tmp_path / "pcl" / "scanned_scene.png"
     assert summary["file"] == str(png)
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert png.stat().st_size > 20_000  # four panels of thousands of points, not a blank page
-    assert summary["scenes"] == 8
-    assert summary["segments"] > 5 and summary["train_segments"] > 7 * 5
+    assert summary["scenes"] == 4
+    assert summary["segments"] > 5 and summary["train_segments"] > 3 * 5
     assert 0 <= summary["unassigned"] < summary["points"]
     for key in ("precision_pct", "recall_pct", "new_precision_pct", "new_recall_pct"):
         assert math.isfinite(summary[key]) and 0.0 <= summary[key] <= 100.0
@@ -279,9 +280,18 @@ def test_demo_draws_the_held_out_scene(tmp_path, capsys):
     assert record["n_unassigned"] == summary["unassigned"]
 
 
-def test_demo_rejects_a_bad_seed(tmp_path):
-    with pytest.raises(InputError, match="seed"):
-        demo(tmp_path, seed=-1, progress=False)
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("seed", -1, "seed must be an integer >= 0, got -1"),
+        ("scenes", 1, "scenes must be an integer >= 2, got 1"),
+        ("scenes", 2.5, "scenes must be an integer >= 2, got 2.5"),
+    ],
+)
+def test_demo_rejects_a_bad_seed_or_scene_count_before_any_work(tmp_path, field, value, message):
+    with pytest.raises(InputError, match=message):
+        demo(tmp_path / "demo", progress=False, **{field: value})
+    assert not (tmp_path / "demo").exists()
 
 
 def test_a_held_out_view_without_labels_says_why_its_means_read_n_a():
