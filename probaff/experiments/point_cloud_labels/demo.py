@@ -29,7 +29,12 @@ from probaff.experiments.point_cloud_labels.figures import plot_scanned_scene
 from probaff.experiments.point_cloud_labels.intervals import interval_text, scene_intervals
 from probaff.perception.label_boosting import BoostedLabelClassifier
 from probaff.perception.labels import THESIS_PR, LabelClassifier
-from probaff.perception.scan_labels import PerceptionConfig, head_pose, scan_segments
+from probaff.perception.scan_labels import (
+    PerceptionConfig,
+    ScanSegments,
+    head_pose,
+    scan_segments,
+)
 from probaff.sim import DepthCamera, load_camera, load_office, sample_office_scenes
 
 __all__ = ["demo"]
@@ -64,6 +69,26 @@ def _held_out_scores(truth: np.ndarray, decided: np.ndarray, seed: int) -> dict[
         truth, decided.astype(np.float64), np.arange(len(truth)), n_boot=_DEMO_BOOT, seed=seed
     )
     return rows[-1]
+
+
+def _scan_scenes(n_scenes: int, seed: int, progress: bool) -> list[ScanSegments]:
+    """Scenes 0 to ``n_scenes - 1`` of `seed`, each scanned with the demo's perception.
+
+    Scene i is scanned from the stream ``[seed, i]``, as the study's `run` scans it.
+    """
+    from tqdm.auto import tqdm
+
+    cfg = _DEMO_PERCEPTION
+    camera = DepthCamera(load_camera())
+    sampled = sample_office_scenes(load_office(), n_scenes, seed)
+    return [
+        scan_segments(
+            scene, camera, head_pose(scene, cfg.head_height), cfg, np.random.default_rng([seed, i])
+        )
+        for i, scene in enumerate(
+            tqdm(sampled, desc="chapter 2 demo scans", disable=not progress, leave=False)
+        )
+    ]
 
 
 def _undefined_note(truth: np.ndarray) -> str:
@@ -111,23 +136,11 @@ def demo(
     Raises:
         InputError: For a bad `seed` or `scenes`, or an `out` that cannot be a folder.
     """
-    from tqdm.auto import tqdm
-
     seed = check_count("seed", seed, minimum=0)
     n_scenes = check_count("scenes", scenes, minimum=2)
     folder = check_output_dir("out", out)
     folder.mkdir(parents=True, exist_ok=True)
-    cfg = _DEMO_PERCEPTION
-    camera = DepthCamera(load_camera())
-    sampled = sample_office_scenes(load_office(), n_scenes, seed)
-    scans = [
-        scan_segments(
-            scene, camera, head_pose(scene, cfg.head_height), cfg, np.random.default_rng([seed, i])
-        )
-        for i, scene in enumerate(
-            tqdm(sampled, desc="chapter 2 demo scans", disable=not progress, leave=False)
-        )
-    ]
+    scans = _scan_scenes(n_scenes, seed, progress)
     held, train = scans[0], scans[1:]
     features = np.concatenate([s.features for s in train])
     labels = np.concatenate([s.labels for s in train])
@@ -152,7 +165,7 @@ def demo(
         title=f"held-out office scene (seed {seed}): segments and predicted labels, camera view",
     )
     summary: dict[str, Any] = {
-        "scenes": len(sampled),
+        "scenes": len(scans),
         "train_segments": int(sum(len(s.labels) for s in train)),
         "segments": view.n_segments,
         "points": len(view.points),
