@@ -7,7 +7,10 @@ the `pusht_python` fixture):
 * a worker process killed (SIGKILL) while it runs a study task: the study finishes, its files
   are identical byte for byte to an uninterrupted run's, and every task completes exactly once
   (the killed worker's task runs again on the other worker; nothing finished runs twice: each
-  result is released once saved, and the drill kills a worker that holds no finished result);
+  result is released once saved, and the drill kills a worker that holds no finished result).
+  The one repeat a kill cannot rule out is allowed: a task that finished on the killed worker
+  within a second of the signal (between the drill's look at the cluster and the kill), whose
+  result died with the worker before the study fetched it;
 * the scheduler killed once the first episode is saved (the pushes recorded, the models
   fitted): one line on stderr naming the scheduler and the way out, exit status 2; a rerun on
   a restarted cluster keeps every saved result and finishes with the same files.
@@ -152,6 +155,7 @@ def test_a_killed_worker_loses_nothing_and_repeats_nothing(
         client.get_task_stream()  # the scheduler records every task that finishes from now
         study = _study(out, cluster.address, env)
         killed: list[str] = []
+        kill_times: list[float] = []
 
         def kill_a_busy_worker() -> bool:
             assert study.poll() is None, study.communicate()
@@ -164,6 +168,7 @@ def test_a_killed_worker_loses_nothing_and_repeats_nothing(
             busy = {worker for worker, keys in client.processing().items() if study_keys(keys)}
             busy -= holding
             for address in sorted(busy & set(cluster.workers)):
+                kill_times.append(time.time())
                 cluster.workers[address].send_signal(signal.SIGKILL)
                 killed.append(address)
                 return True
@@ -173,12 +178,22 @@ def test_a_killed_worker_loses_nothing_and_repeats_nothing(
         _, stderr = study.communicate(timeout=300)
         assert study.returncode == 0, stderr
         assert cluster.workers[killed[0]].wait(timeout=10) == -signal.SIGKILL
-        runs = Counter(str(t["key"]) for t in client.get_task_stream())
+        stream = client.get_task_stream()
+    runs = Counter(str(t["key"]) for t in stream)
     assert_same_outputs(out, reference)
     done = {name: [k for k in runs if k.startswith(f"{name}-")] for name in TASKS}
     assert {name: len(keys) for name, keys in done.items()} == TASKS
     twice = {k: n for k, n in runs.items() if k.startswith(tuple(TASKS)) and n != 1}
-    assert not twice, f"study tasks that completed more than once: {twice}"
+    raced = {  # finished on the killed worker within a second of the kill: lost with it
+        str(t["key"])
+        for t in stream
+        if t["worker"] == killed[0]
+        and any(abs(s["stop"] - kill_times[0]) < 1.0 for s in t["startstops"])
+    }
+    assert set(twice) <= raced and set(twice.values()) <= {2}, (
+        f"study tasks that completed more than once: {twice} (lost with the killed worker "
+        f"at the kill: {sorted(raced)})"
+    )
 
 
 def test_a_dead_scheduler_is_one_line_and_a_rerun_resumes(
