@@ -11,6 +11,32 @@ import pytest
 import torch
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    """Under pytest-xdist, hand out the test modules in the order `pytest_collection_modifyitems`
+    leaves them.
+
+    ``--dist loadscope`` gives each worker a whole module at a time, by default the modules
+    with the most tests first; a module of a few long tests (the Dask drills, two tests and
+    about 90 s) then came last, and one worker ran it while the other had nothing left.
+    """
+    if hasattr(config.option, "loadscopereorder"):
+        config.option.loadscopereorder = False
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Put the modules with the most ``slow`` tests first, the order of their tests kept.
+
+    Longest first (the rule that balances a few workers best): the long modules run while the
+    other worker still has short ones to take, and the suite ends on short ones. The sort is
+    stable, so modules of equal count keep the order they were collected in.
+    """
+    slow: dict[str, int] = {}
+    for item in items:
+        module = item.nodeid.split("::")[0]
+        slow[module] = slow.get(module, 0) + int(item.get_closest_marker("slow") is not None)
+    items.sort(key=lambda item: -slow[item.nodeid.split("::")[0]])
+
+
 @pytest.fixture(autouse=True, scope="session")
 def _one_blas_thread() -> Iterator[None]:
     """The BLAS and OpenMP pools at one thread, as torch's (the suite runs one worker a core).

@@ -100,6 +100,7 @@ def test_the_dataset_table_has_a_row_per_object_slot(tmp_path):
     assert lines[-1].startswith("objects: ")
 
 
+@pytest.mark.slow
 def test_the_demo_command_prints_a_report_ending_with_its_figures(tmp_path):
     proc = subprocess.run(
         [sys.executable, "-m", "probaff.cli", "demo", "--out", str(tmp_path), "--n", "8"],

@@ -5,7 +5,10 @@ that hides the state."""
 from __future__ import annotations
 
 import base64
+import contextlib
+import io
 import json
+import runpy
 import struct
 import subprocess
 import sys
@@ -13,6 +16,7 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from types import ModuleType
 from typing import Any, TypeVar
+from unittest import mock
 
 import numpy as np
 import pytest
@@ -37,6 +41,34 @@ def run_smoke(script: str, out: Path, *flags: str) -> list[str]:
     cmd = [sys.executable, str(ROOT / f"inference/{script}.py"), "--smoke", *flags]
     proc = subprocess.run([*cmd, "--out", str(out)], capture_output=True, text=True, check=True)
     files: list[str] = json.loads(proc.stdout)["files"]
+    return files
+
+
+def rerun_smoke(script: str, out: Path, *flags: str) -> list[str]:
+    """Run ``inference/<script>.py --smoke FLAGS --out OUT`` again, in this process.
+
+    For the second run of a resumption check: the script's own code path (``runpy``, as
+    ``__main__``), without a new interpreter importing torch and the package again.
+
+    Args:
+        script: The script's name, without ``.py``.
+        out: The output folder of an earlier run.
+        *flags: More flags of the script.
+
+    Returns:
+        The files the script reports on its standard output.
+    """
+    path = str(ROOT / f"inference/{script}.py")
+    stdout = io.StringIO()
+    argv = [path, "--smoke", *flags, "--out", str(out)]
+    with (
+        mock.patch.object(sys, "argv", argv),
+        contextlib.redirect_stdout(stdout),
+        pytest.raises(SystemExit) as exited,
+    ):
+        runpy.run_path(path, run_name="__main__")
+    assert exited.value.code == 0, stdout.getvalue()
+    files: list[str] = json.loads(stdout.getvalue())["files"]
     return files
 
 

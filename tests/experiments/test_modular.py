@@ -14,7 +14,14 @@ import numpy as np
 import pytest
 from matplotlib.container import BarContainer
 from matplotlib.patches import Polygon
-from study_helpers import assert_resumes, assert_wrote, is_png, record_saved_figures, run_smoke
+from study_helpers import (
+    assert_resumes,
+    assert_wrote,
+    is_png,
+    record_saved_figures,
+    rerun_smoke,
+    run_smoke,
+)
 
 import probaff.eval.plots as plots
 import probaff.experiments.modular.charts as charts
@@ -67,7 +74,7 @@ def test_script_smoke_and_resume(tmp_path):
         assert stepped["calibration"]["hand_backward"]["rows"] == 2 * 14
         assert "stepped" in r["fit_seconds"]
     assert "## The stepped push model" in text
-    assert_resumes(lambda: run_smoke("modular", out), tasks)  # resumes: no reruns
+    assert_resumes(lambda: rerun_smoke("modular", out), tasks)  # resumes: no reruns
 
 
 def _push_record(trial, true, modular, mono):

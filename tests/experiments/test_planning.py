@@ -13,7 +13,14 @@ import numpy as np
 import pytest
 import torch
 from matplotlib.patches import Polygon
-from study_helpers import assert_resumes, assert_wrote, is_png, record_saved_figures, run_smoke
+from study_helpers import (
+    assert_resumes,
+    assert_wrote,
+    is_png,
+    record_saved_figures,
+    rerun_smoke,
+    run_smoke,
+)
 
 import probaff.experiments.planning.figures as pf
 from probaff.errors import InputError
@@ -57,7 +64,7 @@ def test_script_smoke_and_resume(tmp_path):
     starts = {(r["trial"], json.dumps(r["start"])) for r in records}
     assert len(starts) == 2
     models = sorted((out / "models").glob("*.pt"))
-    assert_resumes(lambda: run_smoke("planning", out), tasks + models)  # resumes: no reruns
+    assert_resumes(lambda: rerun_smoke("planning", out), tasks + models)  # resumes: no reruns
 
 
 @pytest.mark.slow

@@ -64,6 +64,7 @@ def _script(out: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFi
     return json.loads(capsys.readouterr().out)["files"]
 
 
+@pytest.mark.slow
 def test_script_smoke_and_resume(tmp_path, monkeypatch, capsys):
     out = tmp_path / "pcl"
     files = _script(out, monkeypatch, capsys)
@@ -245,6 +246,7 @@ def test_damaged_scan_arrays_are_named(tmp_path):
 # --- the demo
 
 
+@pytest.mark.slow
 def test_demo_draws_the_held_out_scene(tmp_path, capsys):
     # three training scenes here; probaff demo's own run (test_demo) trains on seven
     summary = demo(tmp_path / "pcl", seed=0, scenes=4, progress=False)

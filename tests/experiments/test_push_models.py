@@ -6,7 +6,7 @@ probaff.experiments.push_models.run.
 """
 
 import pytest
-from study_helpers import assert_resumes, assert_wrote, run_smoke
+from study_helpers import assert_resumes, assert_wrote, rerun_smoke, run_smoke
 
 from probaff.errors import InputError
 from probaff.experiments.push_models import PushModelStudyConfig, run
@@ -28,7 +28,7 @@ def test_script_smoke_and_resume(tmp_path):
     assert "- **M > 1 beats M = 1 on RMSE**: 2 comparisons over every M" in trial
     assert len(list((out / "tasks").glob("ch5-trials.t*.json"))) == 2
     tasks = sorted((out / "tasks").glob("*.json"))
-    assert_resumes(lambda: run_smoke("push_models", out), tasks)  # resumes: no refits
+    assert_resumes(lambda: rerun_smoke("push_models", out), tasks)  # resumes: no refits
 
 
 def test_bad_config():

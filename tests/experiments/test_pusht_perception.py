@@ -422,6 +422,7 @@ def test_more_frames_of_the_block_refine_the_outline(episode, scene):
         refine_scene(scene, frames[0], np.zeros((64, 64, 3), np.uint8))
 
 
+@pytest.mark.slow
 def test_the_observer_refines_the_scene_once_from_the_block_at_new_poses(pusht_python):
     from probaff.experiments.pusht.observe import PixelObserver
 

@@ -39,7 +39,7 @@ from probaff.experiments.pusht.models import (
 from probaff.experiments.pusht.primitives import PrimitiveSettings
 from probaff.experiments.pusht.transitions import ModelTransition
 
-N = 6
+N = 4
 PERCEIVED = ("before", "after", "origin", "yaw", "dist", "approach_moved", "shape")
 
 
@@ -58,6 +58,7 @@ def recorded(pusht_python):
     return out
 
 
+@pytest.mark.slow
 def test_pixel_recorded_pushes_never_read_the_state(recorded):
     clean, poisoned = recorded[False], recorded[True]
     for key in PERCEIVED:  # with the state made useless, the same pushes, to the bit
