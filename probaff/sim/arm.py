@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-import pytorch_kinematics as pk
 import torch
 
 from probaff._checks import check_count, check_finite, check_shape
@@ -147,6 +146,9 @@ class Arm:
                 f"cannot read the arm URDF {spec.urdf} ({exc.strerror or exc}); make arm.urdf in "
                 "the world file name an existing URDF file."
             ) from exc
+        # imported with the first arm: a second of start-up that a process without one skips
+        import pytorch_kinematics as pk
+
         try:
             chain = pk.build_serial_chain_from_urdf(data, spec.tcp_link)
         except Exception as exc:  # the URDF parser raises many unrelated types
@@ -216,6 +218,8 @@ class Arm:
         if seeds is None:
             seeds = self._seeds(T_world_tcp)
         R = seeds.shape[1]
+        import pytorch_kinematics as pk  # already imported by __init__
+
         solver = pk.PseudoInverseIK(
             self.chain,
             retry_configs=seeds[0],
