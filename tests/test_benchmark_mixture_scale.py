@@ -64,7 +64,8 @@ def test_randhie_split_is_fixed_and_disjoint(scale):
     assert full.x.shape[0] + full.x_test.shape[0] == scale.RANDHIE_ROWS
     frame = sm.datasets.randhie.load_pandas().data
     x_all = torch.cat([full.x_test, full.x])
-    assert torch.allclose(x_all.sum(0), torch.as_tensor(frame.drop(columns="mdvis").sum().values))
+    column_sums = np.array(frame.drop(columns="mdvis").sum())  # a copy: pandas' is read-only
+    assert torch.allclose(x_all.sum(0), torch.as_tensor(column_sums))
     y_all = torch.cat([full.y_test, full.y])
     assert torch.allclose(y_all.sum(), torch.as_tensor(np.log1p(frame["mdvis"]).sum()))
     assert not x_all.equal(torch.as_tensor(frame.drop(columns="mdvis").values))  # shuffled

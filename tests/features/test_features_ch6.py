@@ -502,8 +502,12 @@ def _box_scene(rng, n):
 
 
 def _cells(rel, counts, size):
-    """(n, cells) number of points per cell of grids centred at 0, from (n, K, 3) coordinates."""
-    idx = np.floor((rel + 0.5 * size * np.asarray(counts) + 1e-9) / size).astype(int)
+    """(n, cells) number of points per cell of grids centred at 0, from (n, K, 3) coordinates.
+
+    A point with an infinite coordinate lies in no cell.
+    """
+    scaled = (rel + 0.5 * size * np.asarray(counts) + 1e-9) / size
+    idx = np.floor(np.where(np.isfinite(scaled), scaled, -1.0)).astype(int)
     inside = np.all((idx >= 0) & (idx < np.asarray(counts)), axis=-1)
     flat = (idx[..., 0] * counts[1] + idx[..., 1]) * counts[2] + idx[..., 2]
     out = np.zeros((rel.shape[0], int(np.prod(counts))), dtype=int)

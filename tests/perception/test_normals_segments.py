@@ -359,7 +359,7 @@ def test_region_growing_and_features_reject_bad_input():
         (lambda: region_growing(pts, n, c, smoothness_deg=180.0), "smoothness_deg"),
         (lambda: region_growing(pts, n, c, curvature_threshold=-1), "curvature_threshold"),
         (lambda: region_growing(pts, n, c, neighbours=np.zeros((len(pts), 3), int)), "column"),
-        (lambda: region_growing(pts, n * np.inf, c), "infinite"),
+        (lambda: region_growing(pts, n + np.inf, c), "infinite"),
         (lambda: segment_features(np.zeros((0, 3)), np.zeros(0, int)), "empty"),
         (lambda: segment_features(pts, np.zeros(len(pts))), "integer"),
         (lambda: segment_features(pts, np.zeros(3, int)), "labels"),
