@@ -11,6 +11,7 @@ import doctest
 import importlib
 import io
 import re
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -44,7 +45,8 @@ def _examples(name: str) -> list[doctest.DocTest]:
 
 
 @pytest.mark.parametrize("name", ENTRY_POINTS)
-def test_docstring_example_runs(name):
+def test_docstring_example_runs(name, tmp_path, monkeypatch):
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # the examples' mkdtemp() folders
     tests = _examples(name)
     assert tests, f"{name}'s docstring has no >>> example"
     runner = doctest.DocTestRunner(optionflags=FLAGS)
