@@ -436,15 +436,19 @@ class NameRole(PyXRefRole):
         return made, messages
 
 
+def _outside_probaff(obj: Any) -> bool:
+    """Whether the reference shows `obj` as text: a type variable or no probaff module's."""
+    module = getattr(obj, "__module__", None) or ""
+    return isinstance(obj, TypeVar) or module.split(".")[0] != "probaff"
+
+
 def _foreign(target: str) -> bool:
     """Whether `target`, read in no module's scope, names an object outside probaff."""
     head = target.split(".")[0]
     if head == "probaff" or not (hasattr(builtins, head) or head in sys.modules):
         return False
     obj = _lookup(target, {})
-    return obj is not _MISSING and (getattr(obj, "__module__", None) or "").split(".")[0] != (
-        "probaff"
-    )
+    return obj is not _MISSING and _outside_probaff(obj)
 
 
 class ForeignNames(SphinxPostTransform):
@@ -498,10 +502,10 @@ def _resolve(
             break
     else:
         return None
-    module = getattr(obj, "__module__", None) or ""
-    qualname = getattr(obj, "__qualname__", None)
-    if isinstance(obj, TypeVar) or module.split(".")[0] != "probaff":
+    if _outside_probaff(obj):
         return contnode
+    module = obj.__module__
+    qualname = getattr(obj, "__qualname__", None)
     if isinstance(obj, ModuleType):
         canonical = obj.__name__
     elif qualname:
