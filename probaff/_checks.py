@@ -15,6 +15,7 @@ from probaff.errors import InputError
 
 __all__ = [
     "as_float_array",
+    "as_real_tensor",
     "check_array_fields",
     "check_bool",
     "check_box_sizes",
@@ -28,6 +29,7 @@ __all__ = [
     "check_rows",
     "check_shape",
     "default_or_instance",
+    "real_float64",
 ]
 
 T = TypeVar("T")
@@ -39,11 +41,59 @@ def _as_array(x: Any) -> np.ndarray:
     return np.asarray(x)
 
 
+def _is_complex(x: Any) -> bool:
+    if isinstance(x, torch.Tensor):
+        return x.is_complex()
+    try:
+        return np.asarray(x).dtype.kind == "c"
+    except (TypeError, ValueError):
+        return False
+
+
+def _not_numeric(name: str, x: Any) -> InputError:
+    """The error of an array argument that holds no real numbers (strings, None, ...)."""
+    if _is_complex(x):  # scikit-learn's estimator checks ask for these words
+        return InputError(
+            f"{name} holds complex numbers (Complex data not supported): got "
+            f"{_describe(x)}; give real numbers, e.g. its real part or magnitude."
+        )
+    return InputError(
+        f"{name} must be a numeric array (numbers of one shape), got "
+        f"{_describe(x)}; convert it to floats first."
+    )
+
+
+def real_float64(x: Any) -> np.ndarray | None:
+    """`x` as a float64 array, or None where it is not an array of real numbers.
+
+    The core of `as_float_array`, for callers that word their own error: None for strings
+    that are not numbers, ``None`` (numpy would cast it to NaN), objects, complex numbers
+    (numpy would keep their real parts with a warning) and ragged nested lists.
+
+    Args:
+        x: Array-like or tensor of any shape.
+
+    Returns:
+        `x` as a float64 array of the same shape (`x` itself when it already is one), or
+        None.
+    """
+    if isinstance(x, torch.Tensor):
+        x = x.detach().cpu().numpy()
+    try:
+        arr = x if isinstance(x, np.ndarray) else np.asarray(x)
+        if arr.dtype.kind == "c" or (arr.dtype.kind == "O" and any(v is None for v in arr.flat)):
+            return None
+        return np.asarray(arr, dtype=np.float64)
+    except (TypeError, ValueError):
+        return None
+
+
 def as_float_array(name: str, x: Any, *, copy: bool = False) -> np.ndarray:
     """Return `x` as a float64 numpy array, or raise `InputError` when it is not numeric.
 
-    The one conversion of user arrays in probaff: strings, ``None``, objects and ragged
-    nested lists are refused with the argument's name instead of numpy's own error.
+    The one conversion of user arrays in probaff (`real_float64` with the argument's name in
+    the error): non-numeric strings, ``None``, objects, complex numbers and ragged nested
+    lists are refused instead of raising numpy's own error or casting silently.
 
     Args:
         name: What `x` is, as the user knows it (e.g. ``"points"``).
@@ -53,19 +103,51 @@ def as_float_array(name: str, x: Any, *, copy: bool = False) -> np.ndarray:
     Returns:
         `x` as a float64 array of the same shape.
     """
+    arr = real_float64(x)
+    if arr is None:
+        raise _not_numeric(name, x)
+    return arr.copy() if copy else arr
+
+
+def as_real_tensor(name: str, x: Any) -> torch.Tensor:
+    """Return `x` as a detached real tensor of its own kind, or raise `InputError`.
+
+    The tensor counterpart of `as_float_array`, for arguments whose dtype carries meaning
+    (integer indices, float32 potentials): a tensor keeps its dtype and device; any other
+    array-like goes through numpy, so bools stay bool, integers become int64 and floats
+    float64 (a Python list of floats too, where ``torch.as_tensor`` would give float32).
+    Strings, ``None``, objects, complex numbers and ragged nested lists are refused with the
+    argument's name instead of torch's own error (or its silent cast of complex numbers).
+
+    Args:
+        name: What `x` is, as the user knows it (e.g. ``"unary_log"``).
+        x: Array-like or tensor of any shape.
+
+    Returns:
+        A detached tensor of `x`'s shape (sharing memory with a tensor or numpy array `x`
+        where the dtype allows).
+    """
     if isinstance(x, torch.Tensor):
-        x = x.detach().cpu().numpy()
+        if x.is_complex():  # torch's cast would drop the imaginary parts with a warning
+            raise _not_numeric(name, x)
+        return x.detach()
     try:
-        return np.array(x, dtype=np.float64) if copy else np.asarray(x, dtype=np.float64)
+        arr = x if isinstance(x, np.ndarray) else np.asarray(x)
     except (TypeError, ValueError):
-        raise InputError(
-            f"{name} must be a numeric array (numbers of one shape), got "
-            f"{_describe(x)}; convert it to floats first."
-        ) from None
+        raise _not_numeric(name, x) from None
+    if arr.dtype.kind not in "biuf":
+        raise _not_numeric(name, x)
+    if arr.dtype.kind in "iu" and arr.dtype != np.uint8:
+        arr = arr.astype(np.int64, copy=False)
+    if any(stride < 0 for stride in arr.strides):  # torch cannot view reversed axes
+        arr = arr.copy()
+    return torch.as_tensor(arr)
 
 
 def _describe(x: Any) -> str:
     """A short description of a value that is not a numeric array, for error messages."""
+    if isinstance(x, torch.Tensor):
+        return f"a tensor of dtype {x.dtype}"
     if isinstance(x, np.ndarray):
         return f"an array of dtype {x.dtype}"
     if isinstance(x, (list, tuple)) and x:

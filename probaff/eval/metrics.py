@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import torch
 from torch.distributions import Distribution, Independent, MixtureSameFamily, Normal
 
-from probaff._checks import check_count, check_finite, check_shape
+from probaff._checks import as_float_array, as_real_tensor, check_count, check_finite, check_shape
 from probaff.errors import InputError
 
 __all__ = [
@@ -56,7 +57,7 @@ def marginal_components(dist: Distribution) -> tuple[torch.Tensor, torch.Tensor,
 
 
 def _check_targets(dist: Distribution, y: torch.Tensor) -> torch.Tensor:
-    y = torch.as_tensor(y, dtype=torch.float64)
+    y = as_real_tensor("targets", y).to(torch.float64)
     _, loc, _ = marginal_components(dist)
     check_shape("targets", y, (loc.shape[0], loc.shape[2]))
     check_finite("targets", y)
@@ -79,9 +80,9 @@ def rmse(pred: Distribution | torch.Tensor, y: torch.Tensor) -> torch.Tensor:
         w, loc, _ = marginal_components(pred)
         mean = (w[..., None] * loc).sum(1)
     else:
-        mean = torch.as_tensor(pred, dtype=torch.float64)
+        mean = as_real_tensor("point prediction", pred).to(torch.float64)
         check_finite("point prediction", mean)
-        y = torch.as_tensor(y, dtype=torch.float64)
+        y = as_real_tensor("targets", y).to(torch.float64)
         check_shape("targets", y, tuple(mean.shape))
         check_finite("targets", y)
     return ((mean.double() - y) ** 2).mean(0).sqrt()
@@ -128,8 +129,7 @@ def interval_coverage(
             or mismatched targets.
     """
     iterations = check_count("iterations", iterations)
-    if not 0 < level < 1:
-        raise InputError(f"level must lie in (0, 1), got {level}.")
+    level = _check_level("level", level)
     y = _check_targets(dist, y)
     w, loc, scale = (t.double() for t in marginal_components(dist))
     lo_q, hi_q = (1 - level) / 2, (1 + level) / 2
@@ -172,31 +172,43 @@ def wilson_interval(successes: int, trials: int, confidence: float = 0.95) -> tu
     k = check_count("successes", successes, minimum=0)
     if k > n:
         raise InputError(f"successes ({k}) cannot exceed trials ({n}).")
-    if not 0 < confidence < 1:
-        raise InputError(f"confidence must lie in (0, 1), got {confidence!r}.")
-    z = float(norm.ppf(0.5 + confidence / 2))
+    z = float(norm.ppf(0.5 + _check_level("confidence", confidence) / 2))
     p = k / n
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
     return max(0.0, centre - half), min(1.0, centre + half)
 
 
+def _check_level(name: str, value: Any) -> float:
+    """`value` as a float in (0, 1) (a two-sided level), or `InputError` naming `name`."""
+    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, (bool, np.bool_)
+    )
+    if not (number and 0 < float(value) < 1):
+        raise InputError(f"{name} must lie in (0, 1), got {value!r}.")
+    return float(value)
+
+
 def _t_quantile(confidence: float, dof: int) -> float:
     """The two-sided Student-t quantile of `confidence` with `dof` degrees of freedom."""
     from scipy.stats import t
 
-    if not 0 < confidence < 1:
-        raise InputError(f"confidence must lie in (0, 1), got {confidence!r}.")
-    return float(t.ppf(0.5 + confidence / 2, dof))
+    return float(t.ppf(0.5 + _check_level("confidence", confidence) / 2, dof))
 
 
-def _sample_sd(v: Sequence[float]) -> float:
-    mean = sum(v) / len(v)
-    return math.sqrt(sum((x - mean) ** 2 for x in v) / (len(v) - 1))
+def _values(values: Sequence[float] | np.ndarray) -> np.ndarray:
+    """`values` as a float64 vector (NaN kept), or `InputError` naming ``values``."""
+    v = as_float_array("values", values)
+    check_shape("values", v, (None,))
+    return v
+
+
+def _sample_sd(v: np.ndarray) -> float:
+    return float(np.sqrt(((v - v.mean()) ** 2).sum() / (len(v) - 1)))
 
 
 def corrected_halfwidth(
-    values: Sequence[float], test_to_train: float, confidence: float = 0.95
+    values: Sequence[float] | np.ndarray, test_to_train: float, confidence: float = 0.95
 ) -> float:
     """Half-width of Nadeau and Bengio's corrected resampled t interval of the mean of `values`.
 
@@ -217,21 +229,25 @@ def corrected_halfwidth(
         than two values); NaN values propagate.
 
     Raises:
-        InputError: For a level outside (0, 1) or a negative or non-finite `test_to_train`.
+        InputError: For `values` that are not a 1-D array of numbers, a level outside (0, 1)
+            or a negative or non-finite `test_to_train`.
     """
-    if not math.isfinite(test_to_train) or test_to_train < 0:
+    ratio = isinstance(test_to_train, (int, float, np.integer, np.floating)) and not isinstance(
+        test_to_train, (bool, np.bool_)
+    )
+    if not ratio or not math.isfinite(test_to_train) or test_to_train < 0:
         raise InputError(
             f"test_to_train must be a finite ratio >= 0 (1 / (K - 1) for K folds), "
             f"got {test_to_train!r}."
         )
-    q = _t_quantile(confidence, max(len(values) - 1, 1))
-    v = [float(x) for x in values]
+    v = _values(values)
+    q = _t_quantile(confidence, max(len(v) - 1, 1))
     if len(v) < 2:
         return 0.0
     return q * _sample_sd(v) * math.sqrt(1 / len(v) + test_to_train)
 
 
-def mean_halfwidth(values: Sequence[float], confidence: float = 0.95) -> float:
+def mean_halfwidth(values: Sequence[float] | np.ndarray, confidence: float = 0.95) -> float:
     """Half-width of the Student-t interval of the mean of `values` (0 for fewer than two).
 
     Args:
@@ -242,7 +258,8 @@ def mean_halfwidth(values: Sequence[float], confidence: float = 0.95) -> float:
         ``t_{(1 + confidence) / 2, n - 1} * sd / sqrt(n)``; NaN values propagate.
 
     Raises:
-        InputError: For a level outside (0, 1).
+        InputError: For `values` that are not a 1-D array of numbers, or a level outside
+            (0, 1).
     """
     return corrected_halfwidth(values, 0.0, confidence)
 
@@ -251,13 +268,17 @@ def mean_and_halfwidth(values: Sequence[float], confidence: float = 0.95) -> tup
     """The mean of `values` and its `mean_halfwidth`, as a table reports a score over trials.
 
     Args:
-        values: Independent observations, e.g. one score per trial (at least one).
+        values: Independent observations, e.g. one score per trial.
         confidence: Two-sided confidence level in (0, 1).
 
     Returns:
-        ``(mean, half-width)``; the half-width is 0 for a single value.
+        ``(mean, half-width)``; the half-width is 0 for a single value, and no values give
+        ``(nan, 0.0)``: a table's cell without trials.
 
     Raises:
-        InputError: For a level outside (0, 1).
+        InputError: For `values` that are not a 1-D array of numbers, or a level outside
+            (0, 1).
     """
-    return float(np.mean(values)), mean_halfwidth(values, confidence)
+    v = _values(values)
+    mean = float(v.mean()) if v.size else math.nan
+    return mean, mean_halfwidth(v, confidence)

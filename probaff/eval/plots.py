@@ -18,7 +18,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from probaff._checks import check_finite, check_positive, check_shape
+from probaff._checks import check_finite, check_positive, check_shape, real_float64
 from probaff._io import atomic_save_figure
 from probaff.errors import InputError
 
@@ -83,10 +83,9 @@ def finite_array(name: str, value: Any, shape: Sequence[int | None]) -> np.ndarr
     """`value` as a finite float array of `shape` (``None``: any size, but not zero)."""
     if value is None:
         raise InputError(f"{name} is None; give an array of shape {tuple(shape)}.")
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be an array of numbers, got {value!r:.80}.") from None
+    arr = real_float64(value)
+    if arr is None:
+        raise InputError(f"{name} must be an array of numbers, got {value!r:.80}.")
     check_shape(name, arr, shape)
     if arr.size == 0:
         raise InputError(f"{name} is empty (shape {arr.shape}); give at least one entry.")

@@ -15,7 +15,7 @@ from typing import Any
 
 import torch
 
-from probaff._checks import check_finite, check_shape
+from probaff._checks import as_real_tensor, check_finite, check_shape
 from probaff.errors import InputError
 from probaff.maps._kernels import (
     check_log_potentials,
@@ -86,7 +86,7 @@ def ising_form(
         InputError: On shape mismatches, NaN, ``+inf``, a variable with both states
             impossible, bad edge indices, or a coupling beyond ``MAX_COUPLING``.
     """
-    unary = torch.as_tensor(unary_log).detach().to(torch.float64)
+    unary = as_real_tensor("unary_log", unary_log).to(torch.float64)
     check_shape("unary_log", unary, (None, 2))
     impossible = check_log_potentials(unary)
     if bool(impossible.any()):
@@ -95,7 +95,7 @@ def ising_form(
             f"{torch.nonzero(impossible).reshape(-1)[:5].tolist()}; the model is infeasible."
         )
     num_variables = unary.shape[0]
-    edge_t = torch.as_tensor(edges).detach()
+    edge_t = as_real_tensor("edges", edges)
     if edge_t.numel() == 0:
         edge_t = edge_t.reshape(0, 2)
     check_shape("edges", edge_t, (None, 2))
@@ -109,7 +109,7 @@ def ising_form(
         )
     if bool((edge_t[:, 0] == edge_t[:, 1]).any()):
         raise InputError("edges contain self-loops (a, a); pairwise factors need two variables.")
-    pair = torch.as_tensor(pairwise_log).detach().to(torch.float64)
+    pair = as_real_tensor("pairwise_log", pairwise_log).to(torch.float64)
     if pair.numel() == 0:
         pair = pair.reshape(0, 2, 2)
     check_shape("pairwise_log", pair, (edge_t.shape[0], 2, 2))

@@ -6,7 +6,7 @@ from typing import Any
 
 import torch
 
-from probaff._checks import check_probability
+from probaff._checks import as_real_tensor, check_probability
 from probaff.errors import InputError
 
 __all__ = ["map_entropy", "marginal_entropy"]
@@ -24,7 +24,7 @@ def marginal_entropy(marginals: Any) -> torch.Tensor:
     Raises:
         InputError: If the last axis is not of size 2 or entries are not probabilities.
     """
-    probs = torch.as_tensor(marginals)
+    probs = as_real_tensor("marginals", marginals)
     if probs.dim() < 1 or probs.shape[-1] != 2:
         raise InputError(f"marginals must have shape (..., V, 2), got {tuple(probs.shape)}.")
     if not probs.is_floating_point():

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from probaff._checks import check_count, check_finite
+from probaff._checks import as_real_tensor, check_count, check_finite
 from probaff.errors import InputError
 
 __all__ = ["FREE", "as_evidence", "make_evidence", "single_variable_evidence"]
@@ -39,13 +39,7 @@ def as_evidence(evidence: Any, event_shape: tuple[int, ...]) -> tuple[torch.Tens
     """
     if evidence is None:
         return torch.full((1, *event_shape), FREE, dtype=torch.int8), False
-    ev = (
-        torch.as_tensor(
-            np.asarray(evidence) if not isinstance(evidence, torch.Tensor) else evidence
-        )
-        .detach()
-        .cpu()
-    )
+    ev = as_real_tensor("evidence", evidence).cpu()
     n = len(event_shape)
     if ev.dim() not in (n, n + 1) or tuple(ev.shape[ev.dim() - n :]) != tuple(event_shape):
         raise InputError(
@@ -68,6 +62,11 @@ def as_evidence(evidence: Any, event_shape: tuple[int, ...]) -> tuple[torch.Tens
     return (ev if batched else ev.unsqueeze(0)).contiguous(), batched
 
 
+def _is_index(value: Any) -> bool:
+    """Whether `value` is an integer (a Python or numpy int, not a bool)."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
 def make_evidence(num_variables: int, assignments: Sequence[Mapping[int, int]]) -> torch.Tensor:
     """Build an evidence batch from ``{variable: value}`` mappings.
 
@@ -83,9 +82,23 @@ def make_evidence(num_variables: int, assignments: Sequence[Mapping[int, int]]) 
             exist or a value is not 0/1.
     """
     num_variables = check_count("num_variables", num_variables, minimum=0)
+    if isinstance(assignments, (str, bytes, Mapping)) or not isinstance(assignments, Sequence):
+        raise InputError(
+            f"assignments must be a list of {{variable: value}} mappings, got "
+            f"{type(assignments).__name__}; e.g. [{{0: 1}}, {{3: 0}}]."
+        )
     out = torch.full((len(assignments), num_variables), FREE, dtype=torch.int8)
     for row, assignment in enumerate(assignments):
+        if not isinstance(assignment, Mapping):
+            raise InputError(
+                f"assignments[{row}] must be a {{variable: value}} mapping, got "
+                f"{type(assignment).__name__}."
+            )
         for var, value in assignment.items():
+            if not _is_index(var):
+                raise InputError(
+                    f"evidence row {row} names variable {var!r}; variables are integer indices."
+                )
             v = int(var)
             if not 0 <= v < num_variables:
                 raise InputError(
@@ -116,11 +129,16 @@ def single_variable_evidence(
             not exist.
     """
     num_variables = check_count("num_variables", num_variables, minimum=0)
-    cand = (
-        np.arange(num_variables)
-        if variables is None
-        else np.asarray(variables, dtype=np.int64).reshape(-1)
-    )
+    if variables is None:
+        cand = np.arange(num_variables)
+    else:
+        given = as_real_tensor("variables", variables).cpu().numpy().reshape(-1)
+        if given.dtype.kind not in "iu":
+            raise InputError(
+                f"variables must be integer variable indices, got dtype {given.dtype}; e.g. "
+                "variables=[0, 3, 7]."
+            )
+        cand = given.astype(np.int64)
     if cand.size and (cand.min() < 0 or cand.max() >= num_variables):
         bad = cand[(cand < 0) | (cand >= num_variables)][:5].tolist()
         raise InputError(

@@ -36,7 +36,13 @@ import gtsam
 import numpy as np
 import torch
 
-from probaff._checks import check_finite, check_probability, check_shape
+from probaff._checks import (
+    as_float_array,
+    as_real_tensor,
+    check_finite,
+    check_probability,
+    check_shape,
+)
 from probaff.errors import InputError
 from probaff.grid import DIRECTION_NAMES
 from probaff.maps.components import component_labels, group_components
@@ -65,12 +71,10 @@ _UP, _DOWN, _LEFT, _RIGHT = range(4)
 
 
 def _check_occupancy(occupancy: Any) -> np.ndarray:
-    occ = np.asarray(occupancy)
+    occ = as_real_tensor("occupancy", occupancy).cpu().numpy()
     if occ.ndim != 2:
         raise InputError(f"occupancy must be a 2-D (H, W) grid, got shape {occ.shape}.")
     if occ.dtype != np.bool_:
-        if not np.issubdtype(occ.dtype, np.number):
-            raise InputError(f"occupancy must be boolean, got dtype {occ.dtype}.")
         check_finite("occupancy", occ)
         if not np.isin(occ, (0, 1)).all():
             raise InputError("occupancy must be boolean (or hold only 0 and 1).")
@@ -126,11 +130,7 @@ class AffordanceGraph:
                 occupied cells outside [0, 1], or couplings out of range.
         """
         occ = _check_occupancy(occupancy)
-        probs = (
-            np.asarray(unary, dtype=np.float64)
-            if not isinstance(unary, torch.Tensor)
-            else (unary.detach().cpu().double().numpy())
-        )
+        probs = as_float_array("unary", unary)
         check_shape("unary", probs, (occ.shape[0], occ.shape[1], len(DIRECTIONS)))
         check_finite("unary", probs)
         check_probability("unary (occupied cells)", probs[occ])
@@ -351,7 +351,7 @@ class AffordanceGraph:
         Returns:
             ``(..., H, W, 4)`` tensor holding NaN at free cells.
         """
-        values = torch.as_tensor(values)
+        values = as_real_tensor("values", values)
         check_shape("values", values, (*(None,) * (values.dim() - 1), self.num_variables))
         if not values.is_floating_point():
             values = values.double()

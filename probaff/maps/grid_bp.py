@@ -18,7 +18,7 @@ from typing import Any
 
 import torch
 
-from probaff._checks import check_finite, check_shape
+from probaff._checks import as_real_tensor, check_finite, check_shape
 from probaff.errors import InputError
 from probaff.maps._kernels import (
     check_log_potentials,
@@ -39,7 +39,7 @@ GRID_BYTES_PER_CELL = {torch.float32: 8 * 4, torch.float64: 8 * 8}
 
 def _tanh_coupling(name: str, value: Any, shape: tuple[int, int]) -> torch.Tensor:
     """``tanh(J)`` as a 0-dim tensor (one coupling for all edges) or an array of `shape`."""
-    t = torch.as_tensor(value, dtype=torch.float64).detach()
+    t = as_real_tensor(name, value).to(torch.float64)
     if t.dim() != 0:
         check_shape(name, t, shape)
     check_finite(name, t)
@@ -77,13 +77,18 @@ def _grid_fields(
         vertical ``(H - 1, W)`` and horizontal ``(H, W - 1)`` edges (`dtype`, on the device
         of `unary_log`), and whether the evidence was batched.
     """
-    unary = torch.as_tensor(unary_log).detach()
+    unary = as_real_tensor("unary_log", unary_log)
     device = unary.device
     check_shape("unary_log", unary, (None, None, 2))
     if bool(check_log_potentials(unary).any()):
         raise InputError("unary_log gives zero potential to both states of some cell.")
     height, width = int(unary.shape[0]), int(unary.shape[1])
     if isinstance(coupling, tuple):
+        if len(coupling) != 2:
+            raise InputError(
+                f"coupling must be one J or a (vertical, horizontal) pair, got a tuple of "
+                f"{len(coupling)}; e.g. coupling=0.4 or coupling=(J_v, J_h)."
+            )
         vertical, horizontal = coupling
     else:
         vertical = horizontal = coupling

@@ -80,7 +80,8 @@ def _validated(estimator: BaseEstimator, *arrays: Any, **kwargs: Any) -> Any:
         raise
     except ValueError as err:
         for name, arr in zip(("X", "y"), arrays, strict=False):
-            if not hasattr(arr, "tocsr"):  # sparse matrices keep scikit-learn's message
+            # sparse matrices and a missing y keep scikit-learn's message
+            if arr is not None and not hasattr(arr, "tocsr"):
                 as_float_array(name, arr)
         raise InputError(str(err)) from err
 

@@ -7,7 +7,7 @@ from typing import Any, Self
 import torch
 from torch import Tensor
 
-from probaff._checks import as_float_array, check_finite, check_shape
+from probaff._checks import as_float_array, as_real_tensor, check_finite, check_shape
 from probaff.errors import InputError
 
 __all__ = [
@@ -104,7 +104,8 @@ class DeviceCheckedModule(torch.nn.Module):
 
 def _as_float64(name: str, x: Any, device: torch.device | None) -> Tensor:
     if isinstance(x, Tensor):
-        return x.detach().to(dtype=torch.float64, device=x.device if device is None else device)
+        t = as_real_tensor(name, x)
+        return t.to(dtype=torch.float64, device=t.device if device is None else device)
     return torch.as_tensor(as_float_array(name, x), device=device)
 
 

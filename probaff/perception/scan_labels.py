@@ -78,7 +78,7 @@ from typing import Any
 
 import numpy as np
 
-from probaff._checks import check_count, check_positive
+from probaff._checks import check_count, check_positive, real_float64
 from probaff.errors import InputError
 from probaff.perception.labels import LABELS, label_index
 from probaff.perception.normals import Normals, estimate_normals
@@ -115,10 +115,10 @@ def _angles(name: str, value: Sequence[float]) -> tuple[float, ...]:
     bad = InputError(f"{name} must be a non-empty list of finite angles (degrees), got {value!r}.")
     if isinstance(value, (str, bytes)):
         raise bad
-    try:
-        arr = np.atleast_1d(np.asarray(value, dtype=np.float64))
-    except (TypeError, ValueError):
-        raise bad from None
+    arr = real_float64(value)
+    if arr is None:
+        raise bad
+    arr = np.atleast_1d(arr)
     if arr.ndim != 1 or arr.size == 0 or not np.all(np.isfinite(arr)):
         raise bad
     return tuple(float(a) for a in arr)

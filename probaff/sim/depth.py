@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from probaff._checks import check_finite, check_shape
+from probaff._checks import check_finite, check_shape, real_float64
 from probaff.errors import InputError
 from probaff.sim.camera import DepthCamera, DepthImage, head_views, scan_views
 from probaff.sim.inputs import check_rng
@@ -204,13 +204,12 @@ class DepthSensor:
             InputError: If it is not a finite (2,) point strictly inside the walls and outside
                 every box.
         """
-        try:
-            position = np.asarray(position, dtype=float)
-        except (TypeError, ValueError):
-            raise InputError(f"robot position must be a (2,) point, got {position!r}.") from None
-        check_shape("robot position", position, (2,))
-        check_finite("robot position", position)
-        p = np.asarray(position, dtype=float).copy()
+        p = real_float64(position)
+        if p is None:
+            raise InputError(f"robot position must be a (2,) point, got {position!r}.")
+        check_shape("robot position", p, (2,))
+        check_finite("robot position", p)
+        p = p.copy()
         rows, cols = self.map.shape
         s = self.map.cell_size
         if not (0.0 < p[0] < cols * s and 0.0 < p[1] < rows * s):

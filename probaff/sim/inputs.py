@@ -13,7 +13,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from probaff._checks import check_finite, check_shape
+from probaff._checks import check_finite, check_shape, real_float64
 from probaff.errors import InputError
 from probaff.sim.specs import ObjectSpec
 
@@ -36,10 +36,10 @@ def floats(name: str, value: object) -> np.ndarray:
     Raises:
         InputError: Naming `name`, if it holds no numbers.
     """
-    try:
-        return np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must hold numbers, got {value!r}.") from None
+    arr = real_float64(value)
+    if arr is None:
+        raise InputError(f"{name} must hold numbers, got {value!r}.")
+    return arr
 
 
 def float_rows(name: str, arr: np.ndarray, columns: int) -> np.ndarray:
@@ -136,10 +136,9 @@ def numeric_fields(owner: Any, names: Sequence[str]) -> None:
     """
     kind = type(owner).__name__
     for name in names:
-        try:
-            value = np.asarray(getattr(owner, name), dtype=float)
-        except (TypeError, ValueError):
+        value = real_float64(getattr(owner, name))
+        if value is None:
             raise InputError(
                 f"{kind}.{name} must be a numeric array, got {getattr(owner, name)!r}."
-            ) from None
+            )
         object.__setattr__(owner, name, value)

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from probaff._checks import check_shape
+from probaff._checks import check_shape, real_float64
 from probaff.errors import InputError
 from probaff.sim.inputs import float_rows
 
@@ -24,12 +24,10 @@ __all__ = ["PrimitiveScene"]
 
 def _numbers(name: str, value: object, columns: int) -> np.ndarray:
     """`value` as a float64 array, or an `InputError` asking for an (N, `columns`) array."""
-    try:
-        return np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(
-            f"{name} must be an (N, {columns}) array of numbers, got {value!r}."
-        ) from None
+    arr = real_float64(value)
+    if arr is None:
+        raise InputError(f"{name} must be an (N, {columns}) array of numbers, got {value!r}.")
+    return arr
 
 
 def _array(name: str, value: object, columns: int) -> np.ndarray:

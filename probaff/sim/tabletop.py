@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import pymunk
 
-from probaff._checks import check_count, check_finite, check_positive, check_shape
+from probaff._checks import check_count, check_finite, check_positive, check_shape, real_float64
 from probaff.errors import InputError
 from probaff.sim.friction import Part, add_sliding_body
 from probaff.sim.geometry import (
@@ -315,12 +315,9 @@ def _check_push(world: object, scene: object, hand_path: object) -> np.ndarray:
     scene = check_type("scene", scene, SceneInstance, "see sample_scene or SceneInstance.nominal")
     scene.validate()
     scene.check_on_table(world)
-    try:
-        path = np.asarray(hand_path, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(
-            f"hand_path must be a (T_c, 3) numeric array, got {hand_path!r}."
-        ) from None
+    path = real_float64(hand_path)
+    if path is None:
+        raise InputError(f"hand_path must be a (T_c, 3) numeric array, got {hand_path!r}.")
     check_shape("hand_path", path, (None, 3))
     if len(path) == 0:
         raise InputError("hand_path is empty; give at least one (x, y, yaw) control tick.")

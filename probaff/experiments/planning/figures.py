@@ -28,6 +28,7 @@ from probaff.errors import InputError
 from probaff.eval.plots import check_records
 from probaff.planning import EdgeTask
 from probaff.planning.geometry import box_corners
+from probaff.sim.inputs import floats
 
 __all__ = [
     "edge_figures",
@@ -55,15 +56,8 @@ _SUCCESS, _FAILURE = "tab:green", "tab:red"
 _EXECUTED, _PREDICTED, _HAND = "tab:blue", "tab:orange", "crimson"
 
 
-def _numbers(name: str, value: Any) -> np.ndarray:
-    try:
-        return np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must hold numbers, got {value!r}.") from None
-
-
 def _pose(name: str, value: Any, rows: int | None = None) -> np.ndarray:
-    arr = _numbers(name, value)
+    arr = floats(name, value)
     check_shape(name, arr, (3,) if rows is None else (rows, 3))
     check_finite(name, arr)
     return arr
@@ -82,12 +76,12 @@ def _episode_steps(
     out = []
     for j, step in enumerate(steps):
         where = f"episodes[{i}]['steps'][{j}]"
-        origin = _numbers(f"{where}['origin']", step["origin"])
+        origin = floats(f"{where}['origin']", step["origin"])
         check_shape(f"{where}['origin']", origin, (2,))
         check_finite(f"{where}['origin']", origin)
-        path = _numbers(f"{where}['book_path']", step["book_path"]).reshape(-1, 3)
+        path = floats(f"{where}['book_path']", step["book_path"]).reshape(-1, 3)
         check_finite(f"{where}['book_path']", path)
-        yaw = _numbers(f"{where}['yaw']", step["yaw"])
+        yaw = floats(f"{where}['yaw']", step["yaw"])
         check_shape(f"{where}['yaw']", yaw, ())
         check_finite(f"{where}['yaw']", yaw)
         out.append(

@@ -47,6 +47,7 @@ from typing import Any
 
 import numpy as np
 
+from probaff._checks import real_float64
 from probaff.errors import InputError
 from probaff.experiments.pusht.fitting import (
     fit_least_squares,
@@ -167,11 +168,8 @@ class Scene:
         cov = self.shape_cov
         if cov is None:
             return
-        try:
-            arr = np.asarray(cov, dtype=float)
-        except (TypeError, ValueError):
-            arr = np.empty(0)
-        if arr.shape != (4, 4) or not np.all(np.isfinite(arr)):
+        arr = real_float64(cov)
+        if arr is None or arr.shape != (4, 4) or not np.all(np.isfinite(arr)):
             raise InputError(
                 "Scene.shape_cov must be a (4, 4) array of finite numbers (the covariance of "
                 f"the outline's four lengths) or None, got {cov!r}."

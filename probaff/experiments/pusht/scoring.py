@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from probaff._checks import real_float64
 from probaff.errors import InputError
 from probaff.eval.metrics import wilson_interval
 
@@ -82,10 +83,9 @@ def env_reward(coverage: Any) -> np.ndarray:
     Raises:
         InputError: For coverages that are not finite numbers in [0, 1].
     """
-    try:
-        cov = np.asarray(coverage, dtype=float)
-    except (TypeError, ValueError) as err:
-        raise InputError(f"coverage must be numbers in [0, 1], got {coverage!r}.") from err
+    cov = real_float64(coverage)
+    if cov is None:
+        raise InputError(f"coverage must be numbers in [0, 1], got {coverage!r}.")
     if not np.isfinite(cov).all() or (cov < 0).any() or (cov > 1).any():
         raise InputError(
             f"coverage must be finite numbers in [0, 1] (the goal's covered fraction), got "

@@ -1,0 +1,175 @@
+"""Arrays that hold no real numbers are refused by name wherever a public function takes one.
+
+`probaff._checks.real_float64` and `as_real_tensor` are the two conversions; these tests feed
+strings, None, objects, ragged lists and complex numbers to the functions that used to pass
+them to numpy or torch unchecked (raw ``TypeError``/``RuntimeError``, or complex numbers cast
+to their real parts with only a warning).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import torch
+from torch.distributions import Independent, Normal
+
+from probaff._checks import as_float_array, as_real_tensor, real_float64
+from probaff.errors import InputError
+from probaff.eval.metrics import (
+    corrected_halfwidth,
+    interval_coverage,
+    mean_and_halfwidth,
+    nlpd,
+    rmse,
+    wilson_interval,
+)
+from probaff.maps.bp import ising_form, loopy_belief_propagation
+from probaff.maps.entropy import map_entropy, marginal_entropy
+from probaff.maps.evidence import as_evidence
+from probaff.maps.grid_bp import grid_belief_propagation
+from probaff.models.tensors import as_matrix
+from probaff.sim.inputs import floats
+
+UNARY = np.zeros((3, 2))
+EDGES = np.array([[0, 1], [1, 2]])
+PAIRWISE = np.zeros((2, 2, 2))
+
+NOT_REAL = {
+    "None": None,
+    "a string": "abc",
+    "strings": [["a", "b"]],
+    "a ragged list": [[1.0], [1.0, 2.0]],
+    "objects": np.array([[None, 1.0]], dtype=object),
+    "complex numbers": UNARY + 1j,
+}
+
+
+def _refused(call, value, name):
+    """`call(value)` raises an `InputError` naming `name`, and no warning on the way."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(InputError, match=name):
+            call(value)
+
+
+@pytest.mark.parametrize("value", NOT_REAL.values(), ids=NOT_REAL.keys())
+def test_the_maps_refuse_arrays_without_real_numbers(value):
+    _refused(lambda v: ising_form(v, EDGES, PAIRWISE), value, "unary_log")
+    _refused(lambda v: ising_form(UNARY, v, PAIRWISE), value, "edges")
+    _refused(lambda v: ising_form(UNARY, EDGES, v), value, "pairwise_log")
+    _refused(lambda v: loopy_belief_propagation(v, EDGES, PAIRWISE), value, "unary_log")
+    _refused(lambda v: grid_belief_propagation(v, 0.3), value, "unary_log")
+    _refused(lambda v: marginal_entropy(v), value, "marginals")
+    _refused(lambda v: map_entropy(v), value, "marginals")
+    if value is not None:  # None is "no evidence"
+        _refused(lambda v: as_evidence(v, (3,)), value, "evidence")
+
+
+@pytest.mark.parametrize("value", NOT_REAL.values(), ids=NOT_REAL.keys())
+def test_the_metrics_refuse_arrays_without_real_numbers(value):
+    dist = Independent(Normal(torch.zeros(3, 2), torch.ones(3, 2)), 1)
+    _refused(lambda v: nlpd(dist, v), value, "targets")
+    _refused(lambda v: rmse(dist, v), value, "targets")
+    _refused(lambda v: rmse(v, torch.zeros(3, 2)), value, "point prediction")
+    _refused(lambda v: interval_coverage(dist, v), value, "targets")
+    _refused(lambda v: mean_and_halfwidth(v), value, "values")
+    _refused(lambda v: corrected_halfwidth(v, 0.25), value, "values")
+
+
+@pytest.mark.parametrize("bad", ["a", None, True, 1.0, 0, float("nan")])
+def test_the_interval_levels_must_lie_strictly_between_0_and_1(bad):
+    for call in (
+        lambda: wilson_interval(1, 2, bad),
+        lambda: mean_and_halfwidth([1.0, 2.0], bad),
+        lambda: corrected_halfwidth([1.0, 2.0], 0.25, bad),
+    ):
+        with pytest.raises(InputError, match=r"confidence must lie in \(0, 1\)"):
+            call()
+    dist = Independent(Normal(torch.zeros(3, 2), torch.ones(3, 2)), 1)
+    with pytest.raises(InputError, match=r"level must lie in \(0, 1\)"):
+        interval_coverage(dist, torch.zeros(3, 2), level=bad)
+    with pytest.raises(InputError, match="test_to_train"):
+        corrected_halfwidth([1.0, 2.0], "a")
+
+
+def test_the_mean_of_no_trials_is_a_nan_cell_and_nan_values_propagate():
+    assert np.isnan(mean_and_halfwidth([])[0]) and mean_and_halfwidth([])[1] == 0.0
+    mean, half = mean_and_halfwidth([1.0, 2.0, 3.0])
+    assert mean == 2.0 and half == pytest.approx(2.484137711750, rel=1e-9)
+    assert np.isnan(corrected_halfwidth([1.0, np.nan, 3.0], 0.25))
+    with pytest.raises(InputError, match="values has shape"):
+        mean_and_halfwidth([[1.0, 2.0]])
+
+
+def test_complex_numbers_are_refused_in_the_words_scikit_learn_checks():
+    for value in (np.ones(3) + 1j, torch.ones(3, dtype=torch.complex64), [1 + 2j, 3.0]):
+        for convert in (as_float_array, as_real_tensor, lambda n, v: as_matrix(n, v)):
+            with pytest.raises(InputError, match=r"^X holds complex numbers \(Complex data not"):
+                convert("X", value)
+    assert real_float64(np.ones(2) + 1j) is None
+    with pytest.raises(InputError, match="x must hold numbers"):
+        floats("x", 1 + 1j)
+
+
+def test_none_is_refused_rather_than_cast_to_nan():
+    for value in (None, [1.0, None], np.array([1.0, None], dtype=object)):
+        assert real_float64(value) is None
+        with pytest.raises(InputError, match="numeric array"):
+            as_float_array("x", value)
+    # objects that are numbers still convert
+    assert as_float_array("x", np.array([1.5, 2], dtype=object)).tolist() == [1.5, 2.0]
+
+
+def test_real_tensors_keep_their_kind_and_arrays_become_float64_or_int64():
+    t32 = torch.ones(2, dtype=torch.float32)
+    assert as_real_tensor("x", t32) is not None and as_real_tensor("x", t32).dtype == t32.dtype
+    assert as_real_tensor("x", [0.1]).dtype == torch.float64  # torch.as_tensor gives float32
+    assert as_real_tensor("x", np.arange(3, dtype=np.uint16)).dtype == torch.int64
+    assert as_real_tensor("x", np.ones(2, dtype=bool)).dtype == torch.bool
+    assert as_real_tensor("x", 2.0).shape == ()
+    flipped = np.arange(6.0).reshape(2, 3)[:, ::-1]  # a negative stride torch cannot view
+    assert as_real_tensor("x", flipped).tolist() == flipped.tolist()
+    # the maps' results are unchanged for real input
+    assert torch.allclose(
+        marginal_entropy([[0.5, 0.5]]), torch.tensor([np.log(2.0)], dtype=torch.float64)
+    )
+
+
+@pytest.mark.parametrize("value", NOT_REAL.values(), ids=NOT_REAL.keys())
+def test_an_affordance_graph_refuses_grids_without_real_numbers(value):
+    from probaff.maps import AffordanceGraph
+
+    occupancy = np.zeros((3, 3), dtype=bool)
+    occupancy[1, 1] = True
+    unary = np.full((3, 3, 4), 0.5)
+    _refused(lambda v: AffordanceGraph(occupancy, v), value, "unary")
+    if not isinstance(value, np.ndarray) or value.dtype != object:
+        _refused(lambda v: AffordanceGraph(v, unary), value, "occupancy")
+    graph = AffordanceGraph(occupancy, unary)
+    _refused(lambda v: graph.to_map(v), value, "values")
+
+
+def test_evidence_builders_take_integer_variables_and_mappings_only():
+    from probaff.maps import make_evidence, single_variable_evidence
+
+    assert single_variable_evidence(3, [2]).tolist() == [[-1, -1, 1], [-1, -1, 0]]
+    assert make_evidence(3, [{np.int64(0): 1}]).tolist() == [[1, -1, -1]]
+    for bad, word in (([0.5], "integer variable indices"), (["a"], "variables"), ([None], "")):
+        with pytest.raises(InputError, match=word):
+            single_variable_evidence(3, bad)
+    for bad, word in (
+        (None, "assignments must be a list"),
+        ({0: 1}, "assignments must be a list"),
+        ([[0, 1]], r"assignments\[0\] must be a"),
+        ([{"a": 1}], "variables are integer indices"),
+        ([{True: 1}], "variables are integer indices"),
+    ):
+        with pytest.raises(InputError, match=word):
+            make_evidence(3, bad)
+
+
+def test_a_grid_coupling_tuple_is_a_vertical_and_horizontal_pair():
+    with pytest.raises(InputError, match=r"\(vertical, horizontal\) pair, got a tuple of 1"):
+        grid_belief_propagation(np.zeros((3, 3, 2)), (0.1,))
