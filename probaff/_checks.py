@@ -14,6 +14,7 @@ import torch
 from probaff.errors import InputError
 
 __all__ = [
+    "as_bool_array",
     "as_float_array",
     "as_real_tensor",
     "check_array_fields",
@@ -142,6 +143,31 @@ def as_real_tensor(name: str, x: Any) -> torch.Tensor:
     if any(stride < 0 for stride in arr.strides):  # torch cannot view reversed axes
         arr = arr.copy()
     return torch.as_tensor(arr)
+
+
+def as_bool_array(name: str, x: Any) -> np.ndarray:
+    """Return `x` as a bool numpy array, or raise `InputError` unless it holds only 0 and 1.
+
+    Bools pass as they are; real numbers must be exactly 0 or 1. NaN, 0.5, strings and
+    complex numbers are refused, where numpy's cast to bool would call each of them True.
+
+    Args:
+        name: What `x` is, as the user knows it (e.g. ``"occupancy"``).
+        x: Array-like or tensor of any shape.
+
+    Returns:
+        `x` as a bool array of the same shape.
+    """
+    arr = as_real_tensor(name, x).cpu().numpy()
+    if arr.dtype == np.bool_:
+        return arr
+    outside = ~np.isin(arr, (0, 1))  # NaN is in neither
+    if outside.any():
+        raise InputError(
+            f"{name} must be bool or 0/1 values, got {arr[outside].ravel()[0]!r} (dtype "
+            f"{arr.dtype}); give a boolean mask."
+        )
+    return arr.astype(bool)
 
 
 def _describe(x: Any) -> str:

@@ -156,7 +156,11 @@ def test_evidence_builders_take_integer_variables_and_mappings_only():
 
     assert single_variable_evidence(3, [2]).tolist() == [[-1, -1, 1], [-1, -1, 0]]
     assert make_evidence(3, [{np.int64(0): 1}]).tolist() == [[1, -1, -1]]
-    for bad, word in (([0.5], "integer variable indices"), (["a"], "variables"), ([None], "")):
+    for bad, word in (
+        ([0.5], "integer variable indices"),
+        (["a"], "variables"),
+        ([None], "variables"),
+    ):
         with pytest.raises(InputError, match=word):
             single_variable_evidence(3, bad)
     for bad, word in (
@@ -173,3 +177,42 @@ def test_evidence_builders_take_integer_variables_and_mappings_only():
 def test_a_grid_coupling_tuple_is_a_vertical_and_horizontal_pair():
     with pytest.raises(InputError, match=r"\(vertical, horizontal\) pair, got a tuple of 1"):
         grid_belief_propagation(np.zeros((3, 3, 2)), (0.1,))
+
+
+def test_masks_hold_bools_or_exact_zeros_and_ones():
+    from probaff._checks import as_bool_array
+
+    assert as_bool_array("m", [0, 1.0, True]).tolist() == [False, True, True]
+    assert as_bool_array("m", torch.tensor([1, 0])).dtype == np.bool_
+    for bad, shown in (([0.5], "0.5"), ([np.nan], "nan"), ([2], "2")):
+        with pytest.raises(InputError, match=rf"^m must be bool or 0/1 values, got .*{shown}"):
+            as_bool_array("m", bad)
+    for bad in (["a"], [1 + 0j], None):  # numpy would call each of these True
+        with pytest.raises(InputError, match=r"^m "):
+            as_bool_array("m", bad)
+
+
+@pytest.mark.parametrize("bad", [np.full((3, 3), np.nan), np.full((3, 3), 0.5), [["a"] * 3] * 3])
+def test_grids_of_free_cells_are_masks(bad):
+    from probaff.maps import AffordanceGraph
+    from probaff.perception import grid_distances
+    from probaff.planning import plan_pushes_on_grid
+    from probaff.planning.manipulation.loop import travel_distances
+
+    occupancy = np.zeros((3, 3), dtype=bool)
+    occupancy[1, 1] = True
+    graph = AffordanceGraph(occupancy, np.full((3, 3, 4), 0.5))
+    for call in (
+        lambda: grid_distances(bad, (0, 0)),
+        lambda: travel_distances(bad, (0, 0)),
+        lambda: plan_pushes_on_grid(graph, bad, (0, 0)),
+        lambda: AffordanceGraph(bad, np.full((3, 3, 4), 0.5)),
+    ):
+        with pytest.raises(InputError, match=r"must be bool or 0/1|numeric array"):
+            call()
+    with pytest.raises(InputError, match="robot"):
+        travel_distances(~occupancy, [[0], [0, 1]])
+    with pytest.raises(InputError, match="distances"):
+        from probaff.planning import plan_pushes
+
+        plan_pushes(graph, [[1], [1, 2]])

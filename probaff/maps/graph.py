@@ -37,6 +37,7 @@ import numpy as np
 import torch
 
 from probaff._checks import (
+    as_bool_array,
     as_float_array,
     as_real_tensor,
     check_finite,
@@ -71,14 +72,10 @@ _UP, _DOWN, _LEFT, _RIGHT = range(4)
 
 
 def _check_occupancy(occupancy: Any) -> np.ndarray:
-    occ = as_real_tensor("occupancy", occupancy).cpu().numpy()
+    occ = as_bool_array("occupancy", occupancy)
     if occ.ndim != 2:
         raise InputError(f"occupancy must be a 2-D (H, W) grid, got shape {occ.shape}.")
-    if occ.dtype != np.bool_:
-        check_finite("occupancy", occ)
-        if not np.isin(occ, (0, 1)).all():
-            raise InputError("occupancy must be boolean (or hold only 0 and 1).")
-    return occ.astype(bool)
+    return occ
 
 
 class AffordanceGraph:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from probaff._checks import check_shape
+from probaff._checks import as_bool_array, check_shape
 from probaff.errors import InputError
 from probaff.grid import DIRECTION_OFFSETS
 from probaff.perception.occupancy import FREE_SPACE, UNKNOWN, OccupancyGrid
@@ -56,7 +56,8 @@ def grid_distances(passable: np.ndarray, start: tuple[int, int]) -> np.ndarray:
     Returns:
         (rows, cols) int, moves from `start`; -1 where no path reaches.
     """
-    passable = np.asarray(passable, dtype=bool)
+    passable = as_bool_array("passable", passable)
+    check_shape("passable", passable, (None, None))
     h, w = passable.shape
     dist = np.full((h, w), -1, dtype=np.int64)
     wave = np.zeros((h, w), dtype=bool)

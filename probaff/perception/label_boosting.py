@@ -59,7 +59,7 @@ from sklearn.ensemble import HistGradientBoostingClassifier
 from sklearn.model_selection import GroupKFold, KFold
 from threadpoolctl import threadpool_limits
 
-from probaff._checks import check_count, check_number, check_shape
+from probaff._checks import as_bool_array, as_float_array, check_count, check_number, check_shape
 from probaff.errors import InputError, NotFittedError
 from probaff.perception.labels import (
     check_segment_features,
@@ -115,15 +115,12 @@ def best_threshold(truth: np.ndarray, probabilities: np.ndarray, rule: str = "f1
         raise InputError(
             f"rule must be one of {', '.join(map(repr, THRESHOLD_RULES))}, got {rule!r}."
         )
-    p = np.asarray(probabilities, dtype=np.float64)
+    p = as_float_array("probabilities", probabilities)
     check_shape("probabilities", p, (None,))
-    check_shape("truth", truth, (p.shape[0],))
     if p.size == 0 or not np.all(np.isfinite(p)):
         raise InputError("probabilities must be a non-empty (N,) array of finite numbers.")
-    t = np.asarray(truth)
-    if t.dtype != bool and not np.all((t == 0) | (t == 1)):
-        raise InputError("truth must be bool or 0/1 labels.")
-    t = t.astype(bool)
+    t = as_bool_array("truth", truth)
+    check_shape("truth", t, (p.shape[0],))
     levels = np.unique(p)
     if rule == "fixed" or levels.size < 2 or t.all() or not t.any():
         return 0.5

@@ -43,6 +43,7 @@ from sklearn.preprocessing import StandardScaler
 from threadpoolctl import threadpool_limits
 
 from probaff._checks import (
+    as_bool_array,
     as_float_array,
     check_count,
     check_finite,
@@ -125,13 +126,9 @@ def check_segment_labels(name: str, y: Any, n: int) -> np.ndarray:
     Raises:
         InputError: Naming `name`, for another shape or values other than 0 and 1.
     """
-    check_shape(name, y, (n, len(LABELS)))
-    arr = np.asarray(y)
-    if arr.dtype != bool:
-        check_finite(name, arr)
-        if not np.all((arr == 0) | (arr == 1)):
-            raise InputError(f"{name} must be bool or 0/1, one column per label in LABELS.")
-    return arr.astype(bool)
+    arr = as_bool_array(name, y)
+    check_shape(name, arr, (n, len(LABELS)))
+    return arr
 
 
 def column_probabilities(models: Sequence[Any], x: np.ndarray) -> np.ndarray:

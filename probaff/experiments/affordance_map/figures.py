@@ -21,6 +21,7 @@ from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
+from probaff._checks import as_bool_array
 from probaff._io import atomic_save_figure
 from probaff.grid import DIRECTION_NAMES, DIRECTION_OFFSETS
 from probaff.planning import POLICIES
@@ -186,7 +187,7 @@ def plot_mrf_smoothing(
         direction: Index into `DIRECTION_NAMES` of the direction shown.
         path: Image file to write, atomically.
     """
-    occ = np.asarray(occupancy, dtype=bool)
+    occ = as_bool_array("occupancy", occupancy)
     fig = Figure(figsize=(9.0, 4.2), layout="constrained")
     axes = fig.subplots(1, 2)
     name = DIRECTION_NAMES[direction]
@@ -279,7 +280,7 @@ def plot_loop_steps(
     rows = -(-n // cols)
     fig = Figure(figsize=(3.4 * cols + 0.8, 3.6 * rows + 0.3), layout="constrained")
     axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
-    wall_mask = None if walls is None else np.asarray(walls, dtype=bool)
+    wall_mask = None if walls is None else as_bool_array("walls", walls)
     for k, (ax, shot) in enumerate(zip(axes, snapshots, strict=False)):
         _draw_snapshot(ax, shot, wall_mask)
         what = (

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from probaff._checks import check_shape
+from probaff._checks import as_bool_array, check_shape
 from probaff.affordance_labels import LABELS
 from probaff.errors import InputError
 
@@ -45,11 +45,9 @@ CAUSES: tuple[str, ...] = (
 
 def _bool(name: str, x: Any, shape: tuple[int | None, ...]) -> np.ndarray:
     """`x` as a bool array of `shape`, or an `InputError` naming `name`."""
-    check_shape(name, x, shape)
-    arr = np.asarray(x)
-    if arr.dtype != bool and (arr.dtype.kind not in "iuf" or not np.all((arr == 0) | (arr == 1))):
-        raise InputError(f"{name} must be bool or 0/1, shape {shape}.")
-    return arr.astype(bool)
+    arr = as_bool_array(name, x)
+    check_shape(name, arr, shape)
+    return arr
 
 
 def attribute_errors(

@@ -21,7 +21,13 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from probaff._checks import check_count, check_finite, check_probability, check_shape
+from probaff._checks import (
+    as_bool_array,
+    check_count,
+    check_finite,
+    check_probability,
+    check_shape,
+)
 from probaff._io import atomic_save_figure
 from probaff.errors import InputError
 from probaff.experiments.point_cloud_labels.config import PointCloudStudyConfig
@@ -342,8 +348,8 @@ def plot_entropy_tree(
     if leaves is None:
         leaf = ~np.isin(index, par[child])
     else:
-        check_shape("leaves", leaves, (d.size,))
-        leaf = np.asarray(leaves, dtype=bool)
+        leaf = as_bool_array("leaves", leaves)
+        check_shape("leaves", leaf, (d.size,))
     fig = Figure(figsize=(7, 4.5))
     ax = fig.subplots()
     # Spread the nodes of each depth over a small horizontal offset so siblings separate.

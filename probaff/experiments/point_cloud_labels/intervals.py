@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from probaff._checks import check_count, check_shape
+from probaff._checks import as_bool_array, check_count, check_shape
 from probaff.affordance_labels import LABELS
 from probaff.errors import InputError
 
@@ -80,8 +80,8 @@ def scene_intervals(
     Raises:
         InputError: For mismatched shapes, no segments, bad counts or non-finite thresholds.
     """
-    check_shape("truth", truth, (None, len(LABELS)))
-    t = np.asarray(truth).astype(bool)
+    t = as_bool_array("truth", truth)
+    check_shape("truth", t, (None, len(LABELS)))
     if len(t) == 0:
         raise InputError("truth is empty; give at least one segment.")
     check_shape("probabilities", probabilities, t.shape)

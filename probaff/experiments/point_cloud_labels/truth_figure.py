@@ -16,7 +16,13 @@ from collections.abc import Mapping
 import numpy as np
 from matplotlib.figure import Figure
 
-from probaff._checks import check_count, check_finite, check_probability, check_shape
+from probaff._checks import (
+    as_bool_array,
+    check_count,
+    check_finite,
+    check_probability,
+    check_shape,
+)
 from probaff._io import atomic_save_figure
 from probaff.affordance_labels import LABELS
 from probaff.errors import InputError
@@ -60,8 +66,8 @@ def plot_labels_against_truth(
     check_finite("points", pts)
     check_shape("point_segments", point_segments, (len(pts),))
     seg = np.asarray(point_segments).astype(np.int64)
-    check_shape("truth", truth, (None, len(LABELS)))
-    t = np.asarray(truth).astype(bool)
+    t = as_bool_array("truth", truth)
+    check_shape("truth", t, (None, len(LABELS)))
     if not models:
         raise InputError("models is empty; give at least one model's (S, 6) probabilities.")
     if seg.size and (seg.min() < -1 or seg.max() >= len(t)):

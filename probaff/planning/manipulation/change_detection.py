@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from probaff._checks import check_finite, check_shape
+from probaff._checks import as_bool_array, check_finite, check_shape
 from probaff.errors import InputError
 from probaff.grid import DIRECTION_OFFSETS
 from probaff.sim.depth import DepthSensor
@@ -77,7 +77,7 @@ def detect_push(
         InputError: For a `cell` outside the map, an unknown `direction`, or a malformed
             cloud or position.
     """
-    still = np.asarray(believed, dtype=bool).copy()
+    still = as_bool_array("believed", believed).copy()
     check_shape("believed", still, (None, None))
     rc = np.asarray(cell)
     if rc.shape != (2,) or not np.issubdtype(rc.dtype, np.integer):

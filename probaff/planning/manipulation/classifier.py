@@ -23,7 +23,14 @@ import numpy as np
 from sklearn.metrics import precision_score, recall_score
 from sklearn.model_selection import GroupKFold, StratifiedKFold
 
-from probaff._checks import check_count, check_finite, check_positive, check_shape
+from probaff._checks import (
+    as_bool_array,
+    as_float_array,
+    check_count,
+    check_finite,
+    check_positive,
+    check_shape,
+)
 from probaff.errors import InputError
 from probaff.features.cells import cell_features
 from probaff.grid import DIRECTION_NAMES
@@ -73,13 +80,13 @@ class AffordanceClassifier(PerColumnLogistic):
         """
         x = self._check_features(features, fitting=True)
         check_shape("labels", labels, (x.shape[0], len(DIRECTION_NAMES)))
-        self._fit_columns(x, np.asarray(labels, dtype=bool))
+        self._fit_columns(x, as_bool_array("labels", labels))
         return self
 
     def _check_features(self, features: np.ndarray, fitting: bool = False) -> np.ndarray:
-        check_shape("features", features, (None, None if fitting else self._width))
-        check_finite("features", features)
-        x = np.asarray(features, dtype=float)
+        x = as_float_array("features", features)
+        check_shape("features", x, (None, None if fitting else self._width))
+        check_finite("features", x)
         if fitting:
             if not len(x):
                 raise InputError("features hold no voxels; fit needs at least one.")

@@ -56,7 +56,14 @@ from typing import Any
 import numpy as np
 import torch
 
-from probaff._checks import check_count, check_finite, check_positive, check_shape
+from probaff._checks import (
+    as_bool_array,
+    as_real_tensor,
+    check_count,
+    check_finite,
+    check_positive,
+    check_shape,
+)
 from probaff.errors import InputError
 from probaff.features.cells import cell_features
 from probaff.grid import DIRECTION_OFFSETS
@@ -116,9 +123,9 @@ def travel_distances(passable: Any, robot: Any) -> np.ndarray:
     Raises:
         InputError: For a robot cell that is not an integer pair inside the map.
     """
-    free = np.asarray(passable, dtype=bool)
+    free = as_bool_array("passable", passable)
     check_shape("passable", free, (None, None))
-    cell = np.asarray(robot)
+    cell = as_real_tensor("robot", robot).cpu().numpy()
     if cell.shape != (2,) or not np.issubdtype(cell.dtype, np.integer):
         raise InputError(f"robot must be an integer (row, col) cell, got {robot!r}.")
     r, c = int(cell[0]), int(cell[1])
@@ -152,7 +159,7 @@ def plan_pushes_on_grid(
     Raises:
         InputError: For a mismatched `passable`, a robot outside the map, or bad inputs.
     """
-    free = np.asarray(passable, dtype=bool)
+    free = as_bool_array("passable", passable)
     if free.shape != check_graph(graph).shape:
         raise InputError(f"passable has shape {free.shape}, expected the map's {graph.shape}.")
     return plan_pushes(graph, travel_distances(free, robot), evidence, **settings)
