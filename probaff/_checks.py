@@ -187,9 +187,15 @@ def check_finite(name: str, x: Any) -> None:
 
     Args:
         name: What `x` is, as the user knows it (e.g. ``"features"``).
-        x: Array-like or tensor of any shape.
+        x: Array-like or tensor of any shape; one that holds anything but real numbers
+            (strings, None, complex numbers, a ragged list) is refused too.
     """
-    arr = _as_array(x)
+    try:
+        arr = _as_array(x)
+    except ValueError:  # a ragged nested list
+        raise _not_numeric(name, x) from None
+    if arr.dtype.kind not in "biuf":
+        raise _not_numeric(name, x)
     if arr.size and not np.all(np.isfinite(arr)):
         bad = int(np.size(arr) - np.count_nonzero(np.isfinite(arr)))
         raise InputError(

@@ -216,3 +216,19 @@ def test_grids_of_free_cells_are_masks(bad):
         from probaff.planning import plan_pushes
 
         plan_pushes(graph, [[1], [1, 2]])
+
+
+def test_the_finiteness_check_refuses_what_holds_no_real_numbers():
+    from probaff._checks import check_finite
+
+    check_finite("x", [1, 2])  # integers and bools are finite numbers
+    check_finite("x", [True])
+    for bad, words in (
+        ("abc", "numeric array"),
+        (None, "numeric array"),
+        ([[1.0], [1.0, 2.0]], "numeric array"),
+        (np.array([1.0, None]), "numeric array"),
+        ([1 + 1j], "complex"),
+    ):
+        with pytest.raises(InputError, match=f"^x .*{words}"):
+            check_finite("x", bad)
