@@ -31,6 +31,7 @@ __all__ = [
     "check_shape",
     "default_or_instance",
     "real_float64",
+    "real_number",
 ]
 
 T = TypeVar("T")
@@ -164,7 +165,7 @@ def as_bool_array(name: str, x: Any) -> np.ndarray:
     outside = ~np.isin(arr, (0, 1))  # NaN is in neither
     if outside.any():
         raise InputError(
-            f"{name} must be bool or 0/1 values, got {arr[outside].ravel()[0]!r} (dtype "
+            f"{name} must be bool or 0/1 values, got {arr[outside].ravel()[0].item()!r} (dtype "
             f"{arr.dtype}); give a boolean mask."
         )
     return arr.astype(bool)
@@ -249,6 +250,17 @@ def check_positive(name: str, value: float, *, allow_zero: bool = False) -> None
         raise InputError(f"{name} must be a finite number {bound}, got {value!r}.")
 
 
+def real_number(value: Any) -> float:
+    """`value` as a `float` if it is a real number (a bool or a string is not), else NaN.
+
+    The test behind `check_number`, for callers that word their own error.
+    """
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, (bool, np.bool_)
+    )
+    return float(value) if ok else math.nan
+
+
 def check_number(name: str, value: Any, *, bound: str = "", unit: str = "") -> float:
     """Return `value` as a `float`, or raise `InputError` unless it is a finite real number.
 
@@ -266,10 +278,7 @@ def check_number(name: str, value: Any, *, bound: str = "", unit: str = "") -> f
         `value` as a builtin `float`.
     """
     want = "a finite number" + (f" {bound}" if bound else "") + (f" ({unit})" if unit else "")
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
-        value, (bool, np.bool_)
-    )
-    v = float(value) if ok else math.nan
+    v = real_number(value)
     if not math.isfinite(v) or (bound == "> 0" and v <= 0) or (bound == ">= 0" and v < 0):
         raise InputError(f"{name} must be {want}, got {value!r}.")
     return v

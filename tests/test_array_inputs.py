@@ -232,3 +232,9 @@ def test_the_finiteness_check_refuses_what_holds_no_real_numbers():
     ):
         with pytest.raises(InputError, match=f"^x .*{words}"):
             check_finite("x", bad)
+
+
+def test_no_candidate_variables_is_an_empty_batch():
+    from probaff.maps import single_variable_evidence
+
+    assert tuple(single_variable_evidence(3, []).shape) == (0, 3)

@@ -15,7 +15,14 @@ import numpy as np
 import torch
 from torch.distributions import Distribution, Independent, MixtureSameFamily, Normal
 
-from probaff._checks import as_float_array, as_real_tensor, check_count, check_finite, check_shape
+from probaff._checks import (
+    as_float_array,
+    as_real_tensor,
+    check_count,
+    check_finite,
+    check_shape,
+    real_number,
+)
 from probaff.errors import InputError
 
 __all__ = [
@@ -181,12 +188,10 @@ def wilson_interval(successes: int, trials: int, confidence: float = 0.95) -> tu
 
 def _check_level(name: str, value: Any) -> float:
     """`value` as a float in (0, 1) (a two-sided level), or `InputError` naming `name`."""
-    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
-        value, (bool, np.bool_)
-    )
-    if not (number and 0 < float(value) < 1):
+    level = real_number(value)  # NaN for anything but a real number
+    if not 0 < level < 1:
         raise InputError(f"{name} must lie in (0, 1), got {value!r}.")
-    return float(value)
+    return level
 
 
 def _t_quantile(confidence: float, dof: int) -> float:
@@ -232,10 +237,8 @@ def corrected_halfwidth(
         InputError: For `values` that are not a 1-D array of numbers, a level outside (0, 1)
             or a negative or non-finite `test_to_train`.
     """
-    ratio = isinstance(test_to_train, (int, float, np.integer, np.floating)) and not isinstance(
-        test_to_train, (bool, np.bool_)
-    )
-    if not ratio or not math.isfinite(test_to_train) or test_to_train < 0:
+    ratio = real_number(test_to_train)
+    if not math.isfinite(ratio) or ratio < 0:
         raise InputError(
             f"test_to_train must be a finite ratio >= 0 (1 / (K - 1) for K folds), "
             f"got {test_to_train!r}."
@@ -244,7 +247,7 @@ def corrected_halfwidth(
     q = _t_quantile(confidence, max(len(v) - 1, 1))
     if len(v) < 2:
         return 0.0
-    return q * _sample_sd(v) * math.sqrt(1 / len(v) + test_to_train)
+    return q * _sample_sd(v) * math.sqrt(1 / len(v) + ratio)
 
 
 def mean_halfwidth(values: Sequence[float] | np.ndarray, confidence: float = 0.95) -> float:

@@ -133,7 +133,7 @@ def single_variable_evidence(
         cand = np.arange(num_variables)
     else:
         given = as_real_tensor("variables", variables).cpu().numpy().reshape(-1)
-        if given.dtype.kind not in "iu":
+        if given.size and given.dtype.kind not in "iu":  # [] is no candidate
             raise InputError(
                 f"variables must be integer variable indices, got dtype {given.dtype}; e.g. "
                 "variables=[0, 3, 7]."

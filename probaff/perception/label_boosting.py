@@ -59,7 +59,14 @@ from sklearn.ensemble import HistGradientBoostingClassifier
 from sklearn.model_selection import GroupKFold, KFold
 from threadpoolctl import threadpool_limits
 
-from probaff._checks import as_bool_array, as_float_array, check_count, check_number, check_shape
+from probaff._checks import (
+    as_bool_array,
+    as_float_array,
+    check_count,
+    check_number,
+    check_shape,
+    real_number,
+)
 from probaff.errors import InputError, NotFittedError
 from probaff.perception.labels import (
     check_segment_features,
@@ -79,11 +86,9 @@ def _check_threshold(value: Any) -> str | float:
     """A rule of `THRESHOLD_RULES` or a number in (0, 1); `InputError` naming ``threshold``."""
     if isinstance(value, str) and value in THRESHOLD_RULES:
         return value
-    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
-        value, (bool, np.bool_)
-    )
-    if number and 0.0 < float(value) < 1.0:
-        return float(value)
+    number = real_number(value)  # NaN for anything but a real number
+    if 0.0 < number < 1.0:
+        return number
     raise InputError(
         f"threshold must be one of {', '.join(map(repr, THRESHOLD_RULES))} or a number in "
         f"(0, 1), got {value!r}; e.g. threshold='f1' or threshold=0.6."
