@@ -238,3 +238,56 @@ def test_no_candidate_variables_is_an_empty_batch():
     from probaff.maps import single_variable_evidence
 
     assert tuple(single_variable_evidence(3, []).shape) == (0, 3)
+
+
+@pytest.mark.parametrize("value", NOT_REAL.values(), ids=NOT_REAL.keys())
+def test_the_push_frame_refuses_arrays_without_real_numbers(value):
+    from probaff.features import directions_to_push_frame, points_to_push_frame
+
+    yaw, origin = np.zeros(2), np.zeros((2, 2))
+    _refused(lambda v: directions_to_push_frame(v, yaw), value, "vectors")
+    _refused(lambda v: points_to_push_frame(v, origin, yaw, 0.1), value, "points")
+    _refused(lambda v: points_to_push_frame(np.zeros((2, 3)), v, yaw, 0.1), value, "origin")
+    _refused(lambda v: directions_to_push_frame(np.zeros((2, 3)), v), value, "yaw")
+
+
+def test_the_push_frame_checks_shapes_and_height():
+    from probaff.features import directions_to_push_frame, points_to_push_frame
+
+    with pytest.raises(InputError, match=r"vectors must be an \(N, \.\.\., 3\)"):
+        directions_to_push_frame(np.zeros((2, 2)), np.zeros(2))
+    with pytest.raises(InputError, match="yaw has shape"):
+        directions_to_push_frame(np.zeros((2, 3)), np.zeros(3))
+    with pytest.raises(InputError, match="height must be a finite number"):
+        points_to_push_frame(np.zeros((2, 3)), np.zeros((2, 2)), np.zeros(2), "0.1")
+    # a push along +x from the origin at 0.1 m: a point 0.2 m ahead, on the table
+    out = points_to_push_frame(np.array([[0.2, 0.0, 0.0]]), np.zeros((1, 2)), np.zeros(1), 0.1)
+    assert np.allclose(out, [[0.1, 0.0, 0.2]])
+
+
+def test_result_tables_take_lists_of_rows():
+    from probaff.eval import csv_table, markdown_table, write_csv
+    from probaff.features import scene_feature_names
+
+    assert csv_table([{"a": 1, "b": 2.5}, {"a": 3}]) == "a,b\r\n1,2.5\r\n3,\r\n"
+    assert markdown_table([{"a": 0.5}], ["a"], digits=1) == "| a |\n|---|\n| 0.5 |\n"
+    for bad, word in (
+        ("abc", "rows must be a list"),
+        (None, "rows must be a list"),
+        ({"a": 1}, "rows must be a list"),
+        ([1, 2], r"rows\[0\] must be a"),
+        ([], "rows is empty"),
+        ([{"a": 1}, {"b": 2}], r"rows\[1\] holds columns \['b'\]"),
+    ):
+        with pytest.raises(InputError, match=word):
+            csv_table(bad)
+    with pytest.raises(InputError, match="rows is empty"):
+        write_csv("unused.csv", [])
+    with pytest.raises(InputError, match=r"rows\[0\] lacks the column\(s\) \['b'\]"):
+        markdown_table([{"a": 1}], ["b"])
+    with pytest.raises(InputError, match="columns must be a list"):
+        markdown_table([{"a": 1}], "a")
+    with pytest.raises(InputError, match="digits"):
+        markdown_table([{"a": 1.0}], ["a"], digits=-1)
+    with pytest.raises(InputError, match="n_objects"):
+        scene_feature_names(0)

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from probaff._checks import check_count
 from probaff.data.schema import PushDataset
 from probaff.errors import InputError
 from probaff.features.action_frame import action_frame, tabletop_transform
@@ -164,7 +165,12 @@ def _turn(T_a: np.ndarray, yaw: np.ndarray) -> np.ndarray:
 
 
 def scene_feature_names(n_objects: int) -> tuple[str, ...]:
-    """Names of the `scene_features` columns of scenes of `n_objects` objects."""
+    """Names of the `scene_features` columns of scenes of `n_objects` objects.
+
+    Raises:
+        InputError: If `n_objects` is not a positive integer.
+    """
+    n_objects = check_count("n_objects", n_objects)
     names = [f"{c}_{k}" for k in range(n_objects) for c in _PER_OBJECT]
     names += [f"{c}_{k}_rel0" for k in range(1, n_objects) for c in ("x", "y")]
     return (*names, "push_length")

@@ -6,9 +6,26 @@ push, y_p to its left, x_p pointing down into the table (right-handed).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
+from probaff._checks import as_float_array, check_number, check_shape
+from probaff.errors import InputError
+
 __all__ = ["directions_to_push_frame", "points_to_push_frame"]
+
+
+def _frame_inputs(name: str, x: Any, yaw: Any) -> tuple[np.ndarray, np.ndarray]:
+    """`x` as (N, ..., 3) floats and `yaw` as (N,) floats, or `InputError` naming either."""
+    arr = as_float_array(name, x)
+    if arr.ndim < 2 or arr.shape[-1] != 3:
+        raise InputError(
+            f"{name} must be an (N, ..., 3) array of world xyz per push, got shape {arr.shape}."
+        )
+    yaws = as_float_array("yaw", yaw)
+    check_shape("yaw", yaws, (arr.shape[0],))
+    return arr, yaws
 
 
 def _axes(yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -30,7 +47,15 @@ def points_to_push_frame(
 
     Returns:
         (N, ..., 3) coordinates ``(x_p, y_p, z_p)``.
+
+    Raises:
+        InputError: For arrays that are not numbers or not of these shapes, or a `height`
+            that is not a finite number.
     """
+    points, yaw = _frame_inputs("points", points, yaw)
+    origin = as_float_array("origin", origin)
+    check_shape("origin", origin, (points.shape[0], 2))
+    height = check_number("height", height, unit="m")
     d, left = _axes(yaw)
     extra = (slice(None),) + (None,) * (points.ndim - 2)
     rel = points[..., :2] - origin[extra]
@@ -48,7 +73,11 @@ def directions_to_push_frame(vectors: np.ndarray, yaw: np.ndarray) -> np.ndarray
 
     Returns:
         (N, ..., 3) components ``(x_p, y_p, z_p)``.
+
+    Raises:
+        InputError: For arrays that are not numbers or not of these shapes.
     """
+    vectors, yaw = _frame_inputs("vectors", vectors, yaw)
     d, left = _axes(yaw)
     extra = (slice(None),) + (None,) * (vectors.ndim - 2)
     z = vectors[..., 0] * d[extra][..., 0] + vectors[..., 1] * d[extra][..., 1]
