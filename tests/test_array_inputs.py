@@ -291,3 +291,16 @@ def test_result_tables_take_lists_of_rows():
         markdown_table([{"a": 1.0}], ["a"], digits=-1)
     with pytest.raises(InputError, match="n_objects"):
         scene_feature_names(0)
+
+
+@pytest.mark.parametrize("value", [*NOT_REAL.values(), np.zeros(2), np.full(3, np.nan)])
+def test_the_edge_task_tests_take_finite_book_poses(value):
+    from probaff.planning import load_edge_task
+
+    task = load_edge_task()
+    for test in ("graspable", "fallen", "heuristic", "progress", "candidate_pushes"):
+        with pytest.raises(InputError, match="poses"):
+            getattr(task, test)(value)
+    batch = np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.0]])  # on the table, and far off it
+    assert task.fallen(batch).tolist() == [False, True]
+    assert task.graspable(batch).tolist() == [False, False]

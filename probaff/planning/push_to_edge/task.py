@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from probaff._checks import check_count, check_finite, check_positive, check_shape
+from probaff._checks import check_count, check_finite, check_positive, check_shape, real_float64
 from probaff.errors import ConfigError, InputError
 from probaff.planning._checks import check_instance, check_rng
 from probaff.planning.geometry import box_corners, boxes_overlap, chord_at
@@ -249,6 +249,17 @@ class EdgeTask:
         return 0.5 * math.hypot(*self.book.size)
 
     # ------------------------------------------------------------------ tests
+    @staticmethod
+    def _poses(poses: Any) -> np.ndarray:
+        """`poses` as finite (..., 3) floats, or `InputError` naming ``poses``."""
+        arr = real_float64(poses)
+        if arr is None or arr.ndim == 0 or arr.shape[-1] != 3:
+            raise InputError(
+                f"poses must be (..., 3) world (x, y, yaw) book poses, got {poses!r:.80}."
+            )
+        check_finite("poses", arr)
+        return arr
+
     def graspable(self, poses: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """Whether book poses (..., 3) are goals (see the module docstring); (...,) bool.
 
@@ -259,10 +270,13 @@ class EdgeTask:
             margin: Keep the centre this much farther inside the edge (m) than
                 ``com_margin`` (the planner's safety margin; 0 for the task's own test).
         """
-        poses = np.asarray(poses, dtype=float)
+        return self._graspable(self._poses(poses), margin)
+
+    def _graspable(self, poses: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """`graspable` of checked poses."""
         chord = chord_at(poses, self.book.size, self.edge_x + self.grasp_depth)
         inside = poses[..., 0] <= self.edge_x - self.com_margin - margin
-        return (chord >= self.finger_width) & inside & ~self.fallen(poses)
+        return (chord >= self.finger_width) & inside & ~self._fallen(poses)
 
     def fallen(self, poses: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """Whether the book's centre is off the table, for poses (..., 3); (...,) bool.
@@ -271,7 +285,10 @@ class EdgeTask:
             poses: (..., 3) world book poses.
             margin: Count a centre closer than this to an edge (m) as fallen too.
         """
-        poses = np.asarray(poses, dtype=float)
+        return self._fallen(self._poses(poses), margin)
+
+    def _fallen(self, poses: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """`fallen` of checked poses."""
         hx, hy = 0.5 * self.world.table_size[0] - margin, 0.5 * self.world.table_size[1] - margin
         return (np.abs(poses[..., 0]) > hx) | (np.abs(poses[..., 1]) > hy)
 
@@ -329,7 +346,7 @@ class EdgeTask:
         point is farther from the centre), and one push moves the centre at most
         ``search.step_bound``.
         """
-        poses = np.asarray(poses, dtype=float)
+        poses = self._poses(poses)
         gap = self.edge_x + self.grasp_depth - self.half_diagonal - poses[..., 0]
         return np.ceil(np.maximum(gap, 0.0) / self.search.step_bound - 1e-9).astype(int)
 
@@ -339,10 +356,10 @@ class EdgeTask:
         ``edge_x + d_g`` minus the farthest footprint point along +x, for a tie-break and for
         the greedy planner (it ignores the chord and centre conditions).
         """
-        poses = np.asarray(poses, dtype=float)
+        poses = self._poses(poses)
         reach = box_corners(poses, self.book.size)[..., 0].max(-1)
         return np.where(
-            self.graspable(poses), 0.0, np.maximum(self.edge_x + self.grasp_depth - reach, 0.0)
+            self._graspable(poses), 0.0, np.maximum(self.edge_x + self.grasp_depth - reach, 0.0)
         )
 
     # ------------------------------------------------------------------ pushes
@@ -358,7 +375,7 @@ class EdgeTask:
         Returns:
             ``(origins, yaws)``: (B, C, 2) world hand starts and (C,) world push yaws.
         """
-        poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+        poses = self._poses(poses).reshape(-1, 3)
         yaws = 2 * math.pi * np.arange(self.directions) / self.directions
         d = np.stack([np.cos(yaws), np.sin(yaws)], -1)  # (C, 2)
         rel = poses[:, 2, None] - yaws[None, :]  # book yaw in each pushing frame
