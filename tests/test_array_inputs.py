@@ -304,3 +304,30 @@ def test_the_edge_task_tests_take_finite_book_poses(value):
     batch = np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.0]])  # on the table, and far off it
     assert task.fallen(batch).tolist() == [False, True]
     assert task.graspable(batch).tolist() == [False, False]
+
+
+def test_pose_noise_is_drawn_for_finite_poses_of_one_shape_only():
+    from probaff.data import add_pose_noise, observe_poses, parse_pose_noise, summarize
+
+    noise, rng = parse_pose_noise("0.003,1"), np.random.default_rng(0)
+    poses = np.zeros((2, 2, 3))
+    for args, word in (
+        (("0.003", poses, poses, np.zeros(2), rng), "noise must be a PoseNoise"),
+        ((noise, "abc", poses, np.zeros(2), rng), "before"),
+        ((noise, poses, np.zeros((2, 3)), np.zeros(2), rng), "after has shape"),
+        ((noise, poses, poses * np.nan, np.zeros(2), rng), "after contains"),
+        ((noise, poses, poses, np.zeros(3), rng), "push_yaw has shape"),
+        ((noise, poses, poses, np.zeros(2), 3), "rng must be a numpy.random.Generator"),
+    ):
+        with pytest.raises(InputError, match=word):
+            observe_poses(*args)
+    before, after, effect = observe_poses(noise, poses, poses, np.zeros(2), rng)
+    assert before.shape == after.shape == effect.shape == (2, 2, 3)
+    with pytest.raises(InputError, match="--pose-noise must be POS_M,YAW_DEG text"):
+        parse_pose_noise(None)
+    with pytest.raises(InputError, match=r"arrays lacks \['state_before'"):
+        add_pose_noise({}, noise, rng)
+    with pytest.raises(InputError, match="arrays must map"):
+        add_pose_noise("abc", noise, rng)
+    with pytest.raises(InputError, match="ds must be a PushDataset or a SkillDataset"):
+        summarize("abc")

@@ -19,9 +19,16 @@ from typing import Any
 
 import numpy as np
 
-from probaff._checks import check_count, check_positive
+from probaff._checks import (
+    as_float_array,
+    check_count,
+    check_finite,
+    check_positive,
+    check_shape,
+)
 from probaff.errors import InputError
 from probaff.sim.geometry import push_frame_effect
+from probaff.sim.inputs import check_rng
 
 __all__ = ["PoseNoise", "observe_poses", "parse_pose_noise"]
 
@@ -91,6 +98,8 @@ def parse_pose_noise(text: str) -> PoseNoise:
     Raises:
         InputError: Naming ``--pose-noise`` and the expected form.
     """
+    if not isinstance(text, str):
+        raise InputError(f"--pose-noise must be POS_M,YAW_DEG text (e.g. '0.003,1'), got {text!r}.")
     parts = text.split(",")
     try:
         if len(parts) != 2:
@@ -130,16 +139,33 @@ def observe_poses(
         ``(observed_before, observed_after, observed_effect)``: the noisy (N, K, 3) world poses
         and the (N, K, 3) ``(Delta y_p, Delta z_p, Delta theta_p)`` between them in each push's
         pushing frame (m, m, rad).
+
+    Raises:
+        InputError: For a `noise` that is not a `PoseNoise`, poses or yaws that are not finite
+            numbers of these shapes, or an `rng` that is not a `numpy.random.Generator`.
     """
-    before = np.asarray(before, dtype=np.float64)
-    after = np.asarray(after, dtype=np.float64)
+    if not isinstance(noise, PoseNoise):
+        raise InputError(
+            f"noise must be a PoseNoise (e.g. parse_pose_noise('0.003,1')), got "
+            f"{type(noise).__name__}."
+        )
+    before = as_float_array("before", before)
+    check_shape("before", before, (None, None, 3))
+    check_finite("before", before)
+    after = as_float_array("after", after)
+    check_shape("after", after, before.shape)
+    check_finite("after", after)
+    yaws = as_float_array("push_yaw", push_yaw)
+    check_shape("push_yaw", yaws, (len(before),))
+    check_finite("push_yaw", yaws)
+    rng = check_rng(rng)
     scale = np.array([noise.position_std, noise.position_std, noise.yaw_std])
     eps = rng.standard_normal((len(before), 2, *before.shape[1:])) * scale
     obs_before, obs_after = before + eps[:, 0], after + eps[:, 1]
     effect = np.array(
         [
             push_frame_effect(b, a, float(y))
-            for b, a, y in zip(obs_before, obs_after, push_yaw, strict=True)
+            for b, a, y in zip(obs_before, obs_after, yaws, strict=True)
         ]
     )
     return obs_before, obs_after, effect.reshape(before.shape)

@@ -12,6 +12,7 @@ Covered by tests/data/test_data.py and tests/data/test_data_noise.py.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -23,6 +24,7 @@ from probaff.data.noise import PoseNoise, observe_poses
 from probaff.data.queries import world_meta
 from probaff.data.schema import READABLE_SCHEMA_VERSIONS, PushDataset, schema_version_for
 from probaff.data.summary import summarize_pushes
+from probaff.errors import InputError
 from probaff.sim.runner import PushSample, PushSimulator
 from probaff.sim.sensing import object_cloud
 from probaff.sim.specs import load_catalogue
@@ -151,7 +153,18 @@ def add_pose_noise(
         A new dict: the exact arrays moved to ``true_state_before``, ``true_state_after`` and
         ``true_effect``; ``state_before`` and ``state_after`` replaced by noisy measurements
         and ``effect`` by the pushing-frame difference between them. Other arrays are shared.
+
+    Raises:
+        InputError: For `arrays` that are not a mapping holding ``state_before``,
+            ``state_after``, ``push_yaw`` and ``effect``, or any error of `observe_poses`.
     """
+    if not isinstance(arrays, Mapping):
+        raise InputError(f"arrays must map array names to arrays, got {type(arrays).__name__}.")
+    missing = [k for k in ("state_before", "state_after", "push_yaw", "effect") if k not in arrays]
+    if missing:
+        raise InputError(
+            f"arrays lacks {missing}; give the schema arrays of samples_to_arrays (exact poses)."
+        )
     before, after, effect = observe_poses(
         noise, arrays["state_before"], arrays["state_after"], arrays["push_yaw"], rng
     )

@@ -9,6 +9,7 @@ import numpy as np
 
 from probaff.data.schema import PushDataset
 from probaff.data.skill_schema import SkillDataset
+from probaff.errors import InputError
 
 __all__ = [
     "MOVED_THRESHOLD",
@@ -31,9 +32,17 @@ def summarize(ds: PushDataset | SkillDataset) -> dict[str, Any]:
 
     Args:
         ds: The dataset.
+
+    Raises:
+        InputError: If `ds` is neither a `PushDataset` nor a `SkillDataset`.
     """
     if isinstance(ds, SkillDataset):
         return summarize_skills(ds)
+    if not isinstance(ds, PushDataset):
+        raise InputError(
+            f"ds must be a PushDataset or a SkillDataset (e.g. load_any_dataset(path)), got "
+            f"{type(ds).__name__}."
+        )
     return summarize_pushes(ds)
 
 
