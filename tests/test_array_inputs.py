@@ -331,3 +331,49 @@ def test_pose_noise_is_drawn_for_finite_poses_of_one_shape_only():
         add_pose_noise("abc", noise, rng)
     with pytest.raises(InputError, match="ds must be a PushDataset or a SkillDataset"):
         summarize("abc")
+
+
+def test_the_arm_checks_joint_angles_and_ranges():
+    from probaff.sim import load_arm, load_tabletop
+
+    arm = load_arm(load_tabletop().arm)
+    good = torch.zeros(2, arm.dof, dtype=torch.float64)
+    assert torch.allclose(arm.fk(good.numpy()), arm.fk(good))  # arrays are taken too
+    for bad, word in (
+        (None, "q must be"),
+        ("abc", "q must be"),
+        (torch.zeros(2, arm.dof, dtype=torch.complex64), "Complex data"),
+        (torch.zeros(2, 3), "q has shape"),
+        (torch.full((2, arm.dof), float("nan")), "q contains"),
+    ):
+        with pytest.raises(InputError, match=word):
+            arm.fk(bad)
+    with pytest.raises(InputError, match="q_waypoints holds 1 waypoint"):
+        arm.trace(torch.zeros(2, 1, arm.dof), torch.linspace(0, 1, 5))
+    with pytest.raises(InputError, match="progress contains"):
+        arm.trace(torch.zeros(2, 3, arm.dof), torch.tensor([0.0, float("nan")]))
+    with pytest.raises(InputError, match="u has shape"):
+        arm.sideview_trace(torch.zeros(2, 3, arm.dof), torch.zeros(3, 4))
+    with pytest.raises(InputError, match="xy contains"):
+        arm.reachable(torch.full((1, 2), float("nan")), torch.zeros(1))
+    for kwargs, word in (
+        ({"resolution": 0}, "resolution must be a finite number > 0"),
+        ({"x_range": (1.0, 0.0)}, "x_range must rise"),
+        ({"y_range": "ab"}, r"y_range must be a \(low, high\) pair"),
+    ):
+        with pytest.raises(InputError, match=word):
+            arm.reachable_mask(**{"x_range": (0.0, 0.1), "y_range": (0.0, 0.1), **kwargs})
+    with pytest.raises(InputError, match="plane_y must be a finite number"):
+        arm.sideview_reach(0.1, float("nan"))
+
+
+def test_a_warehouse_maps_cells_and_points_of_real_pairs():
+    from probaff.sim import generate_map, load_warehouse
+
+    m = generate_map(load_warehouse(), np.random.default_rng(0))
+    cells = np.array([[0, 0], [1, 2]])
+    assert np.array_equal(m.cell_of(m.cell_centre(cells)), cells)
+    for call, name in ((m.cell_centre, "cells"), (m.cell_of, "xy"), (m.inside, "cells")):
+        for bad in (None, "abc", [[1.0], [1.0, 2.0]], np.zeros(3), [[np.nan, 0.0]], [[1j, 0]]):
+            with pytest.raises(InputError, match=f"^{name} "):
+                call(bad)

@@ -12,13 +12,15 @@ push, the tcp points straight down and its x axis is the push direction z_p.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 import torch
 
-from probaff._checks import check_count, check_finite, check_shape
+from probaff._checks import as_real_tensor, check_count, check_finite, check_number, check_shape
 from probaff.errors import ConfigError, InputError, UnreachablePoseError
 from probaff.sim.specs import ArmSpec
 
@@ -37,6 +39,16 @@ _DTYPE = torch.float64
 # aimed at the target, so three seeds per pose suffice.
 _POSTURES = ((-1.5, 1.8, -1.9), (-1.0, 1.5, -2.1), (-2.0, 2.0, -1.6))
 _MAX_JOINT_STEP = 0.6  # rad between consecutive waypoints; more means an IK branch flip
+
+
+def _interval(name: str, value: Any) -> tuple[float, float]:
+    """`value` as a ``(low, high)`` pair of finite numbers, low < high, or `InputError`."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != 2:
+        raise InputError(f"{name} must be a (low, high) pair of numbers (m), got {value!r}.")
+    low, high = (check_number(name, v, unit="m") for v in value)
+    if not low < high:
+        raise InputError(f"{name} must rise from low to high, got {value!r}.")
+    return low, high
 
 
 def topdown_pose(xy: torch.Tensor, yaw: torch.Tensor, height: float) -> torch.Tensor:
@@ -167,6 +179,13 @@ class Arm:
         self.T_base_world = torch.linalg.inv(T)
 
     # -- kinematics -------------------------------------------------------------------------
+    def _joints(self, name: str, q: Any, leading: int) -> torch.Tensor:
+        """`q` as finite float64 joint angles `(*leading dims, dof)`, or `InputError`."""
+        t = as_real_tensor(name, q).to(_DTYPE)
+        check_shape(name, t, (*(None,) * leading, self.dof))
+        check_finite(name, t)
+        return t
+
     def fk(self, q: torch.Tensor) -> torch.Tensor:
         """Forward kinematics.
 
@@ -175,8 +194,12 @@ class Arm:
 
         Returns:
             T_world_tcp: (B, 4, 4).
+
+        Raises:
+            InputError: For `q` that is not finite (B, dof) numbers.
         """
-        T_base_tcp = self.chain.forward_kinematics(q.to(_DTYPE)).get_matrix()
+        q = self._joints("q", q, 1)
+        T_base_tcp = self.chain.forward_kinematics(q).get_matrix()
         return self.T_world_base @ T_base_tcp
 
     def planar_fk(self, q: torch.Tensor) -> torch.Tensor:
@@ -298,6 +321,15 @@ class Arm:
         jump = (q[:, 1:] - q[:, :-1]).abs().amax(dim=(1, 2))
         return PushPathIK(q=q, ok=ok & (jump < _MAX_JOINT_STEP))
 
+    def _waypoints(self, q_waypoints: Any) -> torch.Tensor:
+        """`q_waypoints` as finite (B, K >= 2, dof) joint angles, or `InputError`."""
+        q = self._joints("q_waypoints", q_waypoints, 2)
+        if q.shape[1] < 2:
+            raise InputError(
+                f"q_waypoints holds {q.shape[1]} waypoint(s) per path; give 2 or more."
+            )
+        return q
+
     def trace(self, q_waypoints: torch.Tensor, progress: torch.Tensor) -> torch.Tensor:
         """Map a joint-space linear interpolation of waypoints through FK.
 
@@ -307,9 +339,17 @@ class Arm:
 
         Returns:
             (B, T, 3) world ``(x, y, yaw)`` of the tcp at each control tick.
+
+        Raises:
+            InputError: For waypoints that are not finite (B, K >= 2, dof) numbers, or
+                `progress` that is not finite (T,) numbers.
         """
+        q_waypoints = self._waypoints(q_waypoints)
         B, K, dof = q_waypoints.shape
-        u = progress.to(_DTYPE).clamp(0.0, 1.0) * (K - 1)
+        progress = as_real_tensor("progress", progress).to(_DTYPE)
+        check_shape("progress", progress, (None,))
+        check_finite("progress", progress)
+        u = progress.clamp(0.0, 1.0) * (K - 1)
         i0 = u.floor().clamp(max=K - 2).long()
         frac = (u - i0)[None, :, None]
         q = q_waypoints[:, i0] * (1 - frac) + q_waypoints[:, i0 + 1] * frac  # (B, T, dof)
@@ -411,9 +451,17 @@ class Arm:
 
         Returns:
             (B, T, 3) world ``(x, z, phi)`` of the tcp at each control tick.
+
+        Raises:
+            InputError: For waypoints that are not finite (B, K >= 2, dof) numbers, or `u`
+                that is not finite (B, T) numbers.
         """
+        q_waypoints = self._waypoints(q_waypoints)
         B, K, dof = q_waypoints.shape
-        u = u.to(_DTYPE).clamp(0.0, K - 1)
+        u = as_real_tensor("u", u).to(_DTYPE)
+        check_shape("u", u, (B, None))
+        check_finite("u", u)
+        u = u.clamp(0.0, K - 1)
         i0 = u.floor().clamp(max=K - 2).long()  # (B, T)
         frac = (u - i0)[..., None]
         rows = torch.arange(B)[:, None]
@@ -433,9 +481,15 @@ class Arm:
 
         Returns:
             ``(x_min, x_max)`` of the reachable scanned points, or ``None`` if none is.
+
+        Raises:
+            InputError: For a `z` or `plane_y` that is not a finite number, an `x_range` that
+                is not two finite numbers, low then high, or an `n` that is not a positive
+                integer.
         """
         n = check_count("n", n)
-        return _sideview_reach_cached(self, float(z), float(plane_y), tuple(x_range), n)
+        z, plane_y = check_number("z", z, unit="m"), check_number("plane_y", plane_y, unit="m")
+        return _sideview_reach_cached(self, z, plane_y, _interval("x_range", x_range), n)
 
     # -- workspace --------------------------------------------------------------------------
     def reachable(self, xy: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
@@ -448,8 +502,11 @@ class Arm:
         Returns:
             (N,) bool.
         """
+        xy, yaw = as_real_tensor("xy", xy), as_real_tensor("yaw", yaw)
         check_shape("xy", xy, (None, 2))
         check_shape("yaw", yaw, (xy.shape[0],))
+        check_finite("xy", xy)
+        check_finite("yaw", yaw)
         if xy.shape[0] == 0:
             return torch.zeros(0, dtype=torch.bool)
         return self.ik(topdown_pose(xy.to(_DTYPE), yaw.to(_DTYPE), self.spec.push_height)).converged
@@ -478,8 +535,11 @@ class Arm:
             ``(mask, xs, ys)``: mask (H, W) bool indexed ``[iy, ix]``, xs (W,), ys (H,).
 
         Raises:
-            InputError: If `n_yaws` is not a positive integer or `require` is unknown.
+            InputError: If a range is not two finite numbers, low then high, `resolution` is
+                not a number > 0, `n_yaws` is not a positive integer or `require` is unknown.
         """
+        x_range, y_range = _interval("x_range", x_range), _interval("y_range", y_range)
+        resolution = check_number("resolution", resolution, bound="> 0", unit="m")
         n_yaws = check_count("n_yaws", n_yaws)
         if require not in ("any", "all"):
             raise InputError(f"require must be 'any' or 'all', got {require!r}.")
