@@ -1,9 +1,10 @@
 """Arrays that hold no real numbers are refused by name wherever a public function takes one.
 
-`probaff._checks.real_float64` and `as_real_tensor` are the two conversions; these tests feed
-strings, None, objects, ragged lists and complex numbers to the functions that used to pass
-them to numpy or torch unchecked (raw ``TypeError``/``RuntimeError``, or complex numbers cast
-to their real parts with only a warning).
+The conversions live in `probaff._checks`: `real_float64` (behind `as_float_array`),
+`as_real_tensor`, `as_bool_array` and `check_finite`. These tests feed strings, None, objects,
+ragged lists, complex numbers and NaN to the functions that used to pass them to numpy or torch
+unchecked: they raised numpy's or torch's own errors, or cast silently (None to NaN, a complex
+number to its real part, NaN or 0.5 to True in a mask, 0.5 to index 0).
 """
 
 from __future__ import annotations
