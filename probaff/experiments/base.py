@@ -180,14 +180,23 @@ class StudyRun(Generic[C]):
 
     Args:
         config: The study's settings; validated here (`StudyConfig.validate`).
+        kind: The study's config class, which `config` must be an instance of.
 
     Attributes:
         config: The validated config.
         out: The output folder.
         files: Paths written so far, in order.
+
+    Raises:
+        InputError: For a `config` that is not a `kind`, or one that does not validate.
     """
 
-    def __init__(self, config: C) -> None:
+    def __init__(self, config: C, kind: type[StudyConfig] = StudyConfig) -> None:
+        if not isinstance(config, kind):
+            raise InputError(
+                f"config must be a {kind.__name__} (e.g. {kind.__name__}() or "
+                f"{kind.__name__}.smoke()), got {type(config).__name__}."
+            )
         self.config: C = config.validate()
         self.out = Path(self.config.out)
         self.files: list[str] = []

@@ -94,6 +94,17 @@ def test_the_studies_of_probaff_are_its_study_folders():
     assert repr(STUDIES) == f"StudyRegistry('probaff.experiments', {folders!r})"
 
 
+def test_every_study_refuses_a_config_of_another_kind_by_name(tmp_path):
+    names = list(STUDIES)
+    for i, name in enumerate(names):
+        study = STUDIES[name]
+        other = STUDIES[names[(i + 1) % len(names)]].Config(out=str(tmp_path / "other"))
+        for bad in (None, "config.yaml", {"seed": 0}, other):
+            with pytest.raises(InputError, match=rf"^config must be a {study.Config.__name__} "):
+                study.run(bad)
+    assert not (tmp_path / "other").exists()  # refused before any work
+
+
 def test_a_new_study_folder_beside_the_others_is_found(tmp_path, monkeypatch, capsys):
     """A study folder on `probaff.experiments`'s path: ``probaff study`` runs it, unedited."""
     (tmp_path / "squares").mkdir()

@@ -222,7 +222,7 @@ def run(config: AffordanceMapConfig) -> dict[str, Any]:
     Raises:
         InputError: For settings out of range.
     """
-    study = StudyRun(config)
+    study = StudyRun(config, AffordanceMapConfig)
     config = study.config
     t0 = time.perf_counter()
     store = ResultStore(study.out / "tasks")

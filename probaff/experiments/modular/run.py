@@ -170,7 +170,7 @@ def run(config: ModularStudyConfig) -> dict[str, Any]:
     Raises:
         InputError: For an invalid config.
     """
-    study = StudyRun(config)
+    study = StudyRun(config, ModularStudyConfig)
     paths = _datasets(study)
     records = study.tasks(modular_task, _tasks(study.config, paths), desc="chapter 6 trials")
     _add_pick_causes(records, paths)

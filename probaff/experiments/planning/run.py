@@ -300,7 +300,7 @@ def run(config: PlanningStudyConfig) -> dict[str, Any]:
     Raises:
         InputError: For an invalid config.
     """
-    study = StudyRun(config)
+    study = StudyRun(config, PlanningStudyConfig)
     rows, md = _edge(study)
     tool_rows: list[dict[str, Any]] = []
     if study.config.tool_trials and study.config.tool_planners:

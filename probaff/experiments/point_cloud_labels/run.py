@@ -185,7 +185,7 @@ def run(config: PointCloudStudyConfig) -> dict[str, Any]:
     Raises:
         InputError: For an invalid config.
     """
-    study = StudyRun(config)
+    study = StudyRun(config, PointCloudStudyConfig)
     config = study.config
     scans, npz, merge_records, merge_points = _scan_all(study)
     cvs = {n: _cross_validate(config, scans[:n]) for n in sorted({*config.scene_counts})}

@@ -478,7 +478,7 @@ def run(config: PushModelStudyConfig) -> dict[str, Any]:
     Raises:
         InputError: For an invalid config.
     """
-    study = StudyRun(config)
+    study = StudyRun(config, PushModelStudyConfig)
     config, out = study.config, study.out
     data = _datasets(study)
     arrays = {exp: (features.values, Y) for exp, (features, Y) in data.items()}

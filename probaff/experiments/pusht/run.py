@@ -293,7 +293,7 @@ def run(config: PushTStudyConfig) -> dict[str, Any]:
         InputError: For an invalid config.
         PushTEnvError: If the Push-T environment is missing or of another version.
     """
-    study = StudyRun(config)
+    study = StudyRun(config, PushTStudyConfig)
     c = study.config
     with_worker(c.python, lambda w: w.versions)  # a missing environment fails here, first
     sets, test, moved = _datasets(study)
