@@ -16,6 +16,8 @@ from probaff.errors import InputError
 __all__ = [
     "as_bool_array",
     "as_float_array",
+    "as_float_vectors",
+    "as_real_array",
     "as_real_tensor",
     "check_array_fields",
     "check_bool",
@@ -111,15 +113,44 @@ def as_float_array(name: str, x: Any, *, copy: bool = False) -> np.ndarray:
     return arr.copy() if copy else arr
 
 
+def as_real_array(name: str, x: Any) -> np.ndarray:
+    """Return `x` as a numpy array of real numbers of its own kind, or raise `InputError`.
+
+    The counterpart of `as_float_array` for arguments whose dtype carries meaning (integer
+    indices, masks): bools stay bool, integers other than uint8 become int64 and floats keep
+    their precision (a Python list of floats gives float64). A tensor is moved to the CPU.
+    Strings, ``None``, objects, complex numbers and ragged nested lists are refused with the
+    argument's name instead of numpy's own error (or its silent cast of complex numbers).
+
+    Args:
+        name: What `x` is, as the user knows it (e.g. ``"distances"``).
+        x: Array-like or tensor of any shape.
+
+    Returns:
+        An array of `x`'s shape (`x` itself, or a view of a CPU tensor, where the dtype
+        allows).
+    """
+    if isinstance(x, torch.Tensor):
+        x = as_real_tensor(name, x).cpu().numpy()
+    try:
+        arr = x if isinstance(x, np.ndarray) else np.asarray(x)
+    except (TypeError, ValueError):
+        raise _not_numeric(name, x) from None
+    if arr.dtype.kind not in "biuf":
+        raise _not_numeric(name, x)
+    if arr.dtype.kind in "iu" and arr.dtype != np.uint8:
+        arr = arr.astype(np.int64, copy=False)
+    return arr
+
+
 def as_real_tensor(name: str, x: Any) -> torch.Tensor:
     """Return `x` as a detached real tensor of its own kind, or raise `InputError`.
 
-    The tensor counterpart of `as_float_array`, for arguments whose dtype carries meaning
-    (integer indices, float32 potentials): a tensor keeps its dtype and device; any other
-    array-like goes through numpy, so bools stay bool, integers become int64 and floats
+    The tensor form of `as_real_array`, for arguments whose dtype carries meaning (integer
+    indices, float32 potentials): a tensor keeps its dtype and device; any other array-like
+    goes through `as_real_array`, so bools stay bool, integers become int64 and floats
     float64 (a Python list of floats too, where ``torch.as_tensor`` would give float32).
-    Strings, ``None``, objects, complex numbers and ragged nested lists are refused with the
-    argument's name instead of torch's own error (or its silent cast of complex numbers).
+    Complex tensors are refused, where torch would drop their imaginary parts with a warning.
 
     Args:
         name: What `x` is, as the user knows it (e.g. ``"unary_log"``).
@@ -130,20 +161,33 @@ def as_real_tensor(name: str, x: Any) -> torch.Tensor:
         where the dtype allows).
     """
     if isinstance(x, torch.Tensor):
-        if x.is_complex():  # torch's cast would drop the imaginary parts with a warning
+        if x.is_complex():
             raise _not_numeric(name, x)
         return x.detach()
-    try:
-        arr = x if isinstance(x, np.ndarray) else np.asarray(x)
-    except (TypeError, ValueError):
-        raise _not_numeric(name, x) from None
-    if arr.dtype.kind not in "biuf":
-        raise _not_numeric(name, x)
-    if arr.dtype.kind in "iu" and arr.dtype != np.uint8:
-        arr = arr.astype(np.int64, copy=False)
+    arr = as_real_array(name, x)
     if any(stride < 0 for stride in arr.strides):  # torch cannot view reversed axes
         arr = arr.copy()
     return torch.as_tensor(arr)
+
+
+def as_float_vectors(name: str, x: Any, width: int, what: str) -> np.ndarray:
+    """Return `x` as finite float64 vectors of `width` numbers, `(..., width)`.
+
+    Args:
+        name: What `x` is, as the user knows it (e.g. ``"poses"``).
+        x: Array-like or tensor, `(..., width)`.
+        width: The length of the last axis.
+        what: What the vectors are, for the message (e.g. ``"pairs of numbers"``).
+
+    Raises:
+        InputError: Naming `name`, for anything but real numbers with a last axis of `width`,
+            or NaN or infinite values.
+    """
+    arr = real_float64(x)
+    if arr is None or arr.ndim == 0 or arr.shape[-1] != width:
+        raise InputError(f"{name} must be (..., {width}) {what}, got {x!r:.80}.")
+    check_finite(name, arr)
+    return arr
 
 
 def as_bool_array(name: str, x: Any) -> np.ndarray:
@@ -159,7 +203,7 @@ def as_bool_array(name: str, x: Any) -> np.ndarray:
     Returns:
         `x` as a bool array of the same shape.
     """
-    arr = as_real_tensor(name, x).cpu().numpy()
+    arr = as_real_array(name, x)
     if arr.dtype == np.bool_:
         return arr
     outside = ~np.isin(arr, (0, 1))  # NaN is in neither

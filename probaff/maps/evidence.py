@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from probaff._checks import as_real_tensor, check_count, check_finite
+from probaff._checks import as_real_array, as_real_tensor, check_count, check_finite
 from probaff.errors import InputError
 
 __all__ = ["FREE", "as_evidence", "make_evidence", "single_variable_evidence"]
@@ -132,7 +132,7 @@ def single_variable_evidence(
     if variables is None:
         cand = np.arange(num_variables)
     else:
-        given = as_real_tensor("variables", variables).cpu().numpy().reshape(-1)
+        given = as_real_array("variables", variables).reshape(-1)
         if given.size and given.dtype.kind not in "iu":  # [] is no candidate
             raise InputError(
                 f"variables must be integer variable indices, got dtype {given.dtype}; e.g. "

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pymunk
 
-from probaff._checks import check_count, check_finite, check_positive, real_float64
+from probaff._checks import as_float_vectors, check_count, check_positive
 from probaff.errors import ConfigError, InputError
 from probaff.grid import DIRECTION_NAMES, DIRECTION_OFFSETS
 from probaff.sim.friction import add_sliding_body
@@ -72,15 +72,6 @@ def _pair(name: str, value: object, minimum: int | None = None) -> tuple[int, in
             check_count(f"{name}[1]", items[1], minimum=minimum),
         )
     return _index(f"{name}[0]", items[0]), _index(f"{name}[1]", items[1])
-
-
-def _pairs(name: str, value: object) -> np.ndarray:
-    """`value` as finite (..., 2) floats, or an `InputError` naming `name`."""
-    arr = real_float64(value)
-    if arr is None or arr.ndim == 0 or arr.shape[-1] != 2:
-        raise InputError(f"{name} must be (..., 2) pairs of numbers, got {value!r:.80}.")
-    check_finite(name, arr)
-    return arr
 
 
 def _direction(direction: object) -> int:
@@ -197,7 +188,7 @@ class WarehouseMap:
         Raises:
             InputError: For `cells` that are not finite (..., 2) numbers.
         """
-        cells = _pairs("cells", cells)
+        cells = as_float_vectors("cells", cells, 2, "pairs of numbers")
         x = (cells[..., 1] + 0.5) * self.cell_size
         y = (self.shape[0] - cells[..., 0] - 0.5) * self.cell_size
         return np.stack([x, y], -1)
@@ -208,7 +199,7 @@ class WarehouseMap:
         Raises:
             InputError: For `xy` that is not finite (..., 2) numbers.
         """
-        xy = _pairs("xy", xy)
+        xy = as_float_vectors("xy", xy, 2, "pairs of numbers")
         col = np.floor(xy[..., 0] / self.cell_size).astype(int)
         row = self.shape[0] - 1 - np.floor(xy[..., 1] / self.cell_size).astype(int)
         return np.stack([row, col], -1)
@@ -219,7 +210,7 @@ class WarehouseMap:
         Raises:
             InputError: For `cells` that are not finite (..., 2) numbers.
         """
-        cells = _pairs("cells", cells)
+        cells = as_float_vectors("cells", cells, 2, "pairs of numbers")
         return (
             (cells[..., 0] >= 0)
             & (cells[..., 0] < self.shape[0])

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from probaff._checks import as_real_tensor
+from probaff._checks import as_real_array
 from probaff.errors import InputError
 from probaff.grid import DIRECTION_OFFSETS
 from probaff.maps.entropy import map_entropy
@@ -71,7 +71,7 @@ class PushCandidates:
 
 def _check_distances(distances: Any, shape: tuple[int, int]) -> np.ndarray:
     """``(H, W)`` int64 travel distances, or `InputError`."""
-    dist = as_real_tensor("distances", distances).cpu().numpy()
+    dist = as_real_array("distances", distances)
     if dist.shape != shape:
         raise InputError(f"distances has shape {dist.shape}, expected the map's {shape}.")
     if not np.issubdtype(dist.dtype, np.integer):

@@ -58,7 +58,7 @@ import torch
 
 from probaff._checks import (
     as_bool_array,
-    as_real_tensor,
+    as_real_array,
     check_count,
     check_finite,
     check_positive,
@@ -125,7 +125,7 @@ def travel_distances(passable: Any, robot: Any) -> np.ndarray:
     """
     free = as_bool_array("passable", passable)
     check_shape("passable", free, (None, None))
-    cell = as_real_tensor("robot", robot).cpu().numpy()
+    cell = as_real_array("robot", robot)
     if cell.shape != (2,) or not np.issubdtype(cell.dtype, np.integer):
         raise InputError(f"robot must be an integer (row, col) cell, got {robot!r}.")
     r, c = int(cell[0]), int(cell[1])

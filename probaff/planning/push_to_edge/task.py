@@ -31,7 +31,13 @@ from typing import Any
 
 import numpy as np
 
-from probaff._checks import check_count, check_finite, check_positive, check_shape, real_float64
+from probaff._checks import (
+    as_float_vectors,
+    check_count,
+    check_finite,
+    check_positive,
+    check_shape,
+)
 from probaff.errors import ConfigError, InputError
 from probaff.planning._checks import check_instance, check_rng
 from probaff.planning.geometry import box_corners, boxes_overlap, chord_at
@@ -252,13 +258,7 @@ class EdgeTask:
     @staticmethod
     def _poses(poses: Any) -> np.ndarray:
         """`poses` as finite (..., 3) floats, or `InputError` naming ``poses``."""
-        arr = real_float64(poses)
-        if arr is None or arr.ndim == 0 or arr.shape[-1] != 3:
-            raise InputError(
-                f"poses must be (..., 3) world (x, y, yaw) book poses, got {poses!r:.80}."
-            )
-        check_finite("poses", arr)
-        return arr
+        return as_float_vectors("poses", poses, 3, "world (x, y, yaw) book poses")
 
     def graspable(self, poses: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """Whether book poses (..., 3) are goals (see the module docstring); (...,) bool.
