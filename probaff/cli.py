@@ -92,6 +92,13 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--n", type=int, default=96)
     m.add_argument("--seed", type=int, default=0)
     m.add_argument("--workers", type=int, default=0)
+    m.add_argument(
+        "--office-scenes",
+        type=int,
+        default=None,
+        help="office scenes of the chapter 2 part, the held-out one included (default 23: "
+        "22 train the label classifiers)",
+    )
     m.add_argument("--quiet", action="store_true", help="no progress bar")
 
     sub.add_parser(
@@ -174,6 +181,7 @@ def _dispatch(args: argparse.Namespace) -> None:
                 n=args.n,
                 seed=args.seed,
                 workers=args.workers,
+                **({} if args.office_scenes is None else {"office_scenes": args.office_scenes}),
                 progress=not args.quiet,
             )
         )

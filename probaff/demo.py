@@ -10,10 +10,11 @@ by information gain on the affordance MRF, and prints the map's entropy before a
 drawing the walls crossed out on the loop's figure, then plans and executes one push-to-edge
 episode (chapter 4: A* over the mixture's predictions, closed loop in the simulator), drawn to
 a PNG, and fits chapter 6's per-skill transition models and predicts a pick, a place and a
-three-object chained push, drawn against what the simulator did. Last (chapter 2) it scans a
-few office scenes from the robot's head, segments them by region growing, trains the label
-classifiers on all but one and draws the held-out scene's segments and predicted labels to a PNG,
-printing its held-out precision and recall.
+three-object chained push, drawn against what the simulator did. Last (chapter 2) it scans
+23 office scenes from the robot's head (three views each, as the chapter 2 study does),
+segments them by region growing, trains the label classifiers on all but one and draws the
+held-out scene's segments and predicted labels to a PNG, printing its held-out precision and
+recall.
 
 The report: each stage's lines come out together when the stage ends, above one transient
 progress bar over the stages (on stderr); the `RuntimeWarning`s that a fit records in its
@@ -51,6 +52,7 @@ from probaff.eval.metrics import interval_coverage, nlpd, rmse
 from probaff.experiments.affordance_map.demo import demo as affordance_demo
 from probaff.experiments.modular.demo import demo as modular_demo
 from probaff.experiments.planning.demo import demo as planning_demo
+from probaff.experiments.point_cloud_labels.demo import DEMO_SCENES
 from probaff.experiments.point_cloud_labels.demo import demo as point_cloud_demo
 from probaff.experiments.point_cloud_labels.intervals import interval_text
 from probaff.experiments.push_models.figures import plot_predictive_density, plot_pushes
@@ -75,6 +77,9 @@ class DemoConfig:
         n: Pushes to generate.
         seed: Dataset seed.
         workers: 0 runs in this process; K > 0 uses a local Dask cluster.
+        office_scenes: Office scenes of the chapter 2 part, the held-out one included (an
+            integer >= 2; by default `DEMO_SCENES`, 23: 22 train the label classifiers, as
+            many as one fold of the chapter 2 study trains on).
         progress: Show one progress bar over the demo's stages (on stderr, gone at the end).
     """
 
@@ -82,6 +87,7 @@ class DemoConfig:
     n: int = 96
     seed: int = 0
     workers: int = 0
+    office_scenes: int = DEMO_SCENES
     progress: bool = True
 
 
@@ -97,11 +103,13 @@ def run(config: DemoConfig) -> dict[str, Any]:
         paths of every figure, in the report's order}``.
 
     Raises:
-        InputError: If `n`, `seed` or `workers` is not a valid count (before any work).
+        InputError: If `n`, `seed`, `workers` or `office_scenes` is not a valid count (before
+            any work).
     """
     check_count("n", config.n)
     check_count("seed", config.seed, minimum=0)
     check_count("workers", config.workers, minimum=0)
+    check_count("office_scenes", config.office_scenes, minimum=2)
     out = Path(config.out)
     seed = config.seed
     report = _Report(_STAGES, config.progress)
@@ -118,7 +126,9 @@ def run(config: DemoConfig) -> dict[str, Any]:
         with report.stage("modular transition models (chapter 6)"):
             modular = modular_demo(out / "modular", seed=seed, progress=False)
         with report.stage("point-cloud labels (chapter 2)"):
-            labels = point_cloud_demo(out / "point_cloud_labels", seed=seed, progress=False)
+            labels = point_cloud_demo(
+                out / "point_cloud_labels", seed=seed, scenes=config.office_scenes, progress=False
+            )
     finally:
         report.close()
     result: dict[str, Any] = {

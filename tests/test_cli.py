@@ -47,6 +47,11 @@ def test_demo_flags_are_checked_before_any_work(tmp_path, capsys):
         "probaff demo: error: n must be a positive integer, got 0.\n"
     )
     assert not out.exists()
+    assert main(["demo", "--out", str(out), "--office-scenes", "1", "--quiet"]) == 2
+    assert capsys.readouterr().err == (
+        "probaff demo: error: office_scenes must be an integer >= 2, got 1.\n"
+    )
+    assert not out.exists()
 
 
 def test_scenes_listing(capsys):

@@ -30,6 +30,7 @@ TABLE_HEADER = "object  moved >1 cm  fell off  hand contact  along push    acros
         ("n", 0, "n must be a positive integer, got 0"),
         ("seed", -1, "seed must be an integer >= 0, got -1"),
         ("workers", -1, "workers must be an integer >= 0, got -1"),
+        ("office_scenes", 1, "office_scenes must be an integer >= 2, got 1"),
     ],
 )
 def test_bad_settings_are_refused_before_any_work(tmp_path, field, value, message):
@@ -103,7 +104,19 @@ def test_the_dataset_table_has_a_row_per_object_slot(tmp_path):
 @pytest.mark.slow
 def test_the_demo_command_prints_a_report_ending_with_its_figures(tmp_path):
     proc = subprocess.run(
-        [sys.executable, "-m", "probaff.cli", "demo", "--out", str(tmp_path), "--n", "8"],
+        # 8 pushes and 4 office scenes (3 train) instead of the default 96 and 23
+        [
+            sys.executable,
+            "-m",
+            "probaff.cli",
+            "demo",
+            "--out",
+            str(tmp_path),
+            "--n",
+            "8",
+            "--office-scenes",
+            "4",
+        ],
         capture_output=True,
         text=True,
         check=True,

@@ -21,9 +21,9 @@ sigmoid is smooth and monotone in the score. In the chapter 2 study (30 scenes, 
 all segments, ``"balanced"`` thresholds) sigmoid calibration scored mean precision / recall
 85.21 / 86.51 % against isotonic's 84.57 / 87.43 with the study's folds (seed 0). Over the
 folds of seeds 0-4 its precision was higher at every seed, 84.79 against 84.39 % on average,
-for recall 86.59 against 87.24 %; it reached 85 % at seeds 0 and 3. On the demo's single
-held-out scene, with 7 training scenes, the two tie: 72.5 / 77.7 against 72.4 / 79.3 % averaged
-over demo seeds 0-7.
+for recall 86.59 against 87.24 %; it reached 85 % at seeds 0 and 3. On a single held-out
+scene's centre view with 7 training scenes (the demo's size before it grew), the two tie:
+72.5 / 77.7 against 72.4 / 79.3 % averaged over demo seeds 0-7.
 
 Decision threshold (`BoostingOptions.threshold`): calibrated probabilities make ``p >= 0.5``
 the most accurate decision, not the one that balances precision and recall; on the chapter 2

@@ -248,13 +248,16 @@ def test_damaged_scan_arrays_are_named(tmp_path):
 
 @pytest.mark.slow
 def test_demo_draws_the_held_out_scene(tmp_path, capsys):
-    # three training scenes here; probaff demo's own run (test_demo) trains on seven
-    summary = demo(tmp_path / "pcl", seed=0, scenes=4, progress=False)
+    # three training scenes of the centre view here; probaff demo's own run trains on 22 scenes
+    # of three views
+    summary = demo(
+        tmp_path / "pcl", seed=0, scenes=4, perception=SMOKE["perception"], progress=False
+    )
     png = tmp_path / "pcl" / "scanned_scene.png"
     assert summary["file"] == str(png)
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert png.stat().st_size > 20_000  # four panels of thousands of points, not a blank page
-    assert summary["scenes"] == 4
+    assert summary["scenes"] == 4 and summary["views"] == 1
     assert summary["segments"] > 5 and summary["train_segments"] > 3 * 5
     assert 0 <= summary["unassigned"] < summary["points"]
     for key in ("precision_pct", "recall_pct", "new_precision_pct", "new_recall_pct"):
@@ -288,6 +291,7 @@ def test_demo_draws_the_held_out_scene(tmp_path, capsys):
         ("seed", -1, "seed must be an integer >= 0, got -1"),
         ("scenes", 1, "scenes must be an integer >= 2, got 1"),
         ("scenes", 2.5, "scenes must be an integer >= 2, got 2.5"),
+        ("perception", {"pans_deg": (0.0,)}, "perception must be a PerceptionConfig, got dict"),
     ],
 )
 def test_demo_rejects_a_bad_seed_or_scene_count_before_any_work(tmp_path, field, value, message):
@@ -298,7 +302,7 @@ def test_demo_rejects_a_bad_seed_or_scene_count_before_any_work(tmp_path, field,
 
 def test_a_held_out_view_without_labels_says_why_its_means_read_n_a():
     # demo seed 9's centre view: 19 segments, none with a label, none predicted
-    assert _undefined_note(np.zeros((19, 6), dtype=bool)).startswith(" (n/a: this view's")
+    assert _undefined_note(np.zeros((19, 6), dtype=bool)).startswith(" (n/a: this scene's")
     assert _undefined_note(np.eye(6, dtype=bool)) == ""
 
 
