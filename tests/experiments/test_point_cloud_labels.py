@@ -25,7 +25,7 @@ from study_helpers import ROOT, assert_resumes, assert_wrote
 from probaff.errors import DatasetError, InputError
 from probaff.experiments.point_cloud_labels import SMOKE, PointCloudStudyConfig, run
 from probaff.experiments.point_cloud_labels.causes import CAUSES
-from probaff.experiments.point_cloud_labels.demo import _undefined_note, demo
+from probaff.experiments.point_cloud_labels.demo import _centre_view, _undefined_note, demo
 from probaff.experiments.point_cloud_labels.figures import (
     plot_entropy_tree,
     plot_label_probabilities,
@@ -37,6 +37,7 @@ from probaff.experiments.point_cloud_labels.figures import (
 from probaff.experiments.point_cloud_labels.report import summarise_merge
 from probaff.experiments.point_cloud_labels.scans import scan_task
 from probaff.perception.labels import LABELS, THESIS_PR
+from probaff.perception.scan_labels import PerceptionConfig
 
 _TABLES = ("labels.csv", "refinement.csv", "merge.csv", "models.csv", "causes.csv", "summary.md")
 _FIGURES = (
@@ -304,6 +305,12 @@ def test_a_held_out_view_without_labels_says_why_its_means_read_n_a():
     # demo seed 9's centre view: 19 segments, none with a label, none predicted
     assert _undefined_note(np.zeros((19, 6), dtype=bool)).startswith(" (n/a: this scene's")
     assert _undefined_note(np.eye(6, dtype=bool)) == ""
+
+
+def test_the_demo_draws_the_view_nearest_straight_ahead():
+    assert _centre_view(PerceptionConfig()) == 1  # pans -30, 0, 30: the second view
+    assert _centre_view(PerceptionConfig(pans_deg=(20.0, -5.0), tilts_deg=(30.0, 40.0))) == 2
+    assert _centre_view(SMOKE["perception"]) == 0
 
 
 def test_scanned_scene_rejects_bad_input(tmp_path):

@@ -98,6 +98,12 @@ def _scan_scenes(
     ]
 
 
+def _centre_view(perception: PerceptionConfig) -> int:
+    """The view drawn: the pan nearest straight ahead at the first tilt (views are pan-major)."""
+    pans = np.abs(np.asarray(perception.pans_deg, dtype=np.float64))
+    return int(np.argmin(pans)) * len(perception.tilts_deg)
+
+
 def _undefined_note(truth: np.ndarray) -> str:
     """Why a mean may read n/a: a held-out scene whose segments carry no label at all."""
     if truth.any():
@@ -141,7 +147,7 @@ def demo(
     the new model (`BoostedLabelClassifier` on the features and the context descriptors,
     thresholds chosen on the training scenes) on the segments of scenes 1 to ``scenes - 1``
     and predicts the labels of the segments of scene 0, held out, in all its views. It writes
-    ``scanned_scene.png`` (the held-out scene's first view as the camera saw it, coloured by
+    ``scanned_scene.png`` (the held-out scene's centre view as the camera saw it, coloured by
     segment and by the logistic regressions' probability of three labels) and prints two
     lines: the segments found, and the held-out precision and recall of each model's
     decisions averaged over the labels, each with its 95 % interval over the scene's segments,
@@ -194,14 +200,16 @@ def demo(
     new_scores = _held_out_scores(
         held.labels, new.predict(np.hstack([held.features, held.context])), seed
     )
-    view = held.views[0]
+    shown = _centre_view(perception)
+    view = held.views[shown]
+    first = sum(v.n_segments for v in held.views[:shown])
     file = plot_scanned_scene(
         view.points,
         view.point_segments,
-        probabilities[: view.n_segments],
+        probabilities[first : first + view.n_segments],
         folder / "scanned_scene.png",
         viewpoint=view.viewpoint,
-        title=f"held-out office scene (seed {seed}): segments and predicted labels, first view",
+        title=f"held-out office scene (seed {seed}): segments and predicted labels, centre view",
     )
     summary: dict[str, Any] = {
         "scenes": len(scans),
