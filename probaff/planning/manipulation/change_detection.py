@@ -79,7 +79,10 @@ def detect_push(
     """
     still = as_bool_array("believed", believed).copy()
     check_shape("believed", still, (None, None))
-    rc = np.asarray(cell)
+    try:
+        rc = np.asarray(cell)
+    except (TypeError, ValueError):  # a ragged sequence
+        rc = np.zeros(0)
     if rc.shape != (2,) or not np.issubdtype(rc.dtype, np.integer):
         raise InputError(f"cell must be an integer (row, col) cell, got {cell!r}.")
     if not (0 <= rc[0] < still.shape[0] and 0 <= rc[1] < still.shape[1]):

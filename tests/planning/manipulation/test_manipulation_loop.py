@@ -68,6 +68,14 @@ def test_change_detection_agrees_with_physics(world, cell, direction):
     assert moved == truth and min(d_moved, d_still) < 0.05 < max(d_moved, d_still)
 
 
+@pytest.mark.parametrize("cell", [(1, (2, 3)), "ab", (1.5, 2), (1, 2, 3), None])
+def test_change_detection_names_a_malformed_cell(cell):
+    occupancy = np.zeros((7, 7), dtype=bool)
+    points = np.zeros((4, 3))
+    with pytest.raises(InputError, match=r"cell must be an integer \(row, col\) cell"):
+        detect_push(SPEC, occupancy, cell, 0, points, np.zeros(2))
+
+
 @pytest.mark.parametrize("cell, direction", [((3, 0), 2), ((3, 3), 3), ((5, 2), 0)])
 def test_camera_change_detection_agrees_with_physics(cell, direction):
     m = WarehouseMap.from_boxes((7, 7), BOXES)
