@@ -4,9 +4,40 @@ from __future__ import annotations
 
 import numpy as np
 
-from probaff._checks import check_count
+from probaff._checks import as_real_array, check_count, check_shape
+from probaff.errors import InputError
 
-__all__ = ["component_labels", "group_components"]
+__all__ = ["component_labels", "edge_array", "group_components"]
+
+
+def edge_array(name: str, edges: object, num_nodes: int) -> np.ndarray:
+    """Return `edges` as ``(E, 2)`` int64 node pairs in ``[0, num_nodes)``, or raise.
+
+    Args:
+        name: The argument's name, for the message.
+        edges: ``(E, 2)`` integer node indices (any array-like; an empty one is ``(0, 2)``).
+        num_nodes: Number of nodes ``N``.
+
+    Returns:
+        ``(E, 2)`` int64 array.
+
+    Raises:
+        InputError: For edges that are not integers (floats, bools, strings, ragged lists),
+            not ``(E, 2)``, or that name a node outside ``[0, N)``.
+    """
+    arr = as_real_array(name, edges)
+    if arr.size == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    check_shape(name, arr, (None, 2))
+    if arr.dtype.kind not in "iu":
+        raise InputError(f"{name} must hold integer node indices, got dtype {arr.dtype}.")
+    arr = arr.astype(np.int64, copy=False)
+    if int(arr.min()) < 0 or int(arr.max()) >= num_nodes:
+        raise InputError(
+            f"{name} reference nodes outside [0, {num_nodes}): range "
+            f"[{int(arr.min())}, {int(arr.max())}]."
+        )
+    return arr
 
 
 def component_labels(num_nodes: int, edges: np.ndarray) -> np.ndarray:
@@ -24,11 +55,12 @@ def component_labels(num_nodes: int, edges: np.ndarray) -> np.ndarray:
         ``(N,)`` int64 labels; two nodes share a label iff they are connected.
 
     Raises:
-        InputError: If `num_nodes` is not an integer >= 0.
+        InputError: If `num_nodes` is not an integer >= 0, or for `edges` that are not
+            ``(E, 2)`` integer indices in ``[0, N)``.
     """
     num_nodes = check_count("num_nodes", num_nodes, minimum=0)
     parent = np.arange(num_nodes, dtype=np.int64)
-    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    edges = edge_array("edges", edges, num_nodes)
     if edges.shape[0] == 0:
         return parent
     src, dst = edges[:, 0], edges[:, 1]
@@ -57,10 +89,16 @@ def group_components(labels: np.ndarray) -> list[np.ndarray]:
 
     Returns:
         One sorted ``(n_k,)`` int64 index array per component, ordered by smallest member.
+
+    Raises:
+        InputError: For labels that are not a 1-D array of integers.
     """
-    labels = np.asarray(labels, dtype=np.int64)
+    labels = as_real_array("labels", labels)
     if labels.size == 0:
         return []
+    check_shape("labels", labels, (None,))
+    if labels.dtype.kind not in "iu":
+        raise InputError(f"labels must be integer component labels, got dtype {labels.dtype}.")
     order = np.argsort(labels, kind="stable")
     sorted_labels = labels[order]
     starts = np.flatnonzero(np.r_[True, sorted_labels[1:] != sorted_labels[:-1]])

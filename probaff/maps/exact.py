@@ -20,6 +20,7 @@ import torch
 
 from probaff._checks import check_count
 from probaff.errors import InputError
+from probaff.maps.components import edge_array
 from probaff.maps.evidence import as_evidence
 from probaff.maps.graph import AffordanceGraph
 
@@ -53,12 +54,13 @@ def elimination_width(num_variables: int, edges: np.ndarray, *, limit: int | Non
         isolated variables, 1 for forests).
 
     Raises:
-        InputError: If `num_variables` or `limit` is not an integer >= 0.
+        InputError: If `num_variables` or `limit` is not an integer >= 0, or for `edges` that
+            are not ``(E, 2)`` integer indices in ``[0, n)``.
     """
     num_variables = check_count("num_variables", num_variables, minimum=0)
     if limit is not None:
         limit = check_count("limit", limit, minimum=0)
-    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    edges = edge_array("edges", edges, num_variables)
     if edges.shape[0] == 0:
         return 0
     adjacency: list[set[int]] = [set() for _ in range(num_variables)]

@@ -122,6 +122,35 @@ def test_component_labels_match_breadth_first_search():
     assert group_components(np.zeros(0, dtype=np.int64)) == []
 
 
+@pytest.mark.parametrize(
+    ("edges", "message"),
+    [
+        ([[0, 5]], r"edges reference nodes outside \[0, 3\): range \[0, 5\]"),
+        ([[-1, 0]], r"outside \[0, 3\)"),
+        ([[0.5, 1.0]], "edges must hold integer node indices, got dtype float64"),
+        ([[True, False]], "edges must hold integer node indices, got dtype bool"),
+        ([0, 1, 2], r"edges has shape \(3,\), expected \(\*, 2\)"),
+        ([[0, 1], [2]], "edges must be a numeric array"),
+        ("ab", "edges must be a numeric array"),
+    ],
+)
+def test_component_labels_and_elimination_width_name_bad_edges(edges, message):
+    from probaff.maps.exact import elimination_width
+
+    with pytest.raises(InputError, match=message):
+        component_labels(3, edges)
+    with pytest.raises(InputError, match=message):
+        elimination_width(3, edges)
+
+
+def test_group_components_takes_integer_labels():
+    with pytest.raises(InputError, match="labels must be integer component labels"):
+        group_components([0.5, 1.0])
+    with pytest.raises(InputError, match=r"labels has shape \(1, 2\)"):
+        group_components([[0, 1]])
+    assert [c.tolist() for c in group_components([0, 1, 0])] == [[0, 2], [1]]
+
+
 def test_empty_map_has_no_variables():
     g = _graph(np.zeros((3, 4)))
     assert g.num_variables == 0 and g.num_edges == 0 and g.components == ()
