@@ -13,7 +13,33 @@ import math
 
 import numpy as np
 
+from probaff._checks import as_float_vectors, check_number
+from probaff.errors import InputError
+
 __all__ = ["box_corners", "boxes_overlap", "chord_at"]
+
+
+def _poses(name: str, poses: object) -> np.ndarray:
+    """`poses` as finite ``(..., 3)`` float64 ``(x, y, theta)``, or raise naming `name`."""
+    return as_float_vectors(name, poses, 3, "world (x, y, theta) poses")
+
+
+def _extent(name: str, size: object, grow: float = 0.0) -> tuple[float, float]:
+    """`size` as two finite extents > 0 (m), each grown by ``2 grow``, or raise naming `name`."""
+    arr = as_float_vectors(name, size, 2, "extents (a, b) in metres")
+    if arr.shape != (2,) or not (arr > 0).all():
+        raise InputError(f"{name} must be two extents (a, b) > 0 (m), got {size!r:.80}.")
+    return float(arr[0]) + 2 * grow, float(arr[1]) + 2 * grow
+
+
+def _corners(poses: np.ndarray, extent: tuple[float, float]) -> np.ndarray:
+    """`box_corners` of checked ``(..., 3)`` poses and extent."""
+    hx, hy = 0.5 * extent[0], 0.5 * extent[1]
+    local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+    c, s = np.cos(poses[..., 2])[..., None], np.sin(poses[..., 2])[..., None]
+    x = poses[..., 0, None] + c * local[:, 0] - s * local[:, 1]
+    y = poses[..., 1, None] + s * local[:, 0] + c * local[:, 1]
+    return np.stack([x, y], axis=-1)
 
 
 def box_corners(poses: np.ndarray, size: tuple[float, float]) -> np.ndarray:
@@ -25,14 +51,12 @@ def box_corners(poses: np.ndarray, size: tuple[float, float]) -> np.ndarray:
 
     Returns:
         (..., 4, 2) world corners, counter-clockwise.
+
+    Raises:
+        InputError: For poses that are not finite ``(..., 3)`` numbers, or a `size` that is
+            not two extents > 0.
     """
-    poses = np.asarray(poses, dtype=float)
-    hx, hy = 0.5 * size[0], 0.5 * size[1]
-    local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
-    c, s = np.cos(poses[..., 2])[..., None], np.sin(poses[..., 2])[..., None]
-    x = poses[..., 0, None] + c * local[:, 0] - s * local[:, 1]
-    y = poses[..., 1, None] + s * local[:, 0] + c * local[:, 1]
-    return np.stack([x, y], axis=-1)
+    return _corners(_poses("poses", poses), _extent("size", size))
 
 
 def boxes_overlap(
@@ -53,13 +77,19 @@ def boxes_overlap(
 
     Returns:
         (...,) bool.
+
+    Raises:
+        InputError: For poses that are not finite ``(..., 3)`` numbers (`pose_b` one pose),
+            sizes that are not two extents > 0, or a `margin` that is not a finite number.
     """
-    ca = box_corners(poses_a, (size_a[0] + 2 * margin, size_a[1] + 2 * margin))
-    cb = box_corners(
-        np.asarray(pose_b, dtype=float), (size_b[0] + 2 * margin, size_b[1] + 2 * margin)
-    )
-    th_a = np.asarray(poses_a, dtype=float)[..., 2]
-    th_b = float(pose_b[2])
+    pa_, pb_ = _poses("poses_a", poses_a), _poses("pose_b", pose_b)
+    if pb_.shape != (3,):
+        raise InputError(f"pose_b must be one (x, y, theta) pose, got shape {pb_.shape}.")
+    grow = check_number("margin", margin, unit="m")
+    ca = _corners(pa_, _extent("size_a", size_a, grow))
+    cb = _corners(pb_, _extent("size_b", size_b, grow))
+    th_a = pa_[..., 2]
+    th_b = float(pb_[2])
     axes = [
         np.stack([np.cos(th_a), np.sin(th_a)], -1),
         np.stack([-np.sin(th_a), np.cos(th_a)], -1),
@@ -84,8 +114,12 @@ def chord_at(poses: np.ndarray, size: tuple[float, float], line_x: float) -> np.
 
     Returns:
         (...,) chord length (m); 0 where the line misses the footprint.
+
+    Raises:
+        InputError: As `box_corners`, or for a `line_x` that is not a finite number.
     """
     corners = box_corners(poses, size)
+    line_x = check_number("line_x", line_x, unit="m")
     a, b = corners, np.roll(corners, -1, axis=-2)  # the four edges a -> b
     dx = b[..., 0] - a[..., 0]
     crosses = (a[..., 0] - line_x) * (b[..., 0] - line_x) <= 0

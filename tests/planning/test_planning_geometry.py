@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from probaff.errors import InputError
 from probaff.planning.geometry import box_corners, boxes_overlap, chord_at
 
 
@@ -60,3 +61,22 @@ def test_corners_are_counter_clockwise_around_the_pose():
         edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1, 0)[:, 0]
     )
     assert (cross > 0).all()
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda: box_corners([[0.0, 0.0]], (0.1, 0.1)), r"poses must be \(\.\.\., 3\)"),
+        (lambda: box_corners([[0.0, 0.0, math.nan]], (0.1, 0.1)), "poses"),
+        (lambda: box_corners("abc", (0.1, 0.1)), "poses"),
+        (lambda: box_corners([0.0, 0.0, 0.0], (0.1, -0.1)), r"size must be two extents"),
+        (lambda: box_corners([0.0, 0.0, 0.0], (0.1,)), "size"),
+        (lambda: boxes_overlap(np.zeros(3), (0.1, 0.1), np.zeros((2, 3)), (0.1, 0.1)), "pose_b"),
+        (lambda: boxes_overlap(np.zeros(3), (0.1, 0.1), np.zeros(3), None), "size_b"),
+        (lambda: boxes_overlap(np.zeros(3), (0.1, 0.1), np.zeros(3), (0.1, 0.1), "0"), "margin"),
+        (lambda: chord_at(np.zeros(3), (0.1, 0.1), math.inf), "line_x"),
+    ],
+)
+def test_bad_poses_sizes_and_lines_are_named(call, message):
+    with pytest.raises(InputError, match=message):
+        call()
