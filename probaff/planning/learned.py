@@ -20,7 +20,13 @@ import numpy as np
 import torch
 from torch.distributions import Distribution
 
-from probaff._checks import check_count, check_finite, check_positive, check_shape
+from probaff._checks import (
+    as_float_array,
+    as_float_vectors,
+    check_count,
+    check_finite,
+    check_positive,
+)
 from probaff.data.queries import PushInputs
 from probaff.data.schema import PushDataset
 from probaff.errors import InputError
@@ -218,14 +224,13 @@ def apply_effects(poses: np.ndarray, effects: np.ndarray, push_yaw: np.ndarray) 
         (..., K, 3) world ``(x, y, theta)`` after.
 
     Raises:
-        InputError: For a last axis that is not 3 or a NaN.
+        InputError: For anything but finite numbers, or a last axis that is not 3.
     """
-    poses, effects = np.asarray(poses, dtype=float), np.asarray(effects, dtype=float)
-    check_shape("poses", poses, (*(None,) * (poses.ndim - 1), 3))
-    check_shape("effects", effects, (*(None,) * (effects.ndim - 1), 3))
-    for name, x in (("poses", poses), ("effects", effects), ("push_yaw", push_yaw)):
-        check_finite(name, x)
-    yaw = np.asarray(push_yaw, dtype=float)[..., None]
+    poses = as_float_vectors("poses", poses, 3, "world (x, y, theta) poses")
+    effects = as_float_vectors("effects", effects, 3, "push-frame (dy_p, dz_p, dtheta_p) effects")
+    yaw = as_float_array("push_yaw", push_yaw)
+    check_finite("push_yaw", yaw)
+    yaw = yaw[..., None]
     c, s = np.cos(yaw), np.sin(yaw)
     dy, dz, dth = effects[..., 0], effects[..., 1], effects[..., 2]
     out = np.empty(np.broadcast_shapes(poses.shape, effects.shape))

@@ -27,6 +27,22 @@ def test_apply_effects_inverts_the_pushing_frame_effect():
         assert np.allclose(apply_effects(before, eff, np.array(yaw)), after)
 
 
+@pytest.mark.parametrize(
+    ("poses", "effects", "yaw", "name"),
+    [
+        (np.zeros((2, 2)), np.zeros((2, 3)), 0.0, "poses"),
+        ("abc", np.zeros((2, 3)), 0.0, "poses"),
+        (np.zeros((2, 3)), [[0.0, 0.0, 0.0], [0.0]], 0.0, "effects"),
+        (np.zeros((2, 3)), np.full((2, 3), np.nan), 0.0, "effects"),
+        (np.zeros((2, 3)), np.zeros((2, 3)), None, "push_yaw"),
+        (np.zeros((2, 3)), np.zeros((2, 3)), np.inf, "push_yaw"),
+    ],
+)
+def test_apply_effects_names_bad_input(poses, effects, yaw, name):
+    with pytest.raises(InputError, match=name):
+        apply_effects(poses, effects, yaw)
+
+
 @pytest.fixture(scope="module")
 def gp(edge_data):
     return fit_edge_model("gp", edge_data, em=EMOptions(max_iter=1))
