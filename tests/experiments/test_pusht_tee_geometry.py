@@ -13,6 +13,7 @@ probaff.experiments.pusht.transitions.
 import numpy as np
 import pytest
 
+from probaff.errors import InputError
 from probaff.experiments.pusht.geometry import (
     COG,
     GYM_TEE,
@@ -24,7 +25,10 @@ from probaff.experiments.pusht.geometry import (
     cog_pose,
     contact_points,
     distance_to_tee,
+    keypoint_cost,
     origin_pose,
+    to_block,
+    to_world,
 )
 from probaff.experiments.pusht.models import QuasiStaticTee
 from probaff.experiments.pusht.primitives import PrimitiveSettings
@@ -96,3 +100,25 @@ def test_the_analytic_model_pushes_the_tee_of_the_batch():
     assert perceived.mean[0, 0, 1] < 256.0 - 20  # pushed up (towards smaller y) by the stem
     # the start of the push is on each T's own outline: the stem's foot is 4.3 px further out
     assert perceived.pusher[0, 1] - gym.pusher[0, 1] == pytest.approx(45 - tee.cog[1], abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda: cog_pose([[1.0, 2.0]]), r"origin must be \(\.\.\., 3\)"),
+        (lambda: origin_pose("abc"), "pose must be a numeric array"),
+        (lambda: to_world(np.zeros(3), np.zeros((4, 3))), r"points must be \(\.\.\., 2\)"),
+        (lambda: to_block(np.zeros((2, 3)), np.zeros((4, 2))), "pose must be one"),
+        (lambda: contact_points([[1.0, 2.0]]), r"s must be a \(K,\) array"),
+        (lambda: distance_to_tee([[0.0, 0.0], [1.0]]), "points must be a numeric array"),
+        (lambda: keypoint_cost(np.zeros(3), [1.0, 2.0]), r"goal must be \(\.\.\., 3\)"),
+    ],
+)
+def test_tee_functions_name_malformed_input(call, message):
+    with pytest.raises(InputError, match=message):
+        call()
+
+
+def test_an_unseen_pose_gives_nan_not_an_error():
+    assert np.isnan(cog_pose(np.full(3, np.nan))).all()
+    assert np.isnan(keypoint_cost(np.full((2, 3), np.nan), np.zeros(3))).all()

@@ -20,6 +20,10 @@ inertia. `GYM_TEE` is gym-pusht's, from its source (the constants above); `TeeGe
 .from_shape` builds one from an outline perceived in the images (`probaff.experiments.pusht
 .template.TeeShape`), of uniform density, since a camera sees no mass. The functions below
 take the T as their ``tee`` argument, `GYM_TEE` by default.
+
+Input. The functions take real numbers of the shapes their docstrings give and raise
+`InputError` naming the argument otherwise; NaN passes through, since a pose the camera did
+not see is NaN and its cost or distance is then NaN too.
 """
 
 from __future__ import annotations
@@ -29,6 +33,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
+from probaff._checks import as_float_array
+from probaff.errors import InputError
 
 __all__ = [
     "AGENT_RADIUS",
@@ -188,6 +195,31 @@ def _rot(theta: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
     return np.cos(theta), np.sin(theta)
 
 
+def _vectors(name: str, x: object, width: int, what: str) -> np.ndarray:
+    """`x` as ``(..., width)`` float64, or raise naming `name`; NaN passes (an unseen pose)."""
+    arr = as_float_array(name, x)
+    if arr.ndim == 0 or arr.shape[-1] != width:
+        raise InputError(f"{name} must be (..., {width}) {what}, got shape {arr.shape}.")
+    return arr
+
+
+def _poses(name: str, pose: object) -> np.ndarray:
+    """`pose` as ``(..., 3)`` float64 ``(x, y, angle)``, or raise naming `name`."""
+    return _vectors(name, pose, 3, "(x, y, angle) poses")
+
+
+def _points(name: str, points: object) -> np.ndarray:
+    """`points` as ``(..., 2)`` float64 points, or raise naming `name`."""
+    return _vectors(name, points, 2, "(x, y) points")
+
+
+def _to_world(pose: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """`to_world` of checked arrays."""
+    c, s = _rot(pose[..., 2:3])
+    px, py = points[..., 0], points[..., 1]
+    return np.stack([pose[..., 0:1] + c * px - s * py, pose[..., 1:2] + s * px + c * py], axis=-1)
+
+
 def cog_pose(origin: np.ndarray, tee: TeeGeometry = GYM_TEE) -> np.ndarray:
     """Centre-of-gravity poses from body-origin (T frame) poses.
 
@@ -197,8 +229,11 @@ def cog_pose(origin: np.ndarray, tee: TeeGeometry = GYM_TEE) -> np.ndarray:
 
     Returns:
         (..., 3) ``(x, y, angle)`` of the centre of gravity (the angle unchanged).
+
+    Raises:
+        InputError: For anything but ``(..., 3)`` numbers (NaN passes through).
     """
-    origin = np.asarray(origin, dtype=float)
+    origin = _poses("origin", origin)
     cog = tee.cog
     c, s = _rot(origin[..., 2])
     x = origin[..., 0] + c * cog[0] - s * cog[1]
@@ -215,8 +250,11 @@ def origin_pose(pose: np.ndarray, tee: TeeGeometry = GYM_TEE) -> np.ndarray:
 
     Returns:
         (..., 3) body-origin ``(x, y, angle)``.
+
+    Raises:
+        InputError: For anything but ``(..., 3)`` numbers (NaN passes through).
     """
-    pose = np.asarray(pose, dtype=float)
+    pose = _poses("pose", pose)
     cog = tee.cog
     c, s = _rot(pose[..., 2])
     x = pose[..., 0] - (c * cog[0] - s * cog[1])
@@ -233,11 +271,12 @@ def to_world(pose: np.ndarray, points: np.ndarray) -> np.ndarray:
 
     Returns:
         (..., P, 2) world points.
+
+    Raises:
+        InputError: For a `pose` or `points` that are not ``(..., 3)`` or ``(..., 2)``
+            numbers.
     """
-    pose = np.asarray(pose, dtype=float)
-    c, s = _rot(pose[..., 2:3])
-    px, py = points[..., 0], points[..., 1]
-    return np.stack([pose[..., 0:1] + c * px - s * py, pose[..., 1:2] + s * px + c * py], axis=-1)
+    return _to_world(_poses("pose", pose), _points("points", points))
 
 
 def to_block(pose: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -249,9 +288,16 @@ def to_block(pose: np.ndarray, points: np.ndarray) -> np.ndarray:
 
     Returns:
         (P, 2) block-frame points.
+
+    Raises:
+        InputError: For a `pose` that is not one ``(x, y, angle)``, or `points` that are not
+            ``(..., 2)`` numbers.
     """
+    pose = _poses("pose", pose).reshape(-1)
+    if pose.shape != (3,):
+        raise InputError(f"pose must be one (x, y, angle) pose, got {pose.size // 3} poses.")
     c, s = math.cos(pose[2]), math.sin(pose[2])
-    d = np.asarray(points, dtype=float) - pose[:2]
+    d = _points("points", points) - pose[:2]
     return np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]], axis=-1)
 
 
@@ -265,9 +311,15 @@ def contact_points(s: np.ndarray, tee: TeeGeometry = GYM_TEE) -> tuple[np.ndarra
 
     Returns:
         ``(points, normals)``: (K, 2) block-frame points and (K, 2) unit outward normals.
+
+    Raises:
+        InputError: For `s` that is not a (K,) array of numbers.
     """
     starts, lengths, edges = tee._starts, tee._lengths, tee._edges
-    s = np.mod(np.asarray(s, dtype=float), tee.perimeter)
+    arc = as_float_array("s", s)
+    if arc.ndim != 1:
+        raise InputError(f"s must be a (K,) array of arc lengths, got shape {arc.shape}.")
+    s = np.mod(arc, tee.perimeter)
     edge = np.clip(np.searchsorted(starts, s, side="right") - 1, 0, len(starts) - 1)
     t = (s - starts[edge]) / lengths[edge]
     points = tee.outline[edge] + t[:, None] * edges[edge]
@@ -288,8 +340,11 @@ def distance_to_tee(
     Returns:
         ``(distance, nearest)``: (...) distances (0 inside the T) and (..., 2) nearest points
         of the T.
+
+    Raises:
+        InputError: For anything but ``(..., 2)`` numbers.
     """
-    p = np.asarray(points, dtype=float)
+    p = _points("points", points)
     best_d = np.full(p.shape[:-1], np.inf)
     best_q = np.zeros_like(p)
     for x0, y0, x1, y1 in tee.rects:
@@ -311,9 +366,12 @@ def keypoint_cost(pose: np.ndarray, goal: np.ndarray, tee: TeeGeometry = GYM_TEE
 
     Returns:
         (...) mean vertex distances; 0 at the goal.
+
+    Raises:
+        InputError: For a `pose` or `goal` that is not ``(..., 3)`` numbers.
     """
-    pose = np.asarray(pose, dtype=float)
+    pose = _poses("pose", pose)
     keys = tee.outline
-    at = to_world(pose, np.broadcast_to(keys, (*pose.shape[:-1], *keys.shape)))
-    target = to_world(np.asarray(goal, dtype=float), keys)
+    at = _to_world(pose, np.broadcast_to(keys, (*pose.shape[:-1], *keys.shape)))
+    target = _to_world(_poses("goal", goal), keys)
     return np.linalg.norm(at - target, axis=-1).mean(axis=-1)
