@@ -13,6 +13,7 @@ from probaff.models.transitions.stepped_transition import (
     SteppedModelOptions,
     SteppedPushModel,
     SteppedScenes,
+    lift,
     rollout,
 )
 
@@ -131,3 +132,15 @@ def test_fitted_components_roll_out(rng):
         SteppedModelOptions(gp=GPOptions(noise_floor=[0.1, 0.2]))
     with pytest.raises(TypeError, match="gp_max_iter"):
         SteppedModelOptions(gp_max_iter=2)  # type: ignore[call-arg]
+
+
+def test_lift_frames_a_planar_pose_at_half_the_height_and_names_bad_input():
+    T = lift(np.array([[1.0, 2.0, np.pi / 2]]), 0.4)
+    np.testing.assert_allclose(T[0, :3, 3], [1.0, 2.0, 0.2])
+    np.testing.assert_allclose(T[0, :2, :2], [[0.0, -1.0], [1.0, 0.0]], atol=1e-12)
+    with pytest.raises(InputError, match=r"pose must be \(n, 3\)"):
+        lift(np.zeros(3), 0.1)
+    with pytest.raises(InputError, match=r"height must be a number or \(2,\) numbers"):
+        lift(np.zeros((2, 3)), [0.1, 0.2, 0.3])
+    with pytest.raises(InputError, match="pose must be a numeric array"):
+        lift("abc", 0.1)

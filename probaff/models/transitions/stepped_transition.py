@@ -36,7 +36,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import torch
 
-from probaff._checks import check_count, check_positive
+from probaff._checks import as_float_array, check_count, check_positive
 from probaff.errors import InputError
 from probaff.models.options import EMOptions, GPOptions
 from probaff.models.transitions.chain import _overlapping_pairs, planar_poses, wrap_angle
@@ -71,14 +71,23 @@ def lift(pose: np.ndarray, height: np.ndarray | float) -> np.ndarray:
 
     A box of height h resting on the table has its centre at h / 2; the hand's frame at
     push height p is lifted with ``height = 2 p``.
+
+    Raises:
+        InputError: For a `pose` that is not ``(n, 3)`` numbers, or a `height` that is not a
+            number or ``(n,)`` numbers.
     """
-    p = np.asarray(pose, dtype=np.float64)
+    p = as_float_array("pose", pose)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise InputError(f"pose must be (n, 3) planar poses (x, y, yaw), got shape {p.shape}.")
+    h = as_float_array("height", height)
+    if h.shape not in ((), (len(p),)):
+        raise InputError(f"height must be a number or ({len(p)},) numbers, got shape {h.shape}.")
     c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
     T = np.zeros((len(p), 4, 4))
     T[:, 0, 0], T[:, 0, 1], T[:, 1, 0], T[:, 1, 1] = c, -s, s, c
     T[:, 2, 2] = T[:, 3, 3] = 1.0
     T[:, 0, 3], T[:, 1, 3] = p[:, 0], p[:, 1]
-    T[:, 2, 3] = 0.5 * np.broadcast_to(np.asarray(height, dtype=np.float64), (len(p),))
+    T[:, 2, 3] = 0.5 * h
     return T
 
 
