@@ -170,23 +170,28 @@ def as_real_tensor(name: str, x: Any) -> torch.Tensor:
     return torch.as_tensor(arr)
 
 
-def as_float_vectors(name: str, x: Any, width: int, what: str) -> np.ndarray:
-    """Return `x` as finite float64 vectors of `width` numbers, `(..., width)`.
+def as_float_vectors(
+    name: str, x: Any, width: int, what: str, *, finite: bool = True
+) -> np.ndarray:
+    """Return `x` as float64 vectors of `width` numbers, `(..., width)`, finite by default.
 
     Args:
         name: What `x` is, as the user knows it (e.g. ``"poses"``).
         x: Array-like or tensor, `(..., width)`.
         width: The length of the last axis.
         what: What the vectors are, for the message (e.g. ``"pairs of numbers"``).
+        finite: Refuse NaN and infinite values; False lets them through (where NaN means
+            "not seen" and propagates).
 
     Raises:
         InputError: Naming `name`, for anything but real numbers with a last axis of `width`,
-            or NaN or infinite values.
+            or (with `finite`) NaN or infinite values.
     """
     arr = real_float64(x)
     if arr is None or arr.ndim == 0 or arr.shape[-1] != width:
         raise InputError(f"{name} must be (..., {width}) {what}, got {x!r:.80}.")
-    check_finite(name, arr)
+    if finite:
+        check_finite(name, arr)
     return arr
 
 

@@ -106,11 +106,11 @@ def test_the_analytic_model_pushes_the_tee_of_the_batch():
     ("call", "message"),
     [
         (lambda: cog_pose([[1.0, 2.0]]), r"origin must be \(\.\.\., 3\)"),
-        (lambda: origin_pose("abc"), "pose must be a numeric array"),
+        (lambda: origin_pose("abc"), r"pose must be \(\.\.\., 3\) \(x, y, angle\) poses"),
         (lambda: to_world(np.zeros(3), np.zeros((4, 3))), r"points must be \(\.\.\., 2\)"),
         (lambda: to_block(np.zeros((2, 3)), np.zeros((4, 2))), "pose must be one"),
         (lambda: contact_points([[1.0, 2.0]]), r"s must be a \(K,\) array"),
-        (lambda: distance_to_tee([[0.0, 0.0], [1.0]]), "points must be a numeric array"),
+        (lambda: distance_to_tee([[0.0, 0.0], [1.0]]), r"points must be \(\.\.\., 2\)"),
         (lambda: keypoint_cost(np.zeros(3), [1.0, 2.0]), r"goal must be \(\.\.\., 3\)"),
     ],
 )

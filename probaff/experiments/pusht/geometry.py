@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from probaff._checks import as_float_array
+from probaff._checks import as_float_array, as_float_vectors
 from probaff.errors import InputError
 
 __all__ = [
@@ -195,22 +195,14 @@ def _rot(theta: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
     return np.cos(theta), np.sin(theta)
 
 
-def _vectors(name: str, x: object, width: int, what: str) -> np.ndarray:
-    """`x` as ``(..., width)`` float64, or raise naming `name`; NaN passes (an unseen pose)."""
-    arr = as_float_array(name, x)
-    if arr.ndim == 0 or arr.shape[-1] != width:
-        raise InputError(f"{name} must be (..., {width}) {what}, got shape {arr.shape}.")
-    return arr
-
-
 def _poses(name: str, pose: object) -> np.ndarray:
     """`pose` as ``(..., 3)`` float64 ``(x, y, angle)``, or raise naming `name`."""
-    return _vectors(name, pose, 3, "(x, y, angle) poses")
+    return as_float_vectors(name, pose, 3, "(x, y, angle) poses", finite=False)
 
 
 def _points(name: str, points: object) -> np.ndarray:
     """`points` as ``(..., 2)`` float64 points, or raise naming `name`."""
-    return _vectors(name, points, 2, "(x, y) points")
+    return as_float_vectors(name, points, 2, "(x, y) points", finite=False)
 
 
 def _to_world(pose: np.ndarray, points: np.ndarray) -> np.ndarray:
