@@ -24,6 +24,7 @@ from probaff.maps._kernels import (
     ising_messages_,
     marginals_from_fields,
 )
+from probaff.maps.components import edge_array
 from probaff.maps.evidence import as_evidence
 from probaff.maps.options import (
     DEFAULT_DAMPING,
@@ -95,18 +96,7 @@ def ising_form(
             f"{torch.nonzero(impossible).reshape(-1)[:5].tolist()}; the model is infeasible."
         )
     num_variables = unary.shape[0]
-    edge_t = as_real_tensor("edges", edges)
-    if edge_t.numel() == 0:
-        edge_t = edge_t.reshape(0, 2)
-    check_shape("edges", edge_t, (None, 2))
-    if edge_t.is_floating_point() or edge_t.dtype == torch.bool:
-        raise InputError(f"edges must hold integer variable indices, got dtype {edge_t.dtype}.")
-    edge_t = edge_t.to(torch.int64)
-    if edge_t.numel() and (int(edge_t.min()) < 0 or int(edge_t.max()) >= num_variables):
-        raise InputError(
-            f"edges reference variables outside [0, {num_variables}): range "
-            f"[{int(edge_t.min())}, {int(edge_t.max())}]."
-        )
+    edge_t = torch.as_tensor(edge_array("edges", edges, num_variables), device=unary.device)
     if bool((edge_t[:, 0] == edge_t[:, 1]).any()):
         raise InputError("edges contain self-loops (a, a); pairwise factors need two variables.")
     pair = as_real_tensor("pairwise_log", pairwise_log).to(torch.float64)
